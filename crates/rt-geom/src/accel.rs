@@ -1,0 +1,169 @@
+//! The one query interface every acceleration structure implements, its statistics, and the
+//! errors builders return.
+
+use crate::{Hit, Primitive, Ray};
+use std::fmt;
+
+/// An acceleration structure: the two questions every renderer asks about a ray.
+///
+/// Everything downstream (shading, packets, benches, cross-checks, the ray-file tool) is written
+/// once against this trait.
+pub trait Accel: Send + Sync {
+    /// Closest hit with `t` in `[ray.tmin, ray.tmax]`, or `None`. `Hit::prim` is the index of the
+    /// primitive in the slice the structure was built from. Invalid rays (see [`Ray::is_valid`])
+    /// miss.
+    fn intersect(&self, ray: &Ray) -> Option<Hit>;
+
+    /// True if anything is hit with `t` in `[ray.tmin, ray.tmax]` (shadow rays; may stop early).
+    fn occluded(&self, ray: &Ray) -> bool;
+
+    /// Node/leaf counts, depth, bytes, primitives per leaf, SAH cost where it applies.
+    fn stats(&self) -> AccelStats;
+
+    /// Checks the structure's invariants (every primitive reachable, bounds contain what they
+    /// bound, indices in range); the conformance suite calls it after every build.
+    fn validate(&self) -> Result<(), String>;
+}
+
+impl<A: Accel + ?Sized> Accel for Box<A> {
+    #[inline]
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        (**self).intersect(ray)
+    }
+    #[inline]
+    fn occluded(&self, ray: &Ray) -> bool {
+        (**self).occluded(ray)
+    }
+    fn stats(&self) -> AccelStats {
+        (**self).stats()
+    }
+    fn validate(&self) -> Result<(), String> {
+        (**self).validate()
+    }
+}
+
+/// What a structure reports about itself.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AccelStats {
+    /// Primitives the structure was built from.
+    pub primitives: usize,
+    /// All nodes, inner and leaf (cells for grids).
+    pub nodes: usize,
+    /// Leaves (non-empty cells for grids).
+    pub leaves: usize,
+    /// Primitive references stored in leaves (more than `primitives` when a primitive is
+    /// referenced from several leaves, as in kd-trees, grids and spatial-split BVHs).
+    pub references: usize,
+    /// Longest root-to-leaf path (0 for a single leaf).
+    pub max_depth: usize,
+    /// Memory held by nodes, indices and primitive data.
+    pub bytes: usize,
+    /// Surface area heuristic cost normalised by the root's area, where it applies.
+    pub sah_cost: Option<f32>,
+}
+
+impl AccelStats {
+    /// `references / leaves` (0 without leaves).
+    pub fn mean_prims_per_leaf(&self) -> f32 {
+        if self.leaves == 0 {
+            0.0
+        } else {
+            self.references as f32 / self.leaves as f32
+        }
+    }
+
+    /// Checks that the numbers agree with each other; `Err` says which do not.
+    pub fn check_consistency(&self) -> Result<(), String> {
+        if self.leaves > self.nodes.max(1) {
+            return Err(format!("{} leaves but {} nodes", self.leaves, self.nodes));
+        }
+        if self.primitives > 0 && self.bytes == 0 {
+            return Err("primitives but zero bytes".into());
+        }
+        if self.primitives > 0 && self.leaves == 0 {
+            return Err("primitives but no leaf".into());
+        }
+        if self.references > 0 && self.leaves == 0 {
+            return Err("references but no leaf".into());
+        }
+        if let Some(c) = self.sah_cost {
+            if !(c.is_finite() && c >= 0.0) {
+                return Err(format!("SAH cost {c}"));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl fmt::Display for AccelStats {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "prims={} nodes={} leaves={} refs={} depth={} bytes={} ({:.1} B/prim) prims/leaf={:.2}",
+            self.primitives,
+            self.nodes,
+            self.leaves,
+            self.references,
+            self.max_depth,
+            self.bytes,
+            self.bytes as f64 / self.primitives.max(1) as f64,
+            self.mean_prims_per_leaf(),
+        )?;
+        if let Some(c) = self.sah_cost {
+            write!(f, " sah={c:.2}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Why a structure could not be built.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BuildError {
+    /// A primitive has a NaN or infinite coordinate.
+    NonFinite { prim: usize },
+    /// More primitives than the structure's index type holds.
+    TooManyPrimitives { count: usize, max: usize },
+    /// A build parameter is out of its range.
+    InvalidParameter {
+        name: &'static str,
+        value: String,
+        expected: &'static str,
+    },
+}
+
+impl fmt::Display for BuildError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BuildError::NonFinite { prim } => {
+                write!(f, "primitive {prim} has a NaN or infinite coordinate")
+            }
+            BuildError::TooManyPrimitives { count, max } => {
+                write!(
+                    f,
+                    "{count} primitives, more than the {max} this structure can index"
+                )
+            }
+            BuildError::InvalidParameter {
+                name,
+                value,
+                expected,
+            } => write!(f, "parameter {name} = {value}: expected {expected}"),
+        }
+    }
+}
+
+impl std::error::Error for BuildError {}
+
+/// The input checks every builder starts with: all primitives finite and at most `max_count`.
+pub fn check_primitives<P: Primitive>(prims: &[P], max_count: usize) -> Result<(), BuildError> {
+    if prims.len() > max_count {
+        return Err(BuildError::TooManyPrimitives {
+            count: prims.len(),
+            max: max_count,
+        });
+    }
+    match prims.iter().position(|p| !p.is_finite()) {
+        Some(prim) => Err(BuildError::NonFinite { prim }),
+        None => Ok(()),
+    }
+}

@@ -1,0 +1,49 @@
+//! # rt-geom: the geometry every rt crate shares
+//!
+//! Rays, boxes, triangles, spheres, bounding volumes, watertight ray/primitive kernels, meshes
+//! from OBJ, the one [`Accel`] trait and [`BruteForce`], the baseline every structure is checked
+//! against.
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`ray`] | [`Ray`] (with cached reciprocal direction and watertight shear), [`Hit`], [`PrimHit`] |
+//! | [`aabb`] | [`Aabb`] and its robust slab test ([`Aabb::clip_ray`], Ize 2013) |
+//! | [`triangle`] | [`Triangle`]: watertight test (Woop, Benthin & Wald 2013), Möller–Trumbore, clipping |
+//! | [`sphere`] | [`Sphere`], solved in the stable form of Ray Tracing Gems ch. 7 |
+//! | [`volume`] | [`BoundingVolume`]: [`BoundingSphere`], [`Aabb`], [`Kdop7`] (Kay & Kajiya 1986) |
+//! | [`primitive`] | [`Primitive`]: what structures need of their elements |
+//! | [`accel`] | [`Accel`], [`AccelStats`], [`BuildError`] |
+//! | [`brute`] | [`BruteForce`] |
+//! | [`mesh`] | [`Mesh`], [`load_obj`] (through tobj), [`MeshError`] |
+//!
+//! ```
+//! use rt_geom::{Accel, BruteForce, Ray, Triangle, Vec3};
+//!
+//! let tris = [Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y)];
+//! let scene = BruteForce::build(&tris).expect("finite input");
+//! let ray = Ray::new(Vec3::new(0.2, 0.2, 1.0), Vec3::new(0.0, 0.0, -1.0));
+//! let hit = scene.intersect(&ray).expect("the ray hits the triangle");
+//! assert_eq!((hit.t, hit.prim), (1.0, 0));
+//! assert!(scene.occluded(&ray));
+//! ```
+
+pub mod aabb;
+pub mod accel;
+pub mod brute;
+pub mod mesh;
+pub mod primitive;
+pub mod ray;
+pub mod sphere;
+pub mod triangle;
+pub mod volume;
+
+pub use aabb::Aabb;
+pub use accel::{Accel, AccelStats, BuildError, check_primitives};
+pub use brute::BruteForce;
+pub use glam::{self, Vec3};
+pub use mesh::{Mesh, MeshError, MeshGroup, load_obj, parse_obj};
+pub use primitive::Primitive;
+pub use ray::{Hit, PrimHit, Ray};
+pub use sphere::Sphere;
+pub use triangle::{Triangle, TriangleKernel};
+pub use volume::{BoundingSphere, BoundingVolume, KDOP7_NORMALS, Kdop7};

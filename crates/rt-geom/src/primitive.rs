@@ -1,0 +1,99 @@
+//! The `Primitive` trait: what every acceleration structure needs to know about its elements.
+
+use crate::{Aabb, PrimHit, Ray, Sphere, Triangle};
+use glam::Vec3;
+
+/// Something a ray can hit. Structures are generic over it; triangles and spheres implement it.
+pub trait Primitive: Clone + Send + Sync + 'static {
+    /// Tight axis-aligned bounds.
+    fn bounds(&self) -> Aabb;
+
+    /// The point builders sort by.
+    fn centroid(&self) -> Vec3;
+
+    /// Nearest hit with `t` in `[ray.tmin, ray.tmax]`.
+    fn intersect(&self, ray: &Ray) -> Option<PrimHit>;
+
+    /// Bounds of the part of the primitive inside `clip` (empty if none). May be larger than the
+    /// exact answer, never smaller: kd-trees with perfect splits rely on it.
+    fn clipped_bounds(&self, clip: &Aabb) -> Aabb;
+
+    /// `(min, max)` of `n . p` over the points `p` of the primitive: the slab the primitive
+    /// occupies along `n` (k-DOPs are built from it).
+    fn extent_along(&self, n: Vec3) -> (f32, f32);
+
+    /// The largest distance from `p` to a point of the primitive (bounding spheres).
+    fn farthest_distance(&self, p: Vec3) -> f32;
+
+    /// All coordinates finite (builders reject the rest with `BuildError::NonFinite`).
+    fn is_finite(&self) -> bool;
+}
+
+impl Primitive for Triangle {
+    #[inline]
+    fn bounds(&self) -> Aabb {
+        Triangle::bounds(self)
+    }
+
+    #[inline]
+    fn centroid(&self) -> Vec3 {
+        Triangle::centroid(self)
+    }
+
+    #[inline]
+    fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
+        self.intersect_watertight(ray)
+    }
+
+    fn clipped_bounds(&self, clip: &Aabb) -> Aabb {
+        Triangle::clipped_bounds(self, clip)
+    }
+
+    fn extent_along(&self, n: Vec3) -> (f32, f32) {
+        let d = self.v.map(|p| p.dot(n));
+        (d[0].min(d[1]).min(d[2]), d[0].max(d[1]).max(d[2]))
+    }
+
+    fn farthest_distance(&self, p: Vec3) -> f32 {
+        self.v.iter().map(|v| v.distance(p)).fold(0.0, f32::max)
+    }
+
+    fn is_finite(&self) -> bool {
+        self.v.iter().all(|p| p.is_finite())
+    }
+}
+
+impl Primitive for Sphere {
+    #[inline]
+    fn bounds(&self) -> Aabb {
+        Sphere::bounds(self)
+    }
+
+    #[inline]
+    fn centroid(&self) -> Vec3 {
+        self.center
+    }
+
+    #[inline]
+    fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
+        Sphere::intersect(self, ray)
+    }
+
+    fn clipped_bounds(&self, clip: &Aabb) -> Aabb {
+        self.bounds().intersection(*clip)
+    }
+
+    fn extent_along(&self, n: Vec3) -> (f32, f32) {
+        let c = self.center.dot(n);
+        let r = self.radius.max(0.0) * n.length();
+        (c - r, c + r)
+    }
+
+    fn farthest_distance(&self, p: Vec3) -> f32 {
+        self.center.distance(p) + self.radius.max(0.0)
+    }
+
+    fn is_finite(&self) -> bool {
+        self.center.is_finite() && self.radius.is_finite()
+    }
+}

@@ -1,0 +1,187 @@
+//! Rays and hit records.
+
+use glam::Vec3;
+
+/// A ray `origin + t * dir` restricted to `t` in `[tmin, tmax]`.
+///
+/// The direction is not normalised: `t` is measured in units of `dir`'s length. A ray caches what
+/// the kernels need per ray (the reciprocal direction for slab tests, the axis permutation and
+/// shear of the watertight triangle test), so `origin` and `dir` are read-only after
+/// construction; `tmin` and `tmax` may be changed freely.
+///
+/// A ray whose origin or direction is not finite, or whose direction is zero, is *invalid*: every
+/// kernel and every [`Accel`](crate::Accel) reports it as a miss (and never produces a NaN hit).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    origin: Vec3,
+    dir: Vec3,
+    /// Start of the valid interval (inclusive).
+    pub tmin: f32,
+    /// End of the valid interval (inclusive); may be `f32::INFINITY`.
+    pub tmax: f32,
+    inv_dir: Vec3,
+    /// Watertight test: shear constants `(dir[kx]/dir[kz], dir[ky]/dir[kz], 1/dir[kz])`.
+    shear: Vec3,
+    /// Watertight test: `kz` is the dominant axis of `dir`; `kx`, `ky` follow it (swapped when
+    /// `dir[kz] < 0`, which keeps the winding of the projected triangle).
+    axes: [u8; 3],
+    valid: bool,
+}
+
+impl Ray {
+    /// A ray over `[0, +inf]`.
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        Self::segment(origin, dir, 0.0, f32::INFINITY)
+    }
+
+    /// A ray over `[tmin, tmax]`.
+    pub fn segment(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Self {
+        let valid = origin.is_finite() && dir.is_finite() && dir != Vec3::ZERO;
+        // 1/0 = +-inf is what the slab test wants (see `Aabb::clip_ray`); no clamping.
+        let inv_dir = Vec3::ONE / dir;
+        let abs = dir.abs();
+        let kz = if abs.x >= abs.y && abs.x >= abs.z {
+            0
+        } else if abs.y >= abs.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        if dir[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let shear = if valid {
+            Vec3::new(dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz])
+        } else {
+            Vec3::ZERO
+        };
+        Self {
+            origin,
+            dir,
+            tmin,
+            tmax,
+            inv_dir,
+            shear,
+            axes: [kx as u8, ky as u8, kz as u8],
+            valid,
+        }
+    }
+
+    /// The same ray over another interval.
+    #[inline]
+    pub fn with_range(mut self, tmin: f32, tmax: f32) -> Self {
+        self.tmin = tmin;
+        self.tmax = tmax;
+        self
+    }
+
+    #[inline]
+    pub fn origin(&self) -> Vec3 {
+        self.origin
+    }
+
+    #[inline]
+    pub fn dir(&self) -> Vec3 {
+        self.dir
+    }
+
+    /// `1 / dir` per component; `+-inf` for zero components (sign of the zero).
+    #[inline]
+    pub fn inv_dir(&self) -> Vec3 {
+        self.inv_dir
+    }
+
+    /// Finite origin, finite non-zero direction and an interval that is not NaN.
+    #[inline]
+    pub fn is_valid(&self) -> bool {
+        self.valid && !self.tmin.is_nan() && !self.tmax.is_nan()
+    }
+
+    /// The point at parameter `t`.
+    #[inline]
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + self.dir * t
+    }
+
+    /// `[kx, ky, kz]` of the watertight test.
+    #[inline]
+    pub fn watertight_axes(&self) -> [usize; 3] {
+        [
+            self.axes[0] as usize,
+            self.axes[1] as usize,
+            self.axes[2] as usize,
+        ]
+    }
+
+    /// `(Sx, Sy, Sz)` of the watertight test.
+    #[inline]
+    pub fn watertight_shear(&self) -> Vec3 {
+        self.shear
+    }
+
+    /// Whether `t` lies in `[tmin, tmax]`.
+    #[inline]
+    pub fn in_range(&self, t: f32) -> bool {
+        t >= self.tmin && t <= self.tmax
+    }
+}
+
+/// What a primitive's kernel reports: distance and surface coordinates.
+///
+/// For triangles `(u, v)` are barycentric: the hit point is `(1-u-v)*v0 + u*v1 + v*v2`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PrimHit {
+    pub t: f32,
+    pub u: f32,
+    pub v: f32,
+}
+
+/// The closest hit of a ray in a scene: [`PrimHit`] plus the index of the primitive in the slice
+/// the structure was built from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub t: f32,
+    pub u: f32,
+    pub v: f32,
+    pub prim: u32,
+}
+
+impl Hit {
+    #[inline]
+    pub fn new(h: PrimHit, prim: u32) -> Self {
+        Self {
+            t: h.t,
+            u: h.u,
+            v: h.v,
+            prim,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn invalid_rays_are_flagged() {
+        assert!(Ray::new(Vec3::ZERO, Vec3::X).is_valid());
+        assert!(!Ray::new(Vec3::ZERO, Vec3::ZERO).is_valid());
+        assert!(!Ray::new(Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 1.0)).is_valid());
+        assert!(!Ray::new(Vec3::new(f32::INFINITY, 0.0, 0.0), Vec3::X).is_valid());
+        assert!(!Ray::segment(Vec3::ZERO, Vec3::X, f32::NAN, 1.0).is_valid());
+    }
+
+    #[test]
+    fn watertight_axes_follow_dominant_component() {
+        let r = Ray::new(Vec3::ZERO, Vec3::new(0.1, -3.0, 0.5));
+        let [kx, ky, kz] = r.watertight_axes();
+        assert_eq!(kz, 1);
+        // dir[kz] < 0: kx and ky swapped.
+        assert_eq!((kx, ky), (0, 2));
+        assert_eq!(r.inv_dir().y, 1.0 / -3.0);
+        let axis = Ray::new(Vec3::ZERO, Vec3::new(0.0, 0.0, -1.0));
+        assert_eq!(axis.inv_dir().x, f32::INFINITY);
+    }
+}

@@ -1,0 +1,341 @@
+//! Triangles: the watertight ray/triangle test (reference kernel), Möller–Trumbore (option),
+//! and clipping to a box (for perfect kd-tree splits).
+
+use crate::{Aabb, PrimHit, Ray};
+use glam::{DVec3, Vec3};
+
+/// A triangle given by its three vertices.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Triangle {
+    pub v: [Vec3; 3],
+}
+
+/// Which ray/triangle kernel to run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum TriangleKernel {
+    /// Woop, Benthin & Wald, "Watertight Ray/Triangle Intersection", JCGT 2013. No ray passes
+    /// through a shared edge or vertex of a closed mesh; no epsilon.
+    #[default]
+    Watertight,
+    /// Möller & Trumbore 1997: fast, not watertight (rays can slip through shared edges).
+    MollerTrumbore,
+}
+
+impl Triangle {
+    #[inline]
+    pub const fn new(v0: Vec3, v1: Vec3, v2: Vec3) -> Self {
+        Self { v: [v0, v1, v2] }
+    }
+
+    /// `(v1 - v0) x (v2 - v0)`: twice the area, along the geometric normal.
+    #[inline]
+    pub fn cross(&self) -> Vec3 {
+        (self.v[1] - self.v[0]).cross(self.v[2] - self.v[0])
+    }
+
+    /// Unit geometric normal (zero for a zero-area triangle).
+    #[inline]
+    pub fn normal(&self) -> Vec3 {
+        self.cross().normalize_or_zero()
+    }
+
+    #[inline]
+    pub fn area(&self) -> f32 {
+        0.5 * self.cross().length()
+    }
+
+    /// Zero area as computed in `f32`: such triangles are kept but never hit.
+    #[inline]
+    pub fn is_degenerate(&self) -> bool {
+        self.cross() == Vec3::ZERO
+    }
+
+    #[inline]
+    pub fn bounds(&self) -> Aabb {
+        Aabb::new(
+            self.v[0].min(self.v[1]).min(self.v[2]),
+            self.v[0].max(self.v[1]).max(self.v[2]),
+        )
+    }
+
+    #[inline]
+    pub fn centroid(&self) -> Vec3 {
+        (self.v[0] + self.v[1] + self.v[2]) * (1.0 / 3.0)
+    }
+
+    #[inline]
+    pub fn point(&self, u: f32, v: f32) -> Vec3 {
+        self.v[0] * (1.0 - u - v) + self.v[1] * u + self.v[2] * v
+    }
+
+    #[inline]
+    pub fn intersect_with(&self, ray: &Ray, kernel: TriangleKernel) -> Option<PrimHit> {
+        match kernel {
+            TriangleKernel::Watertight => self.intersect_watertight(ray),
+            TriangleKernel::MollerTrumbore => self.intersect_moller_trumbore(ray),
+        }
+    }
+
+    /// The watertight test of Woop, Benthin & Wald (JCGT 2013), the reference kernel.
+    ///
+    /// The triangle is translated to the ray origin, sheared so that the ray runs along +z, and
+    /// the 2D edge functions `U, V, W` decide the hit; a zero edge function is recomputed in
+    /// `f64`, so hits on shared edges are decided the same way for both triangles. Hits exactly
+    /// on an edge or vertex count. Zero-area triangles never hit.
+    #[inline]
+    pub fn intersect_watertight(&self, ray: &Ray) -> Option<PrimHit> {
+        if !ray.is_valid() {
+            return None;
+        }
+        let [kx, ky, kz] = ray.watertight_axes();
+        let s = ray.watertight_shear();
+        let o = ray.origin();
+        let a = self.v[0] - o;
+        let b = self.v[1] - o;
+        let c = self.v[2] - o;
+        let ax = a[kx] - s.x * a[kz];
+        let ay = a[ky] - s.y * a[kz];
+        let bx = b[kx] - s.x * b[kz];
+        let by = b[ky] - s.y * b[kz];
+        let cx = c[kx] - s.x * c[kz];
+        let cy = c[ky] - s.y * c[kz];
+        let mut u = cx * by - cy * bx;
+        let mut v = ax * cy - ay * cx;
+        let mut w = bx * ay - by * ax;
+        if u == 0.0 || v == 0.0 || w == 0.0 {
+            let (ax, ay, bx, by, cx, cy) = (
+                ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64,
+            );
+            u = (cx * by - cy * bx) as f32;
+            v = (ax * cy - ay * cx) as f32;
+            w = (bx * ay - by * ax) as f32;
+        }
+        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return None;
+        }
+        let det = u + v + w;
+        if det == 0.0 || det.is_nan() {
+            return None;
+        }
+        let az = s.z * a[kz];
+        let bz = s.z * b[kz];
+        let cz = s.z * c[kz];
+        let t_scaled = u * az + v * bz + w * cz;
+        let (abs_det, abs_t) = if det < 0.0 {
+            (-det, -t_scaled)
+        } else {
+            (det, t_scaled)
+        };
+        if abs_t < ray.tmin * abs_det || abs_t > ray.tmax * abs_det {
+            return None;
+        }
+        let rcp = 1.0 / det;
+        let t = t_scaled * rcp;
+        // The division rounds: keep the promise t in [tmin, tmax] exactly.
+        if !ray.in_range(t) || self.is_degenerate() {
+            return None;
+        }
+        Some(PrimHit {
+            t,
+            u: v * rcp,
+            v: w * rcp,
+        })
+    }
+
+    /// Möller & Trumbore 1997 (no epsilon: only an exactly zero determinant is rejected).
+    #[inline]
+    pub fn intersect_moller_trumbore(&self, ray: &Ray) -> Option<PrimHit> {
+        if !ray.is_valid() {
+            return None;
+        }
+        let e1 = self.v[1] - self.v[0];
+        let e2 = self.v[2] - self.v[0];
+        let p = ray.dir().cross(e2);
+        let det = e1.dot(p);
+        if det == 0.0 || det.is_nan() {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let tv = ray.origin() - self.v[0];
+        let u = tv.dot(p) * inv;
+        if !(0.0..=1.0).contains(&u) {
+            return None;
+        }
+        let q = tv.cross(e1);
+        let v = ray.dir().dot(q) * inv;
+        if v < 0.0 || u + v > 1.0 {
+            return None;
+        }
+        let t = e2.dot(q) * inv;
+        if !ray.in_range(t) || self.is_degenerate() {
+            return None;
+        }
+        Some(PrimHit { t, u, v })
+    }
+
+    /// Bounds of the part of the triangle inside `clip` (Sutherland–Hodgman against the six
+    /// planes), or an empty box. New vertices on a clipping plane are put exactly on it, so the
+    /// result never pokes out of `clip`; the result is also limited to the triangle's bounds.
+    pub fn clipped_bounds(&self, clip: &Aabb) -> Aabb {
+        let bounds = self.bounds();
+        if clip.contains(&bounds) {
+            return bounds;
+        }
+        let mut poly: Vec<DVec3> = self.v.iter().map(|p| p.as_dvec3()).collect();
+        let mut next = Vec::with_capacity(9);
+        for axis in 0..3 {
+            for (plane, keep_above) in [(clip.min[axis], true), (clip.max[axis], false)] {
+                let plane = plane as f64;
+                let inside = |p: &DVec3| {
+                    if keep_above {
+                        p[axis] >= plane
+                    } else {
+                        p[axis] <= plane
+                    }
+                };
+                next.clear();
+                for i in 0..poly.len() {
+                    let p = poly[i];
+                    let q = poly[(i + 1) % poly.len()];
+                    let (pin, qin) = (inside(&p), inside(&q));
+                    if pin {
+                        next.push(p);
+                    }
+                    if pin != qin {
+                        let s = (plane - p[axis]) / (q[axis] - p[axis]);
+                        let mut x = p + (q - p) * s;
+                        x[axis] = plane;
+                        next.push(x);
+                    }
+                }
+                std::mem::swap(&mut poly, &mut next);
+                if poly.is_empty() {
+                    return Aabb::EMPTY;
+                }
+            }
+        }
+        let mut out = Aabb::EMPTY;
+        for p in &poly {
+            // Round outwards so that the f32 box still contains the f64 polygon.
+            let lo = p.as_vec3();
+            let lo = Vec3::select(lo.as_dvec3().cmpgt(*p), next_down(lo), lo);
+            let hi = p.as_vec3();
+            let hi = Vec3::select(hi.as_dvec3().cmplt(*p), next_up(hi), hi);
+            out.min = out.min.min(lo);
+            out.max = out.max.max(hi);
+        }
+        out.intersection(*clip).intersection(bounds)
+    }
+}
+
+fn next_up(v: Vec3) -> Vec3 {
+    Vec3::new(v.x.next_up(), v.y.next_up(), v.z.next_up())
+}
+
+fn next_down(v: Vec3) -> Vec3 {
+    Vec3::new(v.x.next_down(), v.y.next_down(), v.z.next_down())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    fn tri() -> Triangle {
+        Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y)
+    }
+
+    #[test]
+    fn hits_and_misses() {
+        let r = Ray::new(Vec3::new(0.25, 0.25, 1.0), -Vec3::Z);
+        for k in [TriangleKernel::Watertight, TriangleKernel::MollerTrumbore] {
+            let h = tri().intersect_with(&r, k).unwrap();
+            assert_relative_eq!(h.t, 1.0);
+            assert_relative_eq!(h.u, 0.25);
+            assert_relative_eq!(h.v, 0.25);
+            assert!(tri().point(h.u, h.v).abs_diff_eq(r.at(h.t), 1e-6));
+            // Back side hits as well (no culling).
+            let back = Ray::new(Vec3::new(0.25, 0.25, -1.0), Vec3::Z);
+            assert!(tri().intersect_with(&back, k).is_some());
+            let miss = Ray::new(Vec3::new(0.75, 0.75, 1.0), -Vec3::Z);
+            assert!(tri().intersect_with(&miss, k).is_none());
+            assert!(tri().intersect_with(&r.with_range(0.0, 0.5), k).is_none());
+            assert!(tri().intersect_with(&r.with_range(1.5, 9.0), k).is_none());
+        }
+    }
+
+    #[test]
+    fn tmin_tmax_are_inclusive() {
+        let r = Ray::new(Vec3::new(0.25, 0.25, 1.0), -Vec3::Z);
+        let t = tri().intersect_watertight(&r).unwrap().t;
+        assert!(tri().intersect_watertight(&r.with_range(t, t)).is_some());
+    }
+
+    #[test]
+    fn shared_edge_is_watertight() {
+        // Two triangles sharing the diagonal of the unit square; rays through the diagonal hit.
+        let a = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0));
+        let b = Triangle::new(Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::Y);
+        for i in 1..1000 {
+            let s = i as f32 / 1000.0;
+            let o = Vec3::new(s, s, 1.0) + Vec3::new(0.3, -0.2, 0.0);
+            let r = Ray::new(o, Vec3::new(s, s, 0.0) - o);
+            assert!(
+                a.intersect_watertight(&r).is_some() || b.intersect_watertight(&r).is_some(),
+                "ray {i} slipped through the shared edge"
+            );
+        }
+    }
+
+    #[test]
+    fn degenerate_triangles_never_hit() {
+        let dup = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::X);
+        let line = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::new(2.0, 0.0, 0.0));
+        let point = Triangle::new(Vec3::ONE, Vec3::ONE, Vec3::ONE);
+        for t in [dup, line, point] {
+            assert!(t.is_degenerate());
+            for o in [
+                Vec3::new(0.5, 0.0, 1.0),
+                Vec3::new(1.0, 0.0, 1.0),
+                Vec3::new(1.0, 1.0, 2.0),
+            ] {
+                let r = Ray::new(o, Vec3::new(0.0, 0.0, -1.0));
+                assert!(t.intersect_watertight(&r).is_none());
+                assert!(t.intersect_moller_trumbore(&r).is_none());
+            }
+        }
+    }
+
+    #[test]
+    fn invalid_and_parallel_rays_miss() {
+        let zero = Ray::new(Vec3::new(0.25, 0.25, 1.0), Vec3::ZERO);
+        assert!(tri().intersect_watertight(&zero).is_none());
+        let nan = Ray::new(Vec3::new(0.25, 0.25, 1.0), Vec3::new(f32::NAN, 0.0, -1.0));
+        assert!(tri().intersect_watertight(&nan).is_none());
+        // In the triangle's plane.
+        let coplanar = Ray::new(Vec3::new(-1.0, 0.25, 0.0), Vec3::X);
+        assert!(tri().intersect_watertight(&coplanar).is_none());
+    }
+
+    #[test]
+    fn clipping() {
+        let t = Triangle::new(
+            Vec3::ZERO,
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 2.0, 0.0),
+        );
+        let clip = Aabb::new(Vec3::new(1.0, 0.0, -1.0), Vec3::new(3.0, 3.0, 1.0));
+        let b = t.clipped_bounds(&clip);
+        assert_eq!(b.min, Vec3::new(1.0, 0.0, 0.0));
+        assert_eq!(b.max, Vec3::new(2.0, 1.0, 0.0));
+        let far = Aabb::new(Vec3::splat(5.0), Vec3::splat(6.0));
+        assert!(t.clipped_bounds(&far).is_empty());
+        // The corner region beyond the hypotenuse: box overlaps bounds but not the triangle.
+        let corner = Aabb::new(Vec3::new(1.5, 1.5, -1.0), Vec3::new(2.0, 2.0, 1.0));
+        assert!(t.clipped_bounds(&corner).is_empty());
+        assert_eq!(
+            t.clipped_bounds(&Aabb::new(Vec3::splat(-9.0), Vec3::splat(9.0))),
+            t.bounds()
+        );
+    }
+}
