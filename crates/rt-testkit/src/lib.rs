@@ -1,1 +1,29 @@
-pub fn placeholder() {}
+//! # rt-testkit (unpublished): what every rt structure is tested and measured with
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`rng`] | [`Rng`], a seeded generator: every scene and ray set is reproducible |
+//! | [`scenes`] | procedural and adversarial scenes ([`Scene`]): soups, tessellated spheres and tori, planar and sliver scenes, duplicates, teapot in a stadium, huge and tiny coordinates, spheres, one primitive, nothing |
+//! | [`rays`] | conformance ray families ([`RayKind`]), the standard camera ([`View`]) and the primary / shadow / diffuse sets ([`RaySets`]) |
+//! | [`conformance`] | the one generic check against brute force, and [`conformance_tests!`] |
+//! | [`models`] | where `../shared/models` is, and loading its meshes (tests skip with a message when it is absent) |
+//!
+//! ```
+//! use rt_geom::{BruteForce, Triangle};
+//! use rt_testkit::{conformance, scenes};
+//!
+//! // Any structure: a builder closure from primitives to `Result<impl Accel, BuildError>`.
+//! let scene = scenes::triangle_scene("coplanar");
+//! conformance::assert_conforms(&scene, |p: &[Triangle]| BruteForce::build(p));
+//! ```
+
+pub mod conformance;
+pub mod models;
+pub mod rays;
+pub mod rng;
+pub mod scenes;
+
+pub use conformance::{Report, Tolerance};
+pub use rays::{RayKind, RaySets, TestRay, View};
+pub use rng::Rng;
+pub use scenes::Scene;

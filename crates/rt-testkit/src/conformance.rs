@@ -1,0 +1,368 @@
+//! The conformance suite: one generic check that every structure, with every option that
+//! matters, runs against [`BruteForce`] on the same scenes and rays.
+//!
+//! Checks per ray: the closest `t` equals the reference's (exactly, unless a [`Tolerance`] says
+//! otherwise); the reported primitive really is hit at that `t`; `occluded` equals
+//! `intersect().is_some()`. Per build: `validate()` passes and `stats()` is self-consistent.
+//! A failure prints a reproducer: scene, ray (bit-exact), expected and got.
+
+use crate::rays::{RayKind, SamplePoints, TestRay, conformance_rays};
+use crate::scenes::Scene;
+use rt_geom::{Accel, BruteForce, BuildError, Hit, Primitive, Ray};
+use std::fmt;
+
+/// How closely a structure must agree with the reference.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Tolerance {
+    /// Same kernel: the same closest `t`, bit for bit (the primitive may differ on ties).
+    Exact,
+    /// Foreign kernels or traversals: `|dt| <= rel * max(1, |t|)`, and reference hits closer
+    /// than `near` may be missed (obvhs's CWBVH drops hits below t = 1e-4).
+    Loose { rel: f32, near: f32 },
+}
+
+/// One disagreement, printable as a reproducer.
+#[derive(Clone, Debug)]
+pub struct Mismatch {
+    pub scene: String,
+    pub kind: RayKind,
+    pub query: &'static str,
+    pub ray: Ray,
+    pub expected: Option<Hit>,
+    pub got: Option<Hit>,
+}
+
+impl fmt::Display for Mismatch {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (o, d) = (self.ray.origin(), self.ray.dir());
+        write!(
+            f,
+            "scene {} {:?} ray {}: Ray::segment(Vec3::new({:?}, {:?}, {:?}), Vec3::new({:?}, {:?}, {:?}), {:?}, {:?}) expected {:?} got {:?}",
+            self.scene, self.kind, self.query, o.x, o.y, o.z, d.x, d.y, d.z, self.ray.tmin,
+            self.ray.tmax, self.expected, self.got
+        )
+    }
+}
+
+/// The outcome of comparing a structure with the reference over a ray set.
+#[derive(Clone, Debug, Default)]
+pub struct Report {
+    pub scene: String,
+    pub rays: usize,
+    pub hits: usize,
+    /// Number of disagreeing rays (only the first few are kept in `mismatches`).
+    pub mismatch_count: usize,
+    pub mismatches: Vec<Mismatch>,
+    /// Largest `|t - t_reference|` over rays where both hit.
+    pub max_dt: f32,
+}
+
+impl Report {
+    pub fn is_ok(&self) -> bool {
+        self.mismatch_count == 0
+    }
+
+    /// Folds another report into this one (same scene).
+    pub fn merge(&mut self, other: Report) {
+        self.rays += other.rays;
+        self.hits += other.hits;
+        self.mismatch_count += other.mismatch_count;
+        self.max_dt = self.max_dt.max(other.max_dt);
+        let room = KEEP.saturating_sub(self.mismatches.len());
+        self.mismatches.extend(other.mismatches.into_iter().take(room));
+    }
+}
+
+const KEEP: usize = 8;
+
+/// Compares `subject` with `reference` ray by ray. `expected` may hold the reference's answers
+/// already (one per ray); otherwise they are computed here.
+pub fn compare<P: Primitive>(
+    scene: &str,
+    prims: &[P],
+    rays: &[TestRay],
+    reference: &dyn Accel,
+    subject: &dyn Accel,
+    tolerance: Tolerance,
+) -> Report {
+    let expected: Vec<Option<Hit>> = rays.iter().map(|r| reference.intersect(&r.ray)).collect();
+    compare_with_expected(scene, prims, rays, &expected, subject, tolerance)
+}
+
+/// [`compare`] with the reference's answers given.
+pub fn compare_with_expected<P: Primitive>(
+    scene: &str,
+    prims: &[P],
+    rays: &[TestRay],
+    expected: &[Option<Hit>],
+    subject: &dyn Accel,
+    tolerance: Tolerance,
+) -> Report {
+    let mut report = Report {
+        scene: scene.to_string(),
+        rays: rays.len(),
+        ..Report::default()
+    };
+    for (test, expected) in rays.iter().zip(expected) {
+        let ray = &test.ray;
+        let got = subject.intersect(ray);
+        let occluded = subject.occluded(ray);
+        let mut bad = None;
+        match (expected, got) {
+            (None, None) => {}
+            (Some(e), Some(g)) => {
+                report.hits += 1;
+                let dt = (e.t - g.t).abs();
+                report.max_dt = report.max_dt.max(dt);
+                if !t_agrees(e.t, g.t, tolerance) {
+                    bad = Some("intersect t");
+                } else if !prim_is_hit_at(prims, ray, &g, tolerance) {
+                    bad = Some("intersect prim");
+                }
+            }
+            (Some(e), None) => {
+                if !may_drop(e.t, tolerance) {
+                    bad = Some("intersect miss");
+                }
+            }
+            (None, Some(_)) => bad = Some("intersect false hit"),
+        }
+        if bad.is_none() && occluded != got.is_some() {
+            bad = Some("occluded");
+        }
+        if let Some(query) = bad {
+            report.mismatch_count += 1;
+            if report.mismatches.len() < KEEP {
+                report.mismatches.push(Mismatch {
+                    scene: scene.to_string(),
+                    kind: test.kind,
+                    query,
+                    ray: *ray,
+                    expected: *expected,
+                    got,
+                });
+            }
+        }
+    }
+    report
+}
+
+fn t_agrees(expected: f32, got: f32, tolerance: Tolerance) -> bool {
+    match tolerance {
+        Tolerance::Exact => expected == got,
+        Tolerance::Loose { rel, near } => {
+            (expected - got).abs() <= rel * expected.abs().max(1.0) || expected < near
+        }
+    }
+}
+
+fn may_drop(expected_t: f32, tolerance: Tolerance) -> bool {
+    matches!(tolerance, Tolerance::Loose { near, .. } if expected_t < near)
+}
+
+fn prim_is_hit_at<P: Primitive>(prims: &[P], ray: &Ray, got: &Hit, tolerance: Tolerance) -> bool {
+    let Some(p) = prims.get(got.prim as usize) else {
+        return false;
+    };
+    match p.intersect(ray) {
+        // The primitive's own nearest hit may be closer than `got` only on ties with equal t.
+        Some(h) => t_agrees(h.t, got.t, tolerance) || may_drop(h.t, tolerance),
+        None => false,
+    }
+}
+
+/// Builds the structure and the reference, checks `validate()` and `stats()`, and compares
+/// them on the scene's conformance rays.
+pub fn check_scene<P, A, F>(scene: &Scene<P>, build: F, tolerance: Tolerance) -> Result<Report, String>
+where
+    P: SamplePoints,
+    A: Accel,
+    F: Fn(&[P]) -> Result<A, BuildError>,
+{
+    let reference = BruteForce::build(&scene.prims).map_err(|e| e.to_string())?;
+    let subject = build(&scene.prims).map_err(|e| format!("build failed on {}: {e}", scene.name))?;
+    subject
+        .validate()
+        .map_err(|e| format!("validate() failed on {}: {e}", scene.name))?;
+    let stats = subject.stats();
+    stats
+        .check_consistency()
+        .map_err(|e| format!("stats() inconsistent on {}: {e} ({stats})", scene.name))?;
+    if stats.primitives != scene.prims.len() {
+        return Err(format!(
+            "stats().primitives = {} but the scene has {}",
+            stats.primitives,
+            scene.prims.len()
+        ));
+    }
+    let rays = conformance_rays(&scene.prims, &reference, 400, 0x5eed ^ scene.prims.len() as u64);
+    Ok(compare(&scene.name, &scene.prims, &rays, &reference, &subject, tolerance))
+}
+
+/// [`check_scene`] with [`Tolerance::Exact`], panicking with reproducers on any disagreement.
+pub fn assert_conforms<P, A, F>(scene: &Scene<P>, build: F)
+where
+    P: SamplePoints,
+    A: Accel,
+    F: Fn(&[P]) -> Result<A, BuildError>,
+{
+    assert_conforms_within(scene, build, Tolerance::Exact)
+}
+
+/// [`assert_conforms`] with a tolerance.
+pub fn assert_conforms_within<P, A, F>(scene: &Scene<P>, build: F, tolerance: Tolerance)
+where
+    P: SamplePoints,
+    A: Accel,
+    F: Fn(&[P]) -> Result<A, BuildError>,
+{
+    let report = check_scene(scene, build, tolerance).unwrap_or_else(|e| panic!("{e}"));
+    if !report.is_ok() {
+        let lines: Vec<String> = report.mismatches.iter().map(|m| format!("  {m}")).collect();
+        panic!(
+            "{} of {} rays disagree with brute force on scene {}:\n{}",
+            report.mismatch_count,
+            report.rays,
+            scene.name,
+            lines.join("\n")
+        );
+    }
+    assert!(report.rays > 0);
+}
+
+/// Builders must reject NaN and infinite coordinates with `BuildError::NonFinite` naming the
+/// primitive, and must not panic.
+pub fn assert_rejects_non_finite<P, A, F>(valid: &[P], poison: impl Fn(&mut P), build: F)
+where
+    P: Primitive,
+    A: Accel,
+    F: Fn(&[P]) -> Result<A, BuildError>,
+{
+    let mut prims = valid.to_vec();
+    assert!(prims.len() > 2, "need a few primitives to poison");
+    let at = prims.len() / 2;
+    poison(&mut prims[at]);
+    match build(&prims) {
+        Err(BuildError::NonFinite { prim }) => assert_eq!(prim, at),
+        Err(e) => panic!("expected NonFinite {{ prim: {at} }}, got {e}"),
+        Ok(_) => panic!("a non-finite primitive was accepted"),
+    }
+}
+
+/// Stamps out one `#[test]` per conformance scene for a structure.
+///
+/// ```ignore
+/// mod conformance {
+///     use rt_geom::{BruteForce, Sphere, Triangle};
+///     rt_testkit::conformance_tests!(
+///         triangles: |p: &[Triangle]| BruteForce::build(p),
+///         spheres: |p: &[Sphere]| BruteForce::build(p),
+///     );
+/// }
+/// ```
+/// An optional `tolerance: expr` first argument replaces [`Tolerance::Exact`].
+#[macro_export]
+macro_rules! conformance_tests {
+    (triangles: $tri:expr $(,)?) => {
+        $crate::conformance_tests!(tolerance: $crate::conformance::Tolerance::Exact, triangles: $tri);
+    };
+    (triangles: $tri:expr, spheres: $sph:expr $(,)?) => {
+        $crate::conformance_tests!(
+            tolerance: $crate::conformance::Tolerance::Exact, triangles: $tri, spheres: $sph
+        );
+    };
+    (tolerance: $tol:expr, triangles: $tri:expr $(,)?) => {
+        $crate::conformance_tests!(@tri $tol, $tri;
+            soup, sphere_mesh, torus, planar_grid, coplanar, axis_slivers, duplicates,
+            teapot_in_stadium, huge_coords, tiny_coords, one_triangle, empty);
+        #[test]
+        fn rejects_non_finite_triangles() {
+            let valid = $crate::scenes::random_soup(10, 1);
+            $crate::conformance::assert_rejects_non_finite(&valid, |t| t.v[1].y = f32::NAN, $tri);
+            $crate::conformance::assert_rejects_non_finite(
+                &valid, |t| t.v[0].x = f32::INFINITY, $tri);
+        }
+    };
+    (tolerance: $tol:expr, triangles: $tri:expr, spheres: $sph:expr $(,)?) => {
+        $crate::conformance_tests!(tolerance: $tol, triangles: $tri);
+        $crate::conformance_tests!(@sph $tol, $sph; spheres, one_sphere, empty_spheres);
+        #[test]
+        fn rejects_non_finite_spheres() {
+            let valid = $crate::scenes::random_spheres(10, 1);
+            $crate::conformance::assert_rejects_non_finite(&valid, |s| s.radius = f32::NAN, $sph);
+        }
+    };
+    (@tri $tol:expr, $build:expr; $($scene:ident),*) => {
+        $(
+            #[test]
+            fn $scene() {
+                $crate::conformance::assert_conforms_within(
+                    &$crate::scenes::triangle_scene(stringify!($scene)), $build, $tol);
+            }
+        )*
+    };
+    (@sph $tol:expr, $build:expr; $($scene:ident),*) => {
+        $(
+            #[test]
+            fn $scene() {
+                $crate::conformance::assert_conforms_within(
+                    &$crate::scenes::sphere_scene(stringify!($scene)), $build, $tol);
+            }
+        )*
+    };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rt_geom::{AccelStats, Triangle};
+
+    mod brute_force {
+        use rt_geom::{BruteForce, Sphere, Triangle};
+        crate::conformance_tests!(
+            triangles: |p: &[Triangle]| BruteForce::build(p),
+            spheres: |p: &[Sphere]| BruteForce::build(p),
+        );
+    }
+
+    /// A deliberately broken structure: it forgets every other primitive.
+    struct Forgetful(BruteForce<Triangle>);
+
+    impl Accel for Forgetful {
+        fn intersect(&self, ray: &Ray) -> Option<Hit> {
+            self.0.intersect(ray).filter(|h| h.prim % 2 == 0)
+        }
+        fn occluded(&self, ray: &Ray) -> bool {
+            self.intersect(ray).is_some()
+        }
+        fn stats(&self) -> AccelStats {
+            self.0.stats()
+        }
+        fn validate(&self) -> Result<(), String> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn the_suite_catches_a_broken_structure() {
+        let scene = crate::scenes::triangle_scene("soup");
+        let report = check_scene(
+            &scene,
+            |p: &[Triangle]| BruteForce::build(p).map(Forgetful),
+            Tolerance::Exact,
+        )
+        .unwrap();
+        assert!(report.mismatch_count > 100, "{}", report.mismatch_count);
+        let text = report.mismatches[0].to_string();
+        assert!(text.contains("Ray::segment(Vec3::new(") && text.contains("scene soup"), "{text}");
+    }
+
+    #[test]
+    fn loose_tolerance_lets_near_hits_drop() {
+        let tol = Tolerance::Loose { rel: 1e-6, near: 1e-4 };
+        assert!(may_drop(5e-5, tol));
+        assert!(!may_drop(5e-5, Tolerance::Exact));
+        assert!(t_agrees(1000.0, 1000.0005, tol));
+        assert!(!t_agrees(1.0, 1.001, tol));
+    }
+}

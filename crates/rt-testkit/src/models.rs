@@ -1,0 +1,44 @@
+//! The shared test meshes (`../shared/models`: bunny, dragon, sponza, teapot). They are never
+//! copied into the repository; tests that need them skip, saying so, when they are absent.
+
+use rt_geom::{Mesh, MeshError};
+use std::path::PathBuf;
+
+/// The standard meshes, smallest first.
+pub const MODEL_NAMES: [&str; 4] = ["teapot", "bunny", "sponza", "dragon"];
+
+/// The models directory: `$RT_MODELS` if set, else `shared/models` or `../shared/models` found
+/// from the workspace root upwards.
+pub fn models_dir() -> Option<PathBuf> {
+    if let Some(dir) = std::env::var_os("RT_MODELS") {
+        let dir = PathBuf::from(dir);
+        return dir.is_dir().then_some(dir);
+    }
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    for base in [root.clone(), root.join("..")] {
+        let dir = base.join("shared/models");
+        if dir.join("teapot.obj").is_file() {
+            return dir.canonicalize().ok();
+        }
+    }
+    None
+}
+
+/// Path of a standard model, if the shared models are present.
+pub fn model_path(name: &str) -> Option<PathBuf> {
+    let p = models_dir()?.join(format!("{name}.obj"));
+    p.is_file().then_some(p)
+}
+
+/// Loads a standard model; `Ok(None)` (after printing why) when the shared models are absent.
+pub fn load_model(name: &str) -> Result<Option<Mesh>, MeshError> {
+    match model_path(name) {
+        Some(p) => rt_geom::load_obj(p).map(Some),
+        None => {
+            eprintln!(
+                "skipping: model {name} not found (looked in $RT_MODELS and ../shared/models)"
+            );
+            Ok(None)
+        }
+    }
+}

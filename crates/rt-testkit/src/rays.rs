@@ -1,0 +1,323 @@
+//! Seeded rays: the adversarial sets of the conformance suite, and the standard camera, shadow
+//! and diffuse sets that `verify` and `bench` trace through the shared meshes.
+
+use crate::Rng;
+use rt_geom::{Aabb, Accel, Hit, Primitive, Ray, Sphere, Triangle, Vec3};
+
+/// Points on a primitive that rays are aimed at.
+pub trait SamplePoints: Primitive {
+    /// A point on the primitive from two uniform numbers.
+    fn sample(&self, u: f32, v: f32) -> Vec3;
+    /// Points where rays graze: vertices and points on edges (silhouette points for spheres).
+    fn feature_point(&self, rng: &mut Rng) -> Vec3;
+}
+
+impl SamplePoints for Triangle {
+    fn sample(&self, u: f32, v: f32) -> Vec3 {
+        let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+        self.point(u, v)
+    }
+
+    fn feature_point(&self, rng: &mut Rng) -> Vec3 {
+        let i = rng.below(3);
+        if rng.chance(0.5) {
+            self.v[i]
+        } else {
+            let s = rng.f32();
+            self.v[i] * (1.0 - s) + self.v[(i + 1) % 3] * s
+        }
+    }
+}
+
+impl SamplePoints for Sphere {
+    fn sample(&self, u: f32, v: f32) -> Vec3 {
+        let z = 2.0 * u - 1.0;
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        let phi = std::f32::consts::TAU * v;
+        self.center + self.radius.max(0.0) * Vec3::new(r * phi.cos(), r * phi.sin(), z)
+    }
+
+    fn feature_point(&self, rng: &mut Rng) -> Vec3 {
+        self.sample(rng.f32(), rng.f32())
+    }
+}
+
+/// A family of conformance rays, so that a failure says what kind of ray failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum RayKind {
+    /// Random origin around the scene, random direction.
+    Random,
+    /// Origin inside the scene's box.
+    Inside,
+    /// Aimed at a random point of a random primitive.
+    Aimed,
+    /// Aimed exactly at vertices and edges.
+    Grazing,
+    /// Direction along an axis (two zero components), origin on vertex coordinates, so rays run
+    /// in the planes of axis-aligned faces and edges.
+    AxisParallel,
+    /// One zero direction component.
+    PlaneParallel,
+    /// `tmin`/`tmax` placed on, just before and just after the closest hit.
+    Limited,
+    /// Zero, NaN or infinite directions and origins, NaN intervals: must miss.
+    Invalid,
+}
+
+/// A conformance ray with its family.
+#[derive(Clone, Copy, Debug)]
+pub struct TestRay {
+    pub ray: Ray,
+    pub kind: RayKind,
+}
+
+/// The conformance rays for a scene: `per_kind` of each family (fewer for `Invalid`).
+/// `reference` supplies closest hits for the `Limited` family.
+pub fn conformance_rays<P: SamplePoints>(
+    prims: &[P],
+    reference: &dyn Accel,
+    per_kind: usize,
+    seed: u64,
+) -> Vec<TestRay> {
+    let mut rng = Rng::new(seed);
+    let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
+    let (lo, hi) = if bounds.is_empty() {
+        (Vec3::splat(-1.0), Vec3::splat(1.0))
+    } else {
+        let pad = bounds.extent().max_element().max(bounds.min.abs().max_element() * 1e-6);
+        (bounds.min - pad * 0.5, bounds.max + pad * 0.5)
+    };
+    let mut out = Vec::new();
+    let mut push = |ray: Ray, kind| out.push(TestRay { ray, kind });
+    let target = |rng: &mut Rng, feature: bool| {
+        if prims.is_empty() {
+            return rng.point_in(lo, hi);
+        }
+        let p = &prims[rng.below(prims.len())];
+        if feature {
+            p.feature_point(rng)
+        } else {
+            p.sample(rng.f32(), rng.f32())
+        }
+    };
+    for _ in 0..per_kind {
+        push(Ray::new(rng.point_in(lo, hi), rng.unit_vector()), RayKind::Random);
+        if !bounds.is_empty() {
+            let o = rng.point_in(bounds.min, bounds.max);
+            push(Ray::new(o, rng.unit_vector()), RayKind::Inside);
+        }
+        let o = rng.point_in(lo, hi);
+        let t = target(&mut rng, false);
+        push(Ray::new(o, t - o), RayKind::Aimed);
+        let o = rng.point_in(lo, hi);
+        let t = target(&mut rng, true);
+        push(Ray::new(o, t - o), RayKind::Grazing);
+
+        // Axis-parallel: origin copies the coordinates of a feature point except along the axis.
+        let axis = rng.below(3);
+        let f = target(&mut rng, true);
+        let mut o = f;
+        o[axis] = if rng.chance(0.5) { lo[axis] } else { hi[axis] };
+        let mut d = Vec3::ZERO;
+        d[axis] = if o[axis] <= f[axis] { 1.0 } else { -1.0 };
+        if rng.chance(0.1) {
+            d[axis] *= 1e-3; // short direction vectors: t is not a distance
+        }
+        push(Ray::new(o, d), RayKind::AxisParallel);
+
+        let feature = rng.chance(0.5);
+        let f = target(&mut rng, feature);
+        let o = rng.point_in(lo, hi);
+        let mut d = f - o;
+        let zero = rng.below(3);
+        d[zero] = if rng.chance(0.5) { 0.0 } else { -0.0 };
+        let mut o2 = o;
+        o2[zero] = f[zero];
+        push(Ray::new(o2, d), RayKind::PlaneParallel);
+    }
+    // Limited: around the closest hit of aimed rays.
+    let mut limited = 0;
+    let mut tries = 0;
+    while limited < per_kind && tries < 4 * per_kind && !prims.is_empty() {
+        tries += 1;
+        let o = rng.point_in(lo, hi);
+        let t = target(&mut rng, false);
+        let ray = Ray::new(o, t - o);
+        let Some(hit) = reference.intersect(&ray) else {
+            continue;
+        };
+        let t = hit.t;
+        for (a, b) in [
+            (0.0, t),
+            (0.0, t.next_down()),
+            (t, f32::INFINITY),
+            (t.next_up(), f32::INFINITY),
+            (t, t),
+            (t * 0.5, t * 0.75),
+            (-1.0, f32::INFINITY),
+        ] {
+            push(ray.with_range(a, b), RayKind::Limited);
+        }
+        limited += 7;
+    }
+    let o = rng.point_in(lo, hi);
+    let inf = f32::INFINITY;
+    for (o, d, tmin, tmax) in [
+        (o, Vec3::ZERO, 0.0, inf),
+        (o, Vec3::new(f32::NAN, 1.0, 0.0), 0.0, inf),
+        (o, Vec3::new(inf, 1.0, 0.0), 0.0, inf),
+        (Vec3::new(f32::NAN, 0.5, 0.5), Vec3::X, 0.0, inf),
+        (Vec3::new(-inf, 0.5, 0.5), Vec3::X, 0.0, inf),
+        (o, Vec3::X, f32::NAN, inf),
+        (o, Vec3::X, 0.0, f32::NAN),
+        (o, Vec3::X, 5.0, 1.0),
+    ] {
+        push(Ray::segment(o, d, tmin, tmax), RayKind::Invalid);
+    }
+    out
+}
+
+/// A pinhole camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct View {
+    pub eye: Vec3,
+    pub target: Vec3,
+    pub up: Vec3,
+    /// Vertical field of view, degrees.
+    pub fov_y: f32,
+}
+
+impl View {
+    /// Looks at the box from the front (+z), a little from above, so it fills most of the frame.
+    pub fn front(bounds: &Aabb) -> Self {
+        let c = bounds.center();
+        let radius = 0.5 * bounds.extent().length().max(f32::MIN_POSITIVE);
+        let fov_y: f32 = 45.0;
+        let dist = radius / (fov_y.to_radians() * 0.5).sin();
+        let dir = Vec3::new(0.25, 0.3, 1.0).normalize();
+        Self {
+            eye: c + dir * dist,
+            target: c,
+            up: Vec3::Y,
+            fov_y,
+        }
+    }
+
+    /// Standing inside the box, looking along its longest horizontal axis (interiors).
+    pub fn interior(bounds: &Aabb) -> Self {
+        let c = bounds.center();
+        let e = bounds.extent();
+        let along = if e.x >= e.z { Vec3::X } else { Vec3::Z };
+        let eye = c - along * (0.4 * e.dot(along)) - Vec3::Y * (0.25 * e.y);
+        Self {
+            eye,
+            target: eye + along + Vec3::Y * 0.15,
+            up: Vec3::Y,
+            fov_y: 65.0,
+        }
+    }
+
+    /// The standard view of a named scene: interiors (sponza) from inside, objects from outside.
+    pub fn standard(scene: &str, bounds: &Aabb) -> Self {
+        if scene.contains("sponza") {
+            Self::interior(bounds)
+        } else {
+            Self::front(bounds)
+        }
+    }
+
+    /// Primary rays through pixel centres, row-major from the top-left.
+    pub fn camera_rays(&self, width: usize, height: usize) -> Vec<Ray> {
+        let forward = (self.target - self.eye).normalize();
+        let right = forward.cross(self.up).normalize();
+        let up = right.cross(forward);
+        let h = (self.fov_y.to_radians() * 0.5).tan();
+        let w = h * width as f32 / height as f32;
+        let mut rays = Vec::with_capacity(width * height);
+        for y in 0..height {
+            for x in 0..width {
+                let sx = (2.0 * (x as f32 + 0.5) / width as f32 - 1.0) * w;
+                let sy = (1.0 - 2.0 * (y as f32 + 0.5) / height as f32) * h;
+                rays.push(Ray::new(self.eye, forward + right * sx + up * sy));
+            }
+        }
+        rays
+    }
+}
+
+/// The three standard ray sets of a mesh: primary, shadow toward a point light, diffuse bounce.
+#[derive(Clone, Debug, Default)]
+pub struct RaySets {
+    pub primary: Vec<Ray>,
+    pub shadow: Vec<Ray>,
+    pub diffuse: Vec<Ray>,
+}
+
+impl RaySets {
+    /// Primary rays of the standard view at `width x height`; shadow and diffuse rays from their
+    /// hits (found with `reference`), one each per hit.
+    pub fn generate(
+        scene: &str,
+        tris: &[Triangle],
+        reference: &dyn Accel,
+        width: usize,
+        height: usize,
+        seed: u64,
+    ) -> Self {
+        let bounds = tris.iter().fold(Aabb::EMPTY, |b, t| b.union(t.bounds()));
+        let view = View::standard(scene, &bounds);
+        let primary = view.camera_rays(width, height);
+        let light = light_position(scene, &bounds);
+        let eps = bounds.extent().max_element() * 1e-5;
+        let mut rng = Rng::new(seed);
+        let mut shadow = Vec::new();
+        let mut diffuse = Vec::new();
+        for ray in &primary {
+            let Some(hit) = reference.intersect(ray) else {
+                continue;
+            };
+            let (p, n) = surface(ray, &hit, tris);
+            shadow.push(Ray::segment(p, light - p, 1e-4, 1.0));
+            let d = rng.cosine_hemisphere(n);
+            diffuse.push(Ray::segment(p, d, eps, f32::INFINITY));
+        }
+        Self {
+            primary,
+            shadow,
+            diffuse,
+        }
+    }
+
+    pub fn by_name(&self, name: &str) -> Option<&[Ray]> {
+        match name {
+            "primary" => Some(&self.primary),
+            "shadow" => Some(&self.shadow),
+            "diffuse" => Some(&self.diffuse),
+            _ => None,
+        }
+    }
+
+    pub const NAMES: [&'static str; 3] = ["primary", "shadow", "diffuse"];
+}
+
+/// Hit point and the geometric normal facing the ray.
+fn surface(ray: &Ray, hit: &Hit, tris: &[Triangle]) -> (Vec3, Vec3) {
+    let tri = &tris[hit.prim as usize];
+    let p = tri.point(hit.u, hit.v);
+    let mut n = tri.normal();
+    if n.dot(ray.dir()) > 0.0 {
+        n = -n;
+    }
+    (p, n)
+}
+
+/// Where the standard point light of a scene is.
+pub fn light_position(scene: &str, bounds: &Aabb) -> Vec3 {
+    let c = bounds.center();
+    let e = bounds.extent();
+    if scene.contains("sponza") {
+        c + Vec3::new(0.1 * e.x, 0.35 * e.y, 0.0)
+    } else {
+        c + Vec3::new(-0.6, 1.2, 0.9) * e.length()
+    }
+}

@@ -1,0 +1,250 @@
+//! Procedural and adversarial scenes. None needs a file; every one is fixed by its parameters.
+
+use crate::Rng;
+use rt_geom::{Aabb, Primitive, Sphere, Triangle, Vec3};
+use std::f32::consts::{PI, TAU};
+
+/// A named list of primitives.
+#[derive(Clone, Debug)]
+pub struct Scene<P> {
+    pub name: String,
+    pub prims: Vec<P>,
+}
+
+impl<P: Primitive> Scene<P> {
+    pub fn new(name: impl Into<String>, prims: Vec<P>) -> Self {
+        Self {
+            name: name.into(),
+            prims,
+        }
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        self.prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()))
+    }
+}
+
+/// Random triangles of random sizes in the unit cube; 5% of them have zero area (two equal
+/// vertices, or three collinear ones), as in the dragon mesh.
+pub fn random_soup(n: usize, seed: u64) -> Vec<Triangle> {
+    let mut rng = Rng::new(seed);
+    (0..n)
+        .map(|_| {
+            let c = rng.point_in(Vec3::ZERO, Vec3::ONE);
+            let size = 0.2 * rng.f32().powi(2) + 0.002;
+            let a = c + rng.unit_vector() * size;
+            let b = c + rng.unit_vector() * size;
+            match rng.below(40) {
+                0 => Triangle::new(c, a, a),
+                1 => Triangle::new(c, a, c + (a - c) * 0.5),
+                _ => Triangle::new(c, a, b),
+            }
+        })
+        .collect()
+}
+
+/// A UV sphere of about `n` triangles (at least 8): watertight, shared edges and vertices.
+pub fn tessellated_sphere(n: usize, center: Vec3, radius: f32) -> Vec<Triangle> {
+    let rings = ((n as f32 / 2.0).sqrt().round() as usize).max(2);
+    let segments = (n / (2 * rings)).max(4);
+    let p = |i: usize, j: usize| {
+        let theta = PI * i as f32 / rings as f32;
+        let phi = TAU * (j % segments) as f32 / segments as f32;
+        center
+            + radius * Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
+    };
+    let mut tris = Vec::with_capacity(2 * rings * segments);
+    for i in 0..rings {
+        for j in 0..segments {
+            let (a, b, c, d) = (p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1));
+            if i != 0 {
+                tris.push(Triangle::new(a, b, d));
+            }
+            if i != rings - 1 {
+                tris.push(Triangle::new(b, c, d));
+            }
+        }
+    }
+    tris
+}
+
+/// A torus of about `n` triangles around the y axis.
+pub fn torus(n: usize, major: f32, minor: f32) -> Vec<Triangle> {
+    let nu = ((n as f32 / 2.0 * 3.0).sqrt().round() as usize).max(3);
+    let nv = (n / (2 * nu)).max(3);
+    let p = |i: usize, j: usize| {
+        let u = TAU * (i % nu) as f32 / nu as f32;
+        let v = TAU * (j % nv) as f32 / nv as f32;
+        let r = major + minor * v.cos();
+        Vec3::new(r * u.cos(), minor * v.sin(), r * u.sin())
+    };
+    let mut tris = Vec::with_capacity(2 * nu * nv);
+    for i in 0..nu {
+        for j in 0..nv {
+            tris.push(Triangle::new(p(i, j), p(i + 1, j), p(i + 1, j + 1)));
+            tris.push(Triangle::new(p(i, j), p(i + 1, j + 1), p(i, j + 1)));
+        }
+    }
+    tris
+}
+
+/// A regular grid of `n x n` quads (two triangles each) in the plane `y = 0`: every box in any
+/// structure is flat, edges are axis-aligned and shared.
+pub fn planar_grid(n: usize) -> Vec<Triangle> {
+    let mut tris = Vec::with_capacity(2 * n * n);
+    let s = 1.0 / n as f32;
+    for i in 0..n {
+        for k in 0..n {
+            let p = |a: usize, b: usize| Vec3::new(a as f32 * s, 0.0, b as f32 * s);
+            tris.push(Triangle::new(p(i, k), p(i + 1, k), p(i + 1, k + 1)));
+            tris.push(Triangle::new(p(i, k), p(i + 1, k + 1), p(i, k + 1)));
+        }
+    }
+    tris
+}
+
+/// Random triangles all in the plane `z = 0.5`.
+pub fn coplanar(n: usize, seed: u64) -> Vec<Triangle> {
+    let mut rng = Rng::new(seed);
+    (0..n)
+        .map(|_| {
+            let mut v = || Vec3::new(rng.f32(), rng.f32(), 0.5);
+            Triangle::new(v(), v(), v())
+        })
+        .collect()
+}
+
+/// Long, thin triangles aligned with the axes (boxes that are flat in one or two dimensions).
+pub fn axis_slivers(n: usize, seed: u64) -> Vec<Triangle> {
+    let mut rng = Rng::new(seed);
+    (0..n)
+        .map(|i| {
+            let a = rng.point_in(Vec3::ZERO, Vec3::ONE);
+            let axis = i % 3;
+            let across = (axis + 1 + rng.below(2)) % 3;
+            let mut b = a;
+            b[axis] += rng.range(0.2, 1.0);
+            let mut c = b;
+            c[across] += 1e-4 * rng.f32() + 1e-6;
+            Triangle::new(a, b, c)
+        })
+        .collect()
+}
+
+/// Every triangle three times, and many sharing vertices (ties in `t`).
+pub fn duplicates(n: usize, seed: u64) -> Vec<Triangle> {
+    let base = random_soup(n.div_ceil(3), seed);
+    let mut tris: Vec<Triangle> = base.iter().flat_map(|t| [*t, *t, *t]).collect();
+    tris.truncate(n);
+    tris
+}
+
+/// Teapot in a stadium: a dense small sphere mesh (`n` triangles, radius 0.01) in the middle of
+/// a huge, nearly empty box (a floor and four walls of 1000 units).
+pub fn teapot_in_stadium(n: usize) -> Vec<Triangle> {
+    let mut tris = tessellated_sphere(n, Vec3::new(0.0, 0.02, 0.0), 0.01);
+    let s = 500.0;
+    let quad = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| [Triangle::new(a, b, c), Triangle::new(a, c, d)];
+    let p = |x: f32, y: f32, z: f32| Vec3::new(x * s, y * s, z * s);
+    tris.extend(quad(p(-1., 0., -1.), p(1., 0., -1.), p(1., 0., 1.), p(-1., 0., 1.)));
+    tris.extend(quad(p(-1., 0., -1.), p(-1., 1., -1.), p(1., 1., -1.), p(1., 0., -1.)));
+    tris.extend(quad(p(-1., 0., 1.), p(1., 0., 1.), p(1., 1., 1.), p(-1., 1., 1.)));
+    tris.extend(quad(p(-1., 0., -1.), p(-1., 0., 1.), p(-1., 1., 1.), p(-1., 1., -1.)));
+    tris.extend(quad(p(1., 0., -1.), p(1., 1., -1.), p(1., 1., 1.), p(1., 0., 1.)));
+    tris
+}
+
+/// A scene moved to `offset` and scaled by `scale` (coordinates near 1e6 or near 1e-6).
+pub fn transformed(tris: &[Triangle], scale: f32, offset: Vec3) -> Vec<Triangle> {
+    tris.iter()
+        .map(|t| Triangle {
+            v: t.v.map(|p| p * scale + offset),
+        })
+        .collect()
+}
+
+/// Random spheres: most small, a few large, some overlapping, a few of zero radius.
+pub fn random_spheres(n: usize, seed: u64) -> Vec<Sphere> {
+    let mut rng = Rng::new(seed);
+    (0..n)
+        .map(|_| {
+            let c = rng.point_in(Vec3::ZERO, Vec3::ONE);
+            let r = match rng.below(50) {
+                0 => 0.0,
+                1 => rng.range(0.2, 0.5),
+                _ => 0.003 + 0.04 * rng.f32().powi(2),
+            };
+            Sphere::new(c, r)
+        })
+        .collect()
+}
+
+/// The triangle scenes every structure must agree with brute force on.
+pub fn conformance_triangle_scenes() -> Vec<Scene<Triangle>> {
+    let soup = random_soup(2000, 1);
+    vec![
+        Scene::new("soup", soup.clone()),
+        Scene::new("sphere_mesh", tessellated_sphere(3000, Vec3::splat(0.5), 0.5)),
+        Scene::new("torus", torus(2000, 1.0, 0.3)),
+        Scene::new("planar_grid", planar_grid(30)),
+        Scene::new("coplanar", coplanar(800, 2)),
+        Scene::new("axis_slivers", axis_slivers(1000, 3)),
+        Scene::new("duplicates", duplicates(1500, 4)),
+        Scene::new("teapot_in_stadium", teapot_in_stadium(2000)),
+        Scene::new("huge_coords", transformed(&soup[..1000], 1.0e3, Vec3::splat(1.0e6))),
+        Scene::new("tiny_coords", transformed(&soup[..1000], 1.0e-6, Vec3::splat(1.0e-6))),
+        Scene::new("one_triangle", vec![Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y)]),
+        Scene::new("empty", vec![]),
+    ]
+}
+
+/// The sphere scenes every structure generic over `Primitive` must agree on.
+pub fn conformance_sphere_scenes() -> Vec<Scene<Sphere>> {
+    vec![
+        Scene::new("spheres", random_spheres(1500, 5)),
+        Scene::new("one_sphere", vec![Sphere::new(Vec3::splat(0.5), 0.25)]),
+        Scene::new("empty_spheres", vec![]),
+    ]
+}
+
+/// A conformance scene by name (triangles).
+pub fn triangle_scene(name: &str) -> Scene<Triangle> {
+    conformance_triangle_scenes()
+        .into_iter()
+        .find(|s| s.name == name)
+        .unwrap_or_else(|| panic!("no conformance scene named {name}"))
+}
+
+/// A conformance scene by name (spheres).
+pub fn sphere_scene(name: &str) -> Scene<Sphere> {
+    conformance_sphere_scenes()
+        .into_iter()
+        .find(|s| s.name == name)
+        .unwrap_or_else(|| panic!("no conformance scene named {name}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scenes_have_the_sizes_asked_for() {
+        let s = tessellated_sphere(10_000, Vec3::ZERO, 1.0);
+        assert!((8_000..12_000).contains(&s.len()), "{}", s.len());
+        for t in &s {
+            for v in t.v {
+                assert!((v.length() - 1.0).abs() < 1e-5);
+            }
+        }
+        let t = torus(5000, 1.0, 0.25);
+        assert!((4000..6000).contains(&t.len()), "{}", t.len());
+        assert_eq!(planar_grid(10).len(), 200);
+        assert!(planar_grid(10).iter().all(|t| t.bounds().extent().y == 0.0));
+        let soup = random_soup(4000, 9);
+        let degenerate = soup.iter().filter(|t| t.is_degenerate()).count();
+        assert!(degenerate > 50, "{degenerate}");
+        for s in conformance_triangle_scenes() {
+            assert!(s.prims.iter().all(|p| p.is_finite()), "{}", s.name);
+        }
+    }
+}
