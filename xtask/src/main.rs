@@ -1,1 +1,171 @@
-fn main() {}
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use xtask::{bench, native, registry, trace, verify};
+
+/// rt's command line: list, verify, measure and run the acceleration structures.
+#[derive(Parser)]
+#[command(name = "cargo xtask", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Print the registered structure names, one per line.
+    Accels {
+        /// Also print what each one is.
+        #[arg(long)]
+        long: bool,
+    },
+    /// Every structure against brute force (conformance scenes) and obvhs (shared meshes).
+    Verify {
+        /// Fewer rays, small meshes only (CI).
+        #[arg(long)]
+        quick: bool,
+        /// Comma-separated structure names (default: all).
+        #[arg(long)]
+        accels: Option<String>,
+    },
+    /// Throughput, build time and memory per structure, scene, ray set and thread count.
+    Bench {
+        /// A run of under a minute.
+        #[arg(long)]
+        quick: bool,
+        /// Comma-separated structure names (default: all).
+        #[arg(long)]
+        accels: Option<String>,
+        /// Comma-separated scenes: teapot, bunny, sponza, dragon, soup-100k, sphere-200k.
+        #[arg(long)]
+        scenes: Option<String>,
+        /// Write the records as a JSON array.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Comma-separated thread counts.
+        #[arg(long, value_delimiter = ',', default_value = "1,2")]
+        threads: Vec<usize>,
+    },
+    /// Trace a ray file through a mesh; write a hit file; print one timing line.
+    Trace {
+        #[arg(long)]
+        mesh: PathBuf,
+        #[arg(long)]
+        rays: PathBuf,
+        #[arg(long)]
+        accel: String,
+        /// Shadow-ray queries: an occluded ray is written as t = 0, prim = 0.
+        #[arg(long)]
+        occluded: bool,
+        /// Threads (0 = all cores).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Trace this many times and report the median.
+        #[arg(long, default_value_t = 1)]
+        repeat: usize,
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Write a standard ray set of a mesh (camera, shadow, diffuse) as a ray file.
+    Rays {
+        #[arg(long)]
+        mesh: PathBuf,
+        /// primary, shadow, diffuse or all.
+        #[arg(long, default_value = "primary")]
+        set: String,
+        /// Camera resolution (size x size).
+        #[arg(long, default_value_t = 256)]
+        size: usize,
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    if matches!(cli.command, Command::Bench { .. } | Command::Trace { .. }) {
+        if let Some(code) = native::rerun_natively() {
+            return code;
+        }
+    }
+    match run(cli.command) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(command: Command) -> Result<ExitCode, String> {
+    match command {
+        Command::Accels { long } => {
+            for e in registry::REGISTRY {
+                if long {
+                    println!("{:<14} {}", e.name, e.about);
+                } else {
+                    println!("{}", e.name);
+                }
+            }
+        }
+        Command::Verify { quick, accels } => {
+            let ok = verify::verify(&verify::VerifyOptions { quick, accels })?;
+            if !ok {
+                return Ok(ExitCode::FAILURE);
+            }
+        }
+        Command::Bench {
+            quick,
+            accels,
+            scenes,
+            json,
+            threads,
+        } => {
+            if threads.is_empty() || threads.iter().any(|&t| t == 0 || t > 1024) {
+                return Err("--threads takes counts from 1 to 1024".into());
+            }
+            bench::bench(&bench::BenchOptions {
+                quick,
+                accels,
+                scenes,
+                json,
+                threads,
+            })?;
+        }
+        Command::Trace {
+            mesh,
+            rays,
+            accel,
+            occluded,
+            threads,
+            repeat,
+            out,
+        } => {
+            let s = trace::trace(&trace::TraceOptions {
+                mesh,
+                rays,
+                accel,
+                occluded,
+                threads,
+                repeat,
+                out,
+            })?;
+            println!("{}", s.line());
+        }
+        Command::Rays {
+            mesh,
+            set,
+            size,
+            out,
+        } => {
+            let n = trace::write_standard_rays(&trace::RaysOptions {
+                mesh,
+                set,
+                size,
+                out: out.clone(),
+            })?;
+            println!("wrote {n} rays to {}", out.display());
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

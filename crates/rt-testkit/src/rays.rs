@@ -14,7 +14,11 @@ pub trait SamplePoints: Primitive {
 
 impl SamplePoints for Triangle {
     fn sample(&self, u: f32, v: f32) -> Vec3 {
-        let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+        let (u, v) = if u + v > 1.0 {
+            (1.0 - u, 1.0 - v)
+        } else {
+            (u, v)
+        };
         self.point(u, v)
     }
 
@@ -62,6 +66,12 @@ pub enum RayKind {
     Limited,
     /// Zero, NaN or infinite directions and origins, NaN intervals: must miss.
     Invalid,
+    /// Primary rays of the standard camera (mesh verification).
+    Camera,
+    /// Shadow rays toward the standard light.
+    Shadow,
+    /// Diffuse bounces from camera hits.
+    Diffuse,
 }
 
 /// A conformance ray with its family.
@@ -84,7 +94,10 @@ pub fn conformance_rays<P: SamplePoints>(
     let (lo, hi) = if bounds.is_empty() {
         (Vec3::splat(-1.0), Vec3::splat(1.0))
     } else {
-        let pad = bounds.extent().max_element().max(bounds.min.abs().max_element() * 1e-6);
+        let pad = bounds
+            .extent()
+            .max_element()
+            .max(bounds.min.abs().max_element() * 1e-6);
         (bounds.min - pad * 0.5, bounds.max + pad * 0.5)
     };
     let mut out = Vec::new();
@@ -101,7 +114,10 @@ pub fn conformance_rays<P: SamplePoints>(
         }
     };
     for _ in 0..per_kind {
-        push(Ray::new(rng.point_in(lo, hi), rng.unit_vector()), RayKind::Random);
+        push(
+            Ray::new(rng.point_in(lo, hi), rng.unit_vector()),
+            RayKind::Random,
+        );
         if !bounds.is_empty() {
             let o = rng.point_in(bounds.min, bounds.max);
             push(Ray::new(o, rng.unit_vector()), RayKind::Inside);
@@ -298,6 +314,19 @@ impl RaySets {
     }
 
     pub const NAMES: [&'static str; 3] = ["primary", "shadow", "diffuse"];
+
+    /// All rays, tagged with their set, for the conformance comparison.
+    pub fn tagged(&self) -> Vec<TestRay> {
+        let mut out = Vec::new();
+        for (rays, kind) in [
+            (&self.primary, RayKind::Camera),
+            (&self.shadow, RayKind::Shadow),
+            (&self.diffuse, RayKind::Diffuse),
+        ] {
+            out.extend(rays.iter().map(|&ray| TestRay { ray, kind }));
+        }
+        out
+    }
 }
 
 /// Hit point and the geometric normal facing the ray.

@@ -20,7 +20,9 @@ impl<P: Primitive> Scene<P> {
     }
 
     pub fn bounds(&self) -> Aabb {
-        self.prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()))
+        self.prims
+            .iter()
+            .fold(Aabb::EMPTY, |b, p| b.union(p.bounds()))
     }
 }
 
@@ -51,7 +53,12 @@ pub fn tessellated_sphere(n: usize, center: Vec3, radius: f32) -> Vec<Triangle> 
         let theta = PI * i as f32 / rings as f32;
         let phi = TAU * (j % segments) as f32 / segments as f32;
         center
-            + radius * Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
+            + radius
+                * Vec3::new(
+                    theta.sin() * phi.cos(),
+                    theta.cos(),
+                    theta.sin() * phi.sin(),
+                )
     };
     let mut tris = Vec::with_capacity(2 * rings * segments);
     for i in 0..rings {
@@ -144,13 +151,39 @@ pub fn duplicates(n: usize, seed: u64) -> Vec<Triangle> {
 pub fn teapot_in_stadium(n: usize) -> Vec<Triangle> {
     let mut tris = tessellated_sphere(n, Vec3::new(0.0, 0.02, 0.0), 0.01);
     let s = 500.0;
-    let quad = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| [Triangle::new(a, b, c), Triangle::new(a, c, d)];
+    let quad =
+        |a: Vec3, b: Vec3, c: Vec3, d: Vec3| [Triangle::new(a, b, c), Triangle::new(a, c, d)];
     let p = |x: f32, y: f32, z: f32| Vec3::new(x * s, y * s, z * s);
-    tris.extend(quad(p(-1., 0., -1.), p(1., 0., -1.), p(1., 0., 1.), p(-1., 0., 1.)));
-    tris.extend(quad(p(-1., 0., -1.), p(-1., 1., -1.), p(1., 1., -1.), p(1., 0., -1.)));
-    tris.extend(quad(p(-1., 0., 1.), p(1., 0., 1.), p(1., 1., 1.), p(-1., 1., 1.)));
-    tris.extend(quad(p(-1., 0., -1.), p(-1., 0., 1.), p(-1., 1., 1.), p(-1., 1., -1.)));
-    tris.extend(quad(p(1., 0., -1.), p(1., 1., -1.), p(1., 1., 1.), p(1., 0., 1.)));
+    tris.extend(quad(
+        p(-1., 0., -1.),
+        p(1., 0., -1.),
+        p(1., 0., 1.),
+        p(-1., 0., 1.),
+    ));
+    tris.extend(quad(
+        p(-1., 0., -1.),
+        p(-1., 1., -1.),
+        p(1., 1., -1.),
+        p(1., 0., -1.),
+    ));
+    tris.extend(quad(
+        p(-1., 0., 1.),
+        p(1., 0., 1.),
+        p(1., 1., 1.),
+        p(-1., 1., 1.),
+    ));
+    tris.extend(quad(
+        p(-1., 0., -1.),
+        p(-1., 0., 1.),
+        p(-1., 1., 1.),
+        p(-1., 1., -1.),
+    ));
+    tris.extend(quad(
+        p(1., 0., -1.),
+        p(1., 1., -1.),
+        p(1., 1., 1.),
+        p(1., 0., 1.),
+    ));
     tris
 }
 
@@ -184,16 +217,28 @@ pub fn conformance_triangle_scenes() -> Vec<Scene<Triangle>> {
     let soup = random_soup(2000, 1);
     vec![
         Scene::new("soup", soup.clone()),
-        Scene::new("sphere_mesh", tessellated_sphere(3000, Vec3::splat(0.5), 0.5)),
+        Scene::new(
+            "sphere_mesh",
+            tessellated_sphere(3000, Vec3::splat(0.5), 0.5),
+        ),
         Scene::new("torus", torus(2000, 1.0, 0.3)),
         Scene::new("planar_grid", planar_grid(30)),
         Scene::new("coplanar", coplanar(800, 2)),
         Scene::new("axis_slivers", axis_slivers(1000, 3)),
         Scene::new("duplicates", duplicates(1500, 4)),
         Scene::new("teapot_in_stadium", teapot_in_stadium(2000)),
-        Scene::new("huge_coords", transformed(&soup[..1000], 1.0e3, Vec3::splat(1.0e6))),
-        Scene::new("tiny_coords", transformed(&soup[..1000], 1.0e-6, Vec3::splat(1.0e-6))),
-        Scene::new("one_triangle", vec![Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y)]),
+        Scene::new(
+            "huge_coords",
+            transformed(&soup[..1000], 1.0e3, Vec3::splat(1.0e6)),
+        ),
+        Scene::new(
+            "tiny_coords",
+            transformed(&soup[..1000], 1.0e-6, Vec3::splat(1.0e-6)),
+        ),
+        Scene::new(
+            "one_triangle",
+            vec![Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y)],
+        ),
         Scene::new("empty", vec![]),
     ]
 }

@@ -1,0 +1,250 @@
+//! `cargo xtask bench`: build time, throughput, memory and SAH cost of every structure on every
+//! scene and ray set, per thread count, beside obvhs measured in the same run.
+
+use crate::registry::{self, AccelEntry};
+use crate::run;
+use rt_geom::{Accel, Ray, Triangle, Vec3};
+use rt_testkit::{RaySets, models, scenes};
+use serde::Serialize;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    pub quick: bool,
+    pub accels: Option<String>,
+    pub scenes: Option<String>,
+    pub json: Option<PathBuf>,
+    pub threads: Vec<usize>,
+}
+
+/// One measurement: a structure on a scene with a ray set and a thread count.
+#[derive(Clone, Debug, Serialize)]
+pub struct Record {
+    pub accel: String,
+    pub scene: String,
+    /// The ray set: `primary`, `shadow` or `diffuse`.
+    pub rays: String,
+    pub threads: usize,
+    pub build_ms: f64,
+    /// Median over the repetitions.
+    pub mrays_s: f64,
+    pub bytes: usize,
+    /// `mrays_s` over the faster of `obvhs` and `obvhs-cwbvh` on the same scene, rays, threads.
+    pub ratio_vs_obvhs: Option<f64>,
+    pub ray_count: usize,
+    pub hits: usize,
+    /// Primitives in the scene.
+    pub prims: usize,
+    pub sah_cost: Option<f32>,
+}
+
+/// The scenes `bench` knows: the shared meshes and procedural ones.
+pub fn scene_names() -> Vec<&'static str> {
+    let mut v: Vec<&str> = models::MODEL_NAMES.to_vec();
+    v.extend(["soup-100k", "sphere-200k"]);
+    v
+}
+
+fn load_scene(name: &str) -> Result<Option<Vec<Triangle>>, String> {
+    Ok(Some(match name {
+        "soup-100k" => scenes::random_soup(100_000, 11),
+        "soup-20k" => scenes::random_soup(20_000, 11),
+        "sphere-200k" => scenes::tessellated_sphere(200_000, Vec3::ZERO, 1.0),
+        _ if models::MODEL_NAMES.contains(&name) => {
+            match models::load_model(name).map_err(|e| e.to_string())? {
+                Some(m) => m.triangles(),
+                None => return Ok(None),
+            }
+        }
+        _ => {
+            return Err(format!(
+                "unknown scene '{name}'; known: {}",
+                scene_names().join(", ")
+            ));
+        }
+    }))
+}
+
+fn default_scenes(quick: bool) -> Vec<&'static str> {
+    let have_models = models::models_dir().is_some();
+    match (quick, have_models) {
+        (true, true) => vec!["teapot", "bunny"],
+        (true, false) => vec!["soup-20k"],
+        (false, true) => vec!["teapot", "bunny", "sponza", "dragon"],
+        (false, false) => vec!["soup-100k", "sphere-200k"],
+    }
+}
+
+/// Time budget of one timed repetition; larger ray sets are subsampled to fit it.
+const REP_BUDGET: Duration = Duration::from_millis(1500);
+
+pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
+    let entries = registry::select(opts.accels.as_deref())?;
+    let scene_list: Vec<String> = match &opts.scenes {
+        Some(s) => s.split(',').map(|x| x.trim().to_string()).collect(),
+        None => default_scenes(opts.quick)
+            .iter()
+            .map(|s| s.to_string())
+            .collect(),
+    };
+    let (size, reps) = if opts.quick { (128, 3) } else { (1024, 5) };
+    let pools: Vec<_> = opts
+        .threads
+        .iter()
+        .map(|&t| run::pool(t).map(|p| (t, p)))
+        .collect::<Result<_, _>>()?;
+    // obvhs is always measured: every ratio is against it, in the same run.
+    let mut measured: Vec<&AccelEntry> = entries.clone();
+    for name in ["obvhs", "obvhs-cwbvh"] {
+        if !measured.iter().any(|e| e.name == name) {
+            measured.push(registry::find(name).expect("registered"));
+        }
+    }
+    eprintln!(
+        "bench: {} structures x {} scenes x 3 ray sets x threads {:?}; {size}x{size} camera, median of {reps}",
+        measured.len(),
+        scene_list.len(),
+        opts.threads
+    );
+    let mut records = Vec::new();
+    for scene in &scene_list {
+        let Some(tris) = load_scene(scene)? else {
+            continue;
+        };
+        let reference_entry = registry::find("obvhs").expect("registered");
+        let pb = run::spinner(format!("{scene}: rays from the reference"));
+        let reference = (reference_entry.build)(&tris).map_err(|e| e.to_string())?;
+        let sets = RaySets::generate(scene, &tris, reference.as_ref(), size, size, 3);
+        drop(reference);
+        pb.finish_and_clear();
+        let runnable: Vec<_> = measured
+            .iter()
+            .filter(|e| tris.len() <= e.bench_max_prims)
+            .collect();
+        let pb = run::bar((runnable.len() * 3 * pools.len()) as u64, scene.clone());
+        for entry in runnable {
+            pb.set_message(format!("{} build", entry.name));
+            let start = Instant::now();
+            let accel = (entry.build)(&tris).map_err(|e| format!("{}: {e}", entry.name))?;
+            let build_ms = start.elapsed().as_secs_f64() * 1e3;
+            let stats = accel.stats();
+            for set in RaySets::NAMES {
+                let rays = sets.by_name(set).expect("known set");
+                for (threads, pool) in &pools {
+                    pb.set_message(format!("{} {set} x{threads}", entry.name));
+                    let (rate, hits, count) =
+                        measure(accel.as_ref(), rays, set == "shadow", pool, reps);
+                    records.push(Record {
+                        accel: entry.name.to_string(),
+                        scene: scene.clone(),
+                        rays: set.to_string(),
+                        threads: *threads,
+                        build_ms,
+                        mrays_s: rate,
+                        bytes: stats.bytes,
+                        ratio_vs_obvhs: None,
+                        ray_count: count,
+                        hits,
+                        prims: tris.len(),
+                        sah_cost: stats.sah_cost,
+                    });
+                    pb.inc(1);
+                }
+            }
+        }
+        pb.finish_and_clear();
+    }
+    fill_ratios(&mut records);
+    records.retain(|r| entries.iter().any(|e| e.name == r.accel) || r.accel.starts_with("obvhs"));
+    print_table(&records);
+    if let Some(path) = &opts.json {
+        let text = serde_json::to_string_pretty(&records).map_err(|e| e.to_string())?;
+        std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+        eprintln!("wrote {} records to {}", records.len(), path.display());
+    }
+    Ok(records)
+}
+
+/// Median Mrays/s over `reps` timed runs after one warm-up; sets too slow for the time budget
+/// are subsampled evenly. Returns `(mrays_s, hits in the last run, rays per run)`.
+fn measure(
+    accel: &dyn Accel,
+    rays: &[Ray],
+    occluded: bool,
+    pool: &rayon::ThreadPool,
+    reps: usize,
+) -> (f64, usize, usize) {
+    if rays.is_empty() {
+        return (0.0, 0, 0);
+    }
+    let probe = &rays[..rays.len().min(4096)];
+    let (_, t) = run::trace_count(accel, probe, occluded, pool);
+    let per_ray = t.as_secs_f64() / probe.len() as f64;
+    let fit = (REP_BUDGET.as_secs_f64() / per_ray.max(1e-12)) as usize;
+    let subset: Vec<Ray>;
+    let rays = if fit < rays.len() {
+        let stride = rays.len().div_ceil(fit.max(256));
+        subset = rays.iter().step_by(stride).copied().collect();
+        &subset[..]
+    } else {
+        rays
+    };
+    run::trace_count(accel, rays, occluded, pool); // warm-up
+    let mut hits = 0;
+    let times = (0..reps)
+        .map(|_| {
+            let (h, t) = run::trace_count(accel, rays, occluded, pool);
+            hits = h;
+            t
+        })
+        .collect();
+    (
+        run::mrays_per_s(rays.len(), run::median(times)),
+        hits,
+        rays.len(),
+    )
+}
+
+fn fill_ratios(records: &mut [Record]) {
+    let best: Vec<Option<f64>> = records
+        .iter()
+        .map(|r| {
+            records
+                .iter()
+                .filter(|o| {
+                    o.accel.starts_with("obvhs")
+                        && o.scene == r.scene
+                        && o.rays == r.rays
+                        && o.threads == r.threads
+                })
+                .map(|o| o.mrays_s)
+                .fold(None, |a: Option<f64>, x| Some(a.map_or(x, |a| a.max(x))))
+        })
+        .collect();
+    for (r, b) in records.iter_mut().zip(best) {
+        r.ratio_vs_obvhs = b.filter(|b| *b > 0.0).map(|b| r.mrays_s / b);
+    }
+}
+
+pub fn print_table(records: &[Record]) {
+    println!(
+        "{:<14} {:<12} {:<8} {:>3} {:>10} {:>9} {:>8} {:>8} {:>8} {:>7}",
+        "accel", "scene", "rays", "thr", "build_ms", "Mrays/s", "vs obvhs", "B/prim", "MiB", "sah"
+    );
+    for r in records {
+        println!(
+            "{:<14} {:<12} {:<8} {:>3} {:>10.1} {:>9.2} {:>8} {:>8} {:>8.1} {:>7}",
+            r.accel,
+            r.scene,
+            r.rays,
+            r.threads,
+            r.build_ms,
+            r.mrays_s,
+            r.ratio_vs_obvhs.map_or("-".into(), |x| format!("{x:.2}x")),
+            format!("{:.1}", r.bytes as f64 / r.prims.max(1) as f64),
+            r.bytes as f64 / (1 << 20) as f64,
+            r.sah_cost.map_or("-".into(), |x| format!("{x:.1}")),
+        );
+    }
+}

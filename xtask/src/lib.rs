@@ -1,0 +1,24 @@
+//! # xtask: the command-line face of rt
+//!
+//! `cargo xtask accels | verify | bench | trace | rays`. Everything is a library function first
+//! (so that tests call it directly) and a subcommand second (`main.rs`).
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`registry`] | the one list of structures by name ([`registry::REGISTRY`]) |
+//! | [`obvhs_accel`] | obvhs's BVH2 and CWBVH behind the `Accel` trait (the references) |
+//! | [`verify`] | every structure against brute force and obvhs |
+//! | [`bench`] | throughput, build time, memory, beside obvhs in the same run |
+//! | [`trace`] | ray files in, hit files out; standard ray sets out |
+//! | [`rayfile`] | the `.rays` / `.hits` formats |
+//! | [`run`] | timed parallel tracing, medians, progress bars |
+//! | [`native`] | re-running `bench`/`trace` built with `-C target-cpu=native` |
+
+pub mod bench;
+pub mod native;
+pub mod obvhs_accel;
+pub mod rayfile;
+pub mod registry;
+pub mod run;
+pub mod trace;
+pub mod verify;

@@ -1,0 +1,94 @@
+//! The one registry of structures by name. `verify`, `bench`, `trace` (and `render`) cover
+//! every entry here; a new structure is one more line in [`REGISTRY`].
+
+use crate::obvhs_accel::{ObvhsBvh2, ObvhsCwBvh};
+use rt_geom::{Accel, BruteForce, BuildError, Triangle};
+use rt_testkit::Tolerance;
+
+/// A structure that can be built from triangles.
+pub struct AccelEntry {
+    /// The name users type (`--accel NAME`).
+    pub name: &'static str,
+    /// One line: what it is and how it is built.
+    pub about: &'static str,
+    pub build: fn(&[Triangle]) -> Result<Box<dyn Accel>, BuildError>,
+    /// How closely it must agree with brute force (rt's own structures: exactly).
+    pub tolerance: Tolerance,
+    /// A reference implementation from another crate (not rt's own work).
+    pub external: bool,
+    /// Largest scene `bench` runs it on by default (brute force is O(n) per ray).
+    pub bench_max_prims: usize,
+}
+
+fn boxed<A: Accel + 'static>(r: Result<A, BuildError>) -> Result<Box<dyn Accel>, BuildError> {
+    r.map(|a| Box::new(a) as Box<dyn Accel>)
+}
+
+/// obvhs's CWBVH drops hits closer than this (its traversal ignores `tmin` below it).
+pub const CWBVH_NEAR_T: f32 = 1e-4;
+
+/// What obvhs is held to. Its box test (`(b - o) * inv_dir`, with `1/0` replaced by
+/// `1/EPSILON`, no padding) is exact on camera, shadow and diffuse rays, but loses hits of rays
+/// that lie in a box face (zero direction components) or graze a box boundary, and can cull a
+/// box whose entry rounds an ulp past a hit: `verify` counts those as tolerated, and holds it
+/// exact on every other ray.
+pub const OBVHS_TOLERANCE: Tolerance = Tolerance {
+    rel_t: 1e-6,
+    near_t: 0.0,
+    boundary_misses: true,
+};
+
+pub static REGISTRY: &[AccelEntry] = &[
+    AccelEntry {
+        name: "brute",
+        about: "brute force: every ray against every primitive (the reference on small scenes)",
+        build: |p| boxed(BruteForce::build(p)),
+        tolerance: Tolerance::EXACT,
+        external: false,
+        bench_max_prims: 10_000,
+    },
+    AccelEntry {
+        name: "obvhs",
+        about: "obvhs 0.4 Bvh2, very_slow_build preset (PLOC + reinsertion + presplits): the correctness reference",
+        build: |p| boxed(ObvhsBvh2::build(p)),
+        tolerance: OBVHS_TOLERANCE,
+        external: true,
+        bench_max_prims: usize::MAX,
+    },
+    AccelEntry {
+        name: "obvhs-cwbvh",
+        about: "obvhs 0.4 CwBvh (8-wide compressed), very_slow_build preset: speed reference; drops hits below t = 1e-4",
+        build: |p| boxed(ObvhsCwBvh::build(p)),
+        tolerance: Tolerance {
+            near_t: CWBVH_NEAR_T,
+            ..OBVHS_TOLERANCE
+        },
+        external: true,
+        bench_max_prims: usize::MAX,
+    },
+];
+
+/// The entry with this name.
+pub fn find(name: &str) -> Option<&'static AccelEntry> {
+    REGISTRY.iter().find(|e| e.name == name)
+}
+
+/// Entries by a comma-separated list of names (all when `None`); unknown names are an error
+/// that lists the known ones.
+pub fn select(names: Option<&str>) -> Result<Vec<&'static AccelEntry>, String> {
+    match names {
+        None => Ok(REGISTRY.iter().collect()),
+        Some(list) => list
+            .split(',')
+            .map(str::trim)
+            .filter(|s| !s.is_empty())
+            .map(|n| find(n).ok_or_else(|| unknown(n)))
+            .collect(),
+    }
+}
+
+/// The error message for an unknown structure name.
+pub fn unknown(name: &str) -> String {
+    let names: Vec<_> = REGISTRY.iter().map(|e| e.name).collect();
+    format!("unknown accel '{name}'; known: {}", names.join(", "))
+}

@@ -1,0 +1,112 @@
+//! Tracing a batch of rays through a structure on a fixed number of threads, timed apart from
+//! everything else. `bench` and `trace` both measure with this.
+
+use crate::rayfile::HitRecord;
+use rayon::prelude::*;
+use rt_geom::{Accel, Ray};
+use std::time::{Duration, Instant};
+
+/// Rays per rayon task: large enough to amortise scheduling, small enough to balance 2 cores.
+const CHUNK: usize = 1024;
+
+/// A rayon pool of exactly `threads` threads (0 = rayon's default).
+pub fn pool(threads: usize) -> Result<rayon::ThreadPool, String> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| format!("cannot start {threads} threads: {e}"))
+}
+
+/// Traces every ray (`intersect`, or `occluded` for shadow rays) into `out`; returns the time.
+pub fn trace_into(
+    accel: &dyn Accel,
+    rays: &[Ray],
+    occluded: bool,
+    pool: &rayon::ThreadPool,
+    out: &mut [HitRecord],
+) -> Duration {
+    assert_eq!(rays.len(), out.len());
+    let start = Instant::now();
+    pool.install(|| {
+        out.par_chunks_mut(CHUNK)
+            .zip(rays.par_chunks(CHUNK))
+            .for_each(|(out, rays)| {
+                for (o, r) in out.iter_mut().zip(rays) {
+                    *o = if occluded {
+                        HitRecord::from_occluded(accel.occluded(r))
+                    } else {
+                        HitRecord::from_hit(accel.intersect(r))
+                    };
+                }
+            })
+    });
+    start.elapsed()
+}
+
+/// Traces every ray and counts hits (nothing stored); returns `(hits, time)`.
+pub fn trace_count(
+    accel: &dyn Accel,
+    rays: &[Ray],
+    occluded: bool,
+    pool: &rayon::ThreadPool,
+) -> (usize, Duration) {
+    let start = Instant::now();
+    let hits = pool.install(|| {
+        rays.par_chunks(CHUNK)
+            .map(|rays| {
+                rays.iter()
+                    .filter(|r| {
+                        if occluded {
+                            accel.occluded(r)
+                        } else {
+                            accel.intersect(r).is_some()
+                        }
+                    })
+                    .count()
+            })
+            .sum()
+    });
+    (hits, start.elapsed())
+}
+
+/// The median of a non-empty list of durations.
+pub fn median(mut times: Vec<Duration>) -> Duration {
+    times.sort();
+    let n = times.len();
+    if n % 2 == 1 {
+        times[n / 2]
+    } else {
+        (times[n / 2 - 1] + times[n / 2]) / 2
+    }
+}
+
+/// Millions of rays per second.
+pub fn mrays_per_s(rays: usize, time: Duration) -> f64 {
+    rays as f64 / time.as_secs_f64().max(1e-9) / 1e6
+}
+
+/// A spinner for work that may take a while (hidden when stderr is not a terminal).
+pub fn spinner(msg: String) -> indicatif::ProgressBar {
+    let pb = indicatif::ProgressBar::new_spinner();
+    pb.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {msg} {elapsed}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+    );
+    pb.set_message(msg);
+    pb.enable_steady_tick(Duration::from_millis(120));
+    pb
+}
+
+/// A bar over `len` steps.
+pub fn bar(len: u64, prefix: impl Into<String>) -> indicatif::ProgressBar {
+    let pb = indicatif::ProgressBar::new(len);
+    pb.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{prefix} [{bar:30}] {pos}/{len} {elapsed} {wide_msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    pb.set_prefix(prefix.into());
+    pb
+}

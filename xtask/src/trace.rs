@@ -1,0 +1,123 @@
+//! `cargo xtask trace`: a mesh, a ray file and a structure in; a hit file and one timing line
+//! out. `cargo xtask rays` writes the standard ray sets of a mesh as ray files.
+
+use crate::rayfile::{self, HitRecord};
+use crate::registry;
+use crate::run;
+use rt_geom::load_obj;
+use rt_testkit::RaySets;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Clone, Debug)]
+pub struct TraceOptions {
+    pub mesh: PathBuf,
+    pub rays: PathBuf,
+    pub accel: String,
+    pub occluded: bool,
+    pub threads: usize,
+    pub repeat: usize,
+    pub out: Option<PathBuf>,
+}
+
+/// What a trace did; [`TraceSummary::line`] is the last line `trace` prints.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TraceSummary {
+    pub rays: usize,
+    pub hits: usize,
+    /// Rays with a zero-length or non-finite direction, a non-finite origin or a NaN interval:
+    /// traced as misses.
+    pub invalid: usize,
+    pub build_ms: f64,
+    /// Median over the repetitions.
+    pub trace_ms: f64,
+    pub mrays_s: f64,
+}
+
+impl TraceSummary {
+    pub fn line(&self) -> String {
+        format!(
+            "rays={} hits={} build_ms={:.3} trace_ms={:.3} mrays_s={:.3}",
+            self.rays, self.hits, self.build_ms, self.trace_ms, self.mrays_s
+        )
+    }
+}
+
+pub fn trace(opts: &TraceOptions) -> Result<TraceSummary, String> {
+    let entry = registry::find(&opts.accel).ok_or_else(|| registry::unknown(&opts.accel))?;
+    if opts.repeat == 0 {
+        return Err("--repeat must be at least 1".into());
+    }
+    let rays = rayfile::read_rays(&opts.rays)?;
+    let mesh = load_obj(&opts.mesh).map_err(|e| e.to_string())?;
+    let tris = mesh.triangles();
+    let invalid = rays.iter().filter(|r| !r.is_valid()).count();
+    if invalid > 0 {
+        eprintln!(
+            "warning: {invalid} of {} rays have a zero-length or non-finite direction, a non-finite origin or a NaN interval: traced as misses",
+            rays.len()
+        );
+    }
+    let pool = run::pool(opts.threads)?;
+    let pb = run::spinner(format!(
+        "building {} over {} triangles",
+        entry.name,
+        tris.len()
+    ));
+    let start = Instant::now();
+    let accel = (entry.build)(&tris).map_err(|e| format!("{}: {e}", opts.mesh.display()))?;
+    let build_ms = start.elapsed().as_secs_f64() * 1e3;
+    pb.finish_and_clear();
+    let mut out = vec![HitRecord::MISS; rays.len()];
+    let times: Vec<_> = (0..opts.repeat)
+        .map(|_| run::trace_into(accel.as_ref(), &rays, opts.occluded, &pool, &mut out))
+        .collect();
+    let trace_time = run::median(times);
+    if let Some(path) = &opts.out {
+        rayfile::write_hits(path, &out)?;
+    }
+    Ok(TraceSummary {
+        rays: rays.len(),
+        hits: out.iter().filter(|h| h.is_hit()).count(),
+        invalid,
+        build_ms,
+        trace_ms: trace_time.as_secs_f64() * 1e3,
+        mrays_s: run::mrays_per_s(rays.len(), trace_time),
+    })
+}
+
+#[derive(Clone, Debug)]
+pub struct RaysOptions {
+    pub mesh: PathBuf,
+    /// `primary`, `shadow`, `diffuse` or `all` (concatenated in that order).
+    pub set: String,
+    pub size: usize,
+    pub out: PathBuf,
+}
+
+/// Writes a standard ray set of a mesh (camera of the mesh's standard view, named by its file
+/// stem; shadow and diffuse rays from the camera hits, found with obvhs). Returns the ray count.
+pub fn write_standard_rays(opts: &RaysOptions) -> Result<usize, String> {
+    if opts.size == 0 || opts.size > 16384 {
+        return Err(format!("--size {} out of range 1..=16384", opts.size));
+    }
+    let mesh = load_obj(&opts.mesh).map_err(|e| e.to_string())?;
+    let tris = mesh.triangles();
+    let name = opts
+        .mesh
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let reference =
+        (registry::find("obvhs").expect("registered").build)(&tris).map_err(|e| e.to_string())?;
+    let sets = RaySets::generate(&name, &tris, reference.as_ref(), opts.size, opts.size, 1);
+    let rays = match opts.set.as_str() {
+        "all" => [&sets.primary[..], &sets.shadow, &sets.diffuse].concat(),
+        s => sets
+            .by_name(s)
+            .ok_or_else(|| format!("unknown ray set '{s}': primary, shadow, diffuse or all"))?
+            .to_vec(),
+    };
+    rayfile::write_rays(&opts.out, &rays)?;
+    Ok(rays.len())
+}

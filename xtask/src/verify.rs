@@ -1,0 +1,203 @@
+//! `cargo xtask verify`: every registered structure against brute force on the conformance
+//! scenes, and, when `../shared/models` exists, on the standard meshes with camera, shadow and
+//! diffuse rays (against brute force on small meshes, against obvhs on large ones).
+
+use crate::registry::{self, AccelEntry};
+use crate::run;
+use rayon::prelude::*;
+use rt_geom::{Accel, BruteForce, Triangle};
+use rt_testkit::conformance::{self, Report};
+use rt_testkit::{RaySets, TestRay, models, scenes};
+use std::time::Instant;
+
+#[derive(Clone, Debug, Default)]
+pub struct VerifyOptions {
+    /// Fewer rays and only the small meshes.
+    pub quick: bool,
+    /// Comma-separated structure names (all when `None`).
+    pub accels: Option<String>,
+}
+
+/// One line of the verify table.
+#[derive(Clone, Debug)]
+pub struct Row {
+    pub accel: &'static str,
+    pub scene: String,
+    pub build_ms: f64,
+    pub report: Result<Report, String>,
+}
+
+impl Row {
+    pub fn ok(&self) -> bool {
+        self.report.as_ref().is_ok_and(Report::is_ok)
+    }
+}
+
+/// Largest mesh verified against brute force; larger ones are verified against obvhs.
+const BRUTE_REFERENCE_MAX: usize = 10_000;
+
+/// Runs everything; prints the table; `Ok(true)` when nothing disagrees.
+pub fn verify(opts: &VerifyOptions) -> Result<bool, String> {
+    let entries = registry::select(opts.accels.as_deref())?;
+    let mut rows = conformance_rows(&entries);
+    match models::models_dir() {
+        Some(dir) => {
+            eprintln!("meshes from {}", dir.display());
+            let names: &[&str] = if opts.quick {
+                &["teapot", "bunny"]
+            } else {
+                &models::MODEL_NAMES
+            };
+            for name in names {
+                rows.extend(mesh_rows(name, &entries, opts.quick)?);
+            }
+        }
+        None => eprintln!(
+            "note: ../shared/models not found (set RT_MODELS): meshes skipped, procedural scenes only"
+        ),
+    }
+    print_table(&rows);
+    let bad = rows.iter().filter(|r| !r.ok()).count();
+    if bad > 0 {
+        println!("\n{bad} of {} rows disagree. Reproducers:", rows.len());
+        for r in rows.iter().filter(|r| !r.ok()) {
+            match &r.report {
+                Err(e) => println!("  {} {}: {e}", r.accel, r.scene),
+                Ok(rep) => {
+                    for m in rep.mismatches.iter().take(3) {
+                        println!("  {}: {m}", r.accel);
+                    }
+                }
+            }
+        }
+    } else {
+        println!("\nall {} rows agree: 0 mismatches", rows.len());
+    }
+    Ok(bad == 0)
+}
+
+fn conformance_rows(entries: &[&'static AccelEntry]) -> Vec<Row> {
+    let scenes = scenes::conformance_triangle_scenes();
+    let jobs: Vec<_> = entries
+        .iter()
+        .flat_map(|e| scenes.iter().map(move |s| (*e, s)))
+        .collect();
+    let pb = run::bar(jobs.len() as u64, "conformance");
+    let rows = jobs
+        .par_iter()
+        .map(|(entry, scene)| {
+            pb.set_message(format!("{} {}", entry.name, scene.name));
+            let start = Instant::now();
+            let report = conformance::check_scene(scene, entry.build, entry.tolerance);
+            pb.inc(1);
+            Row {
+                accel: entry.name,
+                scene: scene.name.clone(),
+                build_ms: start.elapsed().as_secs_f64() * 1e3,
+                report,
+            }
+        })
+        .collect();
+    pb.finish_and_clear();
+    rows
+}
+
+fn mesh_rows(name: &str, entries: &[&'static AccelEntry], quick: bool) -> Result<Vec<Row>, String> {
+    let Some(mesh) = models::load_model(name).map_err(|e| e.to_string())? else {
+        return Ok(vec![]);
+    };
+    let tris = mesh.triangles();
+    let small = tris.len() <= BRUTE_REFERENCE_MAX;
+    let pb = run::spinner(format!("{name}: building the reference"));
+    let reference: Box<dyn Accel> = if small {
+        Box::new(BruteForce::build(&tris).map_err(|e| e.to_string())?)
+    } else {
+        (registry::find("obvhs").expect("obvhs is registered").build)(&tris)
+            .map_err(|e| e.to_string())?
+    };
+    let size = if quick { 64 } else { 192 };
+    pb.set_message(format!("{name}: reference rays"));
+    let rays = RaySets::generate(name, &tris, reference.as_ref(), size, size, 7).tagged();
+    let expected: Vec<_> = rays
+        .par_iter()
+        .map(|r| reference.intersect(&r.ray))
+        .collect();
+    pb.finish_and_clear();
+    let scene = format!(
+        "{name} ({} vs {})",
+        tris.len(),
+        if small { "brute" } else { "obvhs" }
+    );
+    let mut rows = Vec::new();
+    for entry in entries {
+        if tris.len() > entry.bench_max_prims {
+            continue; // brute force as a subject on a large mesh: O(n) per ray, not verified
+        }
+        let pb = run::spinner(format!("{name}: {}", entry.name));
+        let start = Instant::now();
+        let built = (entry.build)(&tris);
+        let build_ms = start.elapsed().as_secs_f64() * 1e3;
+        let report = built.map_err(|e| e.to_string()).and_then(|accel| {
+            accel.validate()?;
+            Ok(compare_parallel(
+                &scene,
+                &tris,
+                &rays,
+                &expected,
+                accel.as_ref(),
+                entry,
+            ))
+        });
+        pb.finish_and_clear();
+        rows.push(Row {
+            accel: entry.name,
+            scene: scene.clone(),
+            build_ms,
+            report,
+        });
+    }
+    Ok(rows)
+}
+
+fn compare_parallel(
+    scene: &str,
+    tris: &[Triangle],
+    rays: &[TestRay],
+    expected: &[Option<rt_geom::Hit>],
+    accel: &dyn Accel,
+    entry: &AccelEntry,
+) -> Report {
+    rays.par_chunks(2048)
+        .zip(expected.par_chunks(2048))
+        .map(|(r, e)| conformance::compare_with_expected(scene, tris, r, e, accel, entry.tolerance))
+        .reduce(Report::default, |mut a, b| {
+            if a.scene.is_empty() {
+                a.scene = b.scene.clone();
+            }
+            a.merge(b);
+            a
+        })
+}
+
+fn print_table(rows: &[Row]) {
+    println!(
+        "{:<14} {:<32} {:>8} {:>8} {:>10} {:>9} {:>10} {:>10}",
+        "accel", "scene", "rays", "hits", "mismatches", "tolerated", "max|dt|", "ms"
+    );
+    for r in rows {
+        match &r.report {
+            Ok(rep) => println!(
+                "{:<14} {:<32} {:>8} {:>8} {:>10} {:>9} {:>10.3e} {:>10.1}",
+                r.accel,
+                r.scene,
+                rep.rays,
+                rep.hits,
+                rep.mismatch_count,
+                rep.tolerated,
+                rep.max_dt,
+                r.build_ms
+            ),
+            Err(e) => println!("{:<14} {:<32} ERROR: {e}", r.accel, r.scene),
+        }
+    }
+}
