@@ -1,1 +1,51 @@
+//! The conformance suite over every registered structure, and per structure with its options.
 
+use rt_geom::{BruteForce, Sphere, Triangle};
+use rt_testkit::{conformance, scenes};
+use xtask::registry::REGISTRY;
+
+/// Every structure in the registry (so every structure `verify`, `bench` and `trace` know) on
+/// every conformance scene, held to its registered tolerance.
+#[test]
+fn every_registered_structure_conforms() {
+    let mut failures = Vec::new();
+    for scene in scenes::conformance_triangle_scenes() {
+        for entry in REGISTRY {
+            match conformance::check_scene(&scene, entry.build, entry.tolerance) {
+                Ok(r) if r.is_ok() => {}
+                Ok(r) => failures.push(format!(
+                    "{} on {}: {} mismatches, first: {}",
+                    entry.name, scene.name, r.mismatch_count, r.mismatches[0]
+                )),
+                Err(e) => failures.push(format!("{} on {}: {e}", entry.name, scene.name)),
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+mod brute {
+    use super::*;
+    rt_testkit::conformance_tests!(
+        triangles: |p: &[Triangle]| BruteForce::build(p),
+        spheres: |p: &[Sphere]| BruteForce::build(p),
+    );
+}
+
+mod obvhs_bvh2 {
+    use super::*;
+    use xtask::obvhs_accel::ObvhsBvh2;
+    rt_testkit::conformance_tests!(
+        tolerance: xtask::registry::OBVHS_TOLERANCE,
+        triangles: |p: &[Triangle]| ObvhsBvh2::build(p),
+    );
+}
+
+mod obvhs_cwbvh {
+    use super::*;
+    use xtask::obvhs_accel::ObvhsCwBvh;
+    rt_testkit::conformance_tests!(
+        tolerance: xtask::registry::find("obvhs-cwbvh").unwrap().tolerance,
+        triangles: |p: &[Triangle]| ObvhsCwBvh::build(p),
+    );
+}

@@ -90,7 +90,7 @@ pub struct Report {
     /// Disagreements the tolerance excuses (boundary rays of non-watertight traversals).
     pub tolerated: usize,
     pub mismatches: Vec<Mismatch>,
-    /// Largest `|t - t_reference|` over rays where both hit.
+    /// Largest `|t - t_reference|` over rays where both hit and agree.
     pub max_dt: f32,
 }
 
@@ -151,12 +151,12 @@ pub fn compare_with_expected<P: Primitive>(
             (None, None) => {}
             (Some(e), Some(g)) => {
                 report.hits += 1;
-                let dt = (e.t - g.t).abs();
-                report.max_dt = report.max_dt.max(dt);
                 if !t_agrees(e.t, g.t, ray, tolerance) {
                     bad = Some("intersect t");
                 } else if !prim_is_hit_at(prims, ray, &g, tolerance) {
                     bad = Some("intersect prim");
+                } else {
+                    report.max_dt = report.max_dt.max((e.t - g.t).abs());
                 }
             }
             (Some(e), None) => {

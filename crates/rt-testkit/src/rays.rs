@@ -204,12 +204,13 @@ pub struct View {
 }
 
 impl View {
-    /// Looks at the box from the front (+z), a little from above, so it fills most of the frame.
+    /// Looks at the box from the front (+z), a little from above, from twice the radius of its
+    /// bounding sphere: the object fills most of the frame, as in the usual benchmark views.
     pub fn front(bounds: &Aabb) -> Self {
         let c = bounds.center();
         let radius = 0.5 * bounds.extent().length().max(f32::MIN_POSITIVE);
         let fov_y: f32 = 45.0;
-        let dist = radius / (fov_y.to_radians() * 0.5).sin();
+        let dist = 2.0 * radius;
         let dir = Vec3::new(0.25, 0.3, 1.0).normalize();
         Self {
             eye: c + dir * dist,

@@ -1,0 +1,257 @@
+//! The command line as a user runs it: output formats, and clear errors (never a panic) on bad
+//! input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn xtask(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_xtask"))
+        .args(args)
+        .env("RT_NO_NATIVE", "1")
+        .output()
+        .expect("xtask runs")
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn fails_cleanly(o: &Output, needle: &str) {
+    let err = stderr(o);
+    assert!(
+        !o.status.success(),
+        "expected failure; stdout: {}",
+        stdout(o)
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(err.contains(needle), "stderr lacks {needle:?}: {err}");
+}
+
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(tag: &str) -> Self {
+        let p = std::env::temp_dir().join(format!("rt-cli-{tag}-{}", std::process::id()));
+        std::fs::create_dir_all(&p).unwrap();
+        Self(p)
+    }
+    fn path(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// A small closed mesh (an octahedron) written as OBJ.
+fn octahedron(path: &Path) {
+    let obj = "v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n\
+               f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n";
+    std::fs::write(path, obj).unwrap();
+}
+
+#[test]
+fn accels_lists_one_name_per_line() {
+    let o = xtask(&["accels"]);
+    assert!(o.status.success());
+    let names: Vec<_> = stdout(&o).lines().map(str::to_string).collect();
+    assert!(names.contains(&"brute".to_string()));
+    assert!(names.contains(&"obvhs".to_string()));
+    assert!(names.contains(&"obvhs-cwbvh".to_string()));
+    assert!(names.iter().all(|n| !n.contains(' ')));
+}
+
+#[test]
+fn trace_round_trip_and_timing_line() {
+    let dir = TempDir::new("trace");
+    let mesh = dir.path("octa.obj");
+    octahedron(&mesh);
+    let rays = dir.path("r.rays");
+    let o = xtask(&[
+        "rays",
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--size",
+        "16",
+        "--out",
+        rays.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(std::fs::metadata(&rays).unwrap().len(), 16 * 16 * 32);
+    let mut per_accel = Vec::new();
+    for accel in ["brute", "obvhs"] {
+        let hits = dir.path(&format!("{accel}.hits"));
+        let o = xtask(&[
+            "trace",
+            "--mesh",
+            mesh.to_str().unwrap(),
+            "--rays",
+            rays.to_str().unwrap(),
+            "--accel",
+            accel,
+            "--threads",
+            "2",
+            "--repeat",
+            "3",
+            "--out",
+            hits.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let out = stdout(&o);
+        let last = out.lines().last().unwrap();
+        let keys: Vec<_> = last
+            .split(' ')
+            .map(|kv| kv.split('=').next().unwrap())
+            .collect();
+        assert_eq!(
+            keys,
+            ["rays", "hits", "build_ms", "trace_ms", "mrays_s"],
+            "{last}"
+        );
+        assert!(last.starts_with("rays=256 hits="), "{last}");
+        let bytes = std::fs::read(&hits).unwrap();
+        assert_eq!(bytes.len(), 256 * 8);
+        per_accel.push(bytes);
+    }
+    assert_eq!(
+        per_accel[0], per_accel[1],
+        "brute and obvhs wrote different hit files"
+    );
+}
+
+#[test]
+fn trace_counts_invalid_rays_as_misses() {
+    let dir = TempDir::new("invalid");
+    let mesh = dir.path("octa.obj");
+    octahedron(&mesh);
+    let mut bytes = Vec::new();
+    for ray in [
+        [0.0, 0.0, 5.0, 0.0, 0.0, 0.0, -1.0, f32::INFINITY], // hits
+        [0.0, 0.0, 5.0, 0.0, 0.0, 0.0, 0.0, f32::INFINITY],  // zero direction
+        [0.0, 0.0, 5.0, 0.0, f32::NAN, 0.0, -1.0, f32::INFINITY],
+    ] {
+        for x in ray {
+            bytes.extend_from_slice(&f32::to_le_bytes(x));
+        }
+    }
+    let rays = dir.path("bad.rays");
+    std::fs::write(&rays, bytes).unwrap();
+    let hits = dir.path("bad.hits");
+    let o = xtask(&[
+        "trace",
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--rays",
+        rays.to_str().unwrap(),
+        "--accel",
+        "obvhs",
+        "--out",
+        hits.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("warning: 2 of 3 rays"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(
+        stdout(&o)
+            .trim_end()
+            .ends_with(&stdout(&o).lines().last().unwrap().to_string())
+    );
+    assert!(stdout(&o).contains("rays=3 hits=1 "), "{}", stdout(&o));
+    let h = std::fs::read(&hits).unwrap();
+    assert_eq!(f32::from_le_bytes(h[0..4].try_into().unwrap()), 4.0);
+    assert_eq!(u32::from_le_bytes(h[12..16].try_into().unwrap()), u32::MAX);
+}
+
+#[test]
+fn bad_input_gets_clear_errors() {
+    let dir = TempDir::new("bad");
+    let mesh = dir.path("octa.obj");
+    octahedron(&mesh);
+    let rays = dir.path("r.rays");
+    std::fs::write(&rays, [0u8; 32 * 3 + 5]).unwrap();
+    let m = mesh.to_str().unwrap();
+    let r = rays.to_str().unwrap();
+
+    let o = xtask(&["trace", "--mesh", m, "--rays", r, "--accel", "obvhs"]);
+    fails_cleanly(&o, "not a multiple of 32 bytes");
+
+    std::fs::write(&rays, [0u8; 64]).unwrap();
+    let o = xtask(&["trace", "--mesh", m, "--rays", r, "--accel", "no-such-tree"]);
+    fails_cleanly(&o, "unknown accel 'no-such-tree'");
+
+    let o = xtask(&[
+        "trace",
+        "--mesh",
+        "/no/such/mesh.obj",
+        "--rays",
+        r,
+        "--accel",
+        "brute",
+    ]);
+    fails_cleanly(&o, "/no/such/mesh.obj");
+
+    let o = xtask(&[
+        "trace",
+        "--mesh",
+        m,
+        "--rays",
+        "/no/such.rays",
+        "--accel",
+        "brute",
+    ]);
+    fails_cleanly(&o, "/no/such.rays");
+
+    let bad = dir.path("nan.obj");
+    std::fs::write(&bad, "v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let o = xtask(&[
+        "trace",
+        "--mesh",
+        bad.to_str().unwrap(),
+        "--rays",
+        r,
+        "--accel",
+        "brute",
+    ]);
+    fails_cleanly(&o, "nan.obj:2");
+
+    let bad = dir.path("broken.obj");
+    std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n").unwrap();
+    let o = xtask(&[
+        "trace",
+        "--mesh",
+        bad.to_str().unwrap(),
+        "--rays",
+        r,
+        "--accel",
+        "brute",
+    ]);
+    fails_cleanly(&o, "broken.obj:4");
+
+    let empty = dir.path("empty.obj");
+    std::fs::write(&empty, "").unwrap();
+    let o = xtask(&[
+        "trace",
+        "--mesh",
+        empty.to_str().unwrap(),
+        "--rays",
+        r,
+        "--accel",
+        "brute",
+    ]);
+    fails_cleanly(&o, "no faces");
+
+    let o = xtask(&["bench", "--quick", "--scenes", "nowhere"]);
+    fails_cleanly(&o, "unknown scene 'nowhere'");
+    let o = xtask(&["bench", "--quick", "--threads", "0"]);
+    fails_cleanly(&o, "--threads");
+}
