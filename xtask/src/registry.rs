@@ -2,6 +2,7 @@
 //! every entry here; a new structure is one more line in [`REGISTRY`].
 
 use crate::obvhs_accel::{ObvhsBvh2, ObvhsCwBvh};
+use rt_accel_bvh::{Bvh, BvhBuilder, BvhParams};
 use rt_geom::{Accel, BruteForce, BuildError, Triangle};
 use rt_testkit::Tolerance;
 
@@ -38,6 +39,22 @@ pub const OBVHS_TOLERANCE: Tolerance = Tolerance {
     boundary_misses: true,
 };
 
+/// An rt structure: exact agreement with brute force, benched on every scene.
+const fn own(
+    name: &'static str,
+    about: &'static str,
+    build: fn(&[Triangle]) -> Result<Box<dyn Accel>, BuildError>,
+) -> AccelEntry {
+    AccelEntry {
+        name,
+        about,
+        build,
+        tolerance: Tolerance::EXACT,
+        external: false,
+        bench_max_prims: usize::MAX,
+    }
+}
+
 pub static REGISTRY: &[AccelEntry] = &[
     AccelEntry {
         name: "brute",
@@ -47,6 +64,41 @@ pub static REGISTRY: &[AccelEntry] = &[
         external: false,
         bench_max_prims: 10_000,
     },
+    own(
+        "bvh",
+        "rt BVH2, binned SAH (16 bins), leaves of up to 4, parallel build (BvhParams::balanced)",
+        |p| boxed(Bvh::build(p, BvhParams::balanced())),
+    ),
+    own(
+        "bvh-fast",
+        "rt BVH2, binned SAH (8 bins), leaves of up to 8 (BvhParams::fast)",
+        |p| boxed(Bvh::build(p, BvhParams::fast())),
+    ),
+    own(
+        "bvh-sweep",
+        "rt BVH2, full sweep SAH, leaves of up to 4 (BvhParams::quality)",
+        |p| boxed(Bvh::build(p, BvhParams::quality())),
+    ),
+    own(
+        "bvh-midpoint",
+        "rt BVH2, naive: largest centroid extent split at its middle, leaves of up to 4",
+        |p| {
+            boxed(Bvh::build(
+                p,
+                BvhParams::balanced().with_builder(BvhBuilder::Midpoint),
+            ))
+        },
+    ),
+    own(
+        "bvh-median",
+        "rt BVH2, naive: object median along the largest centroid extent, leaves of up to 4",
+        |p| {
+            boxed(Bvh::build(
+                p,
+                BvhParams::balanced().with_builder(BvhBuilder::Median),
+            ))
+        },
+    ),
     AccelEntry {
         name: "obvhs",
         about: "obvhs 0.4 Bvh2, very_slow_build preset (PLOC + reinsertion + presplits): the correctness reference",

@@ -1,0 +1,244 @@
+//! # rt-accel-bvh: bounding volume hierarchies
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`node`] | [`BvhNode`], the 32-byte flattened node (layout documented there) |
+//! | [`params`] | [`BvhParams`] with presets `fast()`, `balanced()`, `quality()`; [`BvhBuilder`] |
+//! | `build` | top-down builders: midpoint, median, binned SAH (Wald 2007), sweep SAH; flattening |
+//! | `traverse` | closest-hit and any-hit traversal, one generic function |
+//! | `stats` | `stats()` and `validate()` |
+//! | `refit` | [`Bvh::refit`] after vertices move |
+//!
+//! ```
+//! use rt_accel_bvh::{Bvh, BvhParams};
+//! use rt_geom::{Accel, Ray, Triangle, Vec3};
+//!
+//! let tris = [
+//!     Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y),
+//!     Triangle::new(Vec3::new(0.0, 0.0, -1.0), Vec3::new(1.0, 0.0, -1.0), Vec3::new(0.0, 1.0, -1.0)),
+//! ];
+//! let bvh = Bvh::build(&tris, BvhParams::balanced()).expect("finite input");
+//! let hit = bvh.intersect(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z)).unwrap();
+//! assert_eq!((hit.t, hit.prim), (1.0, 0));
+//! bvh.validate().unwrap();
+//! ```
+
+mod build;
+pub mod node;
+pub mod params;
+mod refit;
+mod stats;
+mod traverse;
+
+pub use node::BvhNode;
+pub use params::{BvhBuilder, BvhParams, MAX_DEPTH};
+
+use rt_geom::{Accel, AccelStats, BuildError, Hit, Primitive, Ray, check_primitives};
+
+/// A binary BVH over primitives `P`, flattened depth-first, primitives stored in leaf order.
+#[derive(Clone, Debug)]
+pub struct Bvh<P> {
+    nodes: Vec<BvhNode>,
+    /// Primitives in leaf order.
+    prims: Vec<P>,
+    /// `ids[i]`: the caller's index of `prims[i]`.
+    ids: Vec<u32>,
+    params: BvhParams,
+}
+
+impl<P: Primitive> Bvh<P> {
+    /// Builds over `prims` (copied, reordered). Empty input gives an empty tree.
+    pub fn build(prims: &[P], params: BvhParams) -> Result<Self, BuildError> {
+        params.validate()?;
+        check_primitives(prims, u32::MAX as usize - 1)?;
+        if prims.is_empty() {
+            return Ok(Self {
+                nodes: vec![],
+                prims: vec![],
+                ids: vec![],
+                params,
+            });
+        }
+        let mut refs = build::prim_refs(prims);
+        let (root, count) = build::build_tree(&mut refs, &params);
+        let nodes = build::flatten(&root, count);
+        drop(root);
+        let ids: Vec<u32> = refs.iter().map(|r| r.index).collect();
+        let prims = ids.iter().map(|&i| prims[i as usize].clone()).collect();
+        Ok(Self {
+            nodes,
+            prims,
+            ids,
+            params,
+        })
+    }
+
+    /// The flattened nodes (read-only; layout in [`node`]).
+    pub fn nodes(&self) -> &[BvhNode] {
+        &self.nodes
+    }
+
+    /// Primitives in leaf order; leaf `n` holds `prims()[n.offset..n.offset + n.count()]`.
+    pub fn prims(&self) -> &[P] {
+        &self.prims
+    }
+
+    /// The caller's index of each primitive in leaf order.
+    pub fn ids(&self) -> &[u32] {
+        &self.ids
+    }
+
+    pub fn params(&self) -> &BvhParams {
+        &self.params
+    }
+}
+
+impl<P: Primitive> Accel for Bvh<P> {
+    #[inline]
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.traverse::<false>(ray)
+    }
+
+    #[inline]
+    fn occluded(&self, ray: &Ray) -> bool {
+        self.traverse::<true>(ray).is_some()
+    }
+
+    fn stats(&self) -> AccelStats {
+        self.compute_stats()
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        self.check()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rt_geom::{Sphere, Triangle, Vec3};
+    use rt_testkit::scenes;
+
+    macro_rules! per_builder {
+        ($($name:ident: $params:expr),* $(,)?) => {$(
+            mod $name {
+                use super::*;
+                rt_testkit::conformance_tests!(
+                    triangles: |p: &[Triangle]| Bvh::build(p, $params),
+                    spheres: |p: &[Sphere]| Bvh::build(p, $params),
+                );
+            }
+        )*};
+    }
+
+    per_builder! {
+        binned: BvhParams::balanced(),
+        binned_fast: BvhParams::fast(),
+        sweep: BvhParams::quality(),
+        midpoint: BvhParams::balanced().with_builder(BvhBuilder::Midpoint),
+        median: BvhParams::balanced().with_builder(BvhBuilder::Median),
+        leaf1: BvhParams { max_leaf_size: 1, ..BvhParams::balanced() },
+        serial: BvhParams { parallel_threshold: usize::MAX, ..BvhParams::balanced() },
+        parallel: BvhParams { parallel_threshold: 16, ..BvhParams::balanced() },
+    }
+
+    #[test]
+    fn all_primitives_at_one_point() {
+        let p = Vec3::splat(0.5);
+        let tris = vec![Triangle::new(p, p, p); 1000];
+        let bvh = Bvh::build(&tris, BvhParams::balanced()).unwrap();
+        bvh.validate().unwrap();
+        let s = bvh.stats();
+        assert!(s.max_depth <= MAX_DEPTH);
+        assert!(s.leaves >= 1000 / 4, "{s}");
+        let spheres = vec![Sphere::new(p, 0.1); 1000];
+        let bvh = Bvh::build(&spheres, BvhParams::quality()).unwrap();
+        bvh.validate().unwrap();
+        assert_eq!(
+            bvh.intersect(&Ray::new(Vec3::ZERO, p)).unwrap().t,
+            1.0 - 0.1 / p.length()
+        );
+    }
+
+    #[test]
+    fn bad_parameters_are_rejected() {
+        let tris = scenes::random_soup(10, 1);
+        for params in [
+            BvhParams {
+                max_leaf_size: 0,
+                ..BvhParams::balanced()
+            },
+            BvhParams {
+                max_leaf_size: 1000,
+                ..BvhParams::balanced()
+            },
+            BvhParams::balanced().with_builder(BvhBuilder::BinnedSah { bins: 1 }),
+            BvhParams {
+                traversal_cost: f32::NAN,
+                ..BvhParams::balanced()
+            },
+            BvhParams {
+                intersection_cost: 0.0,
+                ..BvhParams::balanced()
+            },
+        ] {
+            assert!(matches!(
+                Bvh::build(&tris, params),
+                Err(BuildError::InvalidParameter { .. })
+            ));
+        }
+    }
+
+    #[test]
+    fn depth_is_capped_on_pathological_input() {
+        // Exponentially spaced triangles: naive midpoint splits peel one off per level.
+        let tris: Vec<Triangle> = (0..200)
+            .map(|i| {
+                let x = 2f32.powi(-(i as i32) / 2);
+                Triangle::new(
+                    Vec3::new(x, 0.0, 0.0),
+                    Vec3::new(x, 1.0, 0.0),
+                    Vec3::new(x, 0.0, 1.0),
+                )
+            })
+            .collect();
+        let bvh = Bvh::build(
+            &tris,
+            BvhParams::balanced().with_builder(BvhBuilder::Midpoint),
+        )
+        .unwrap();
+        bvh.validate().unwrap();
+        assert!(bvh.stats().max_depth <= MAX_DEPTH);
+        let r = Ray::new(Vec3::new(-1.0, 0.25, 0.25), Vec3::X);
+        // x = 2^-i/2 below 6e-8 rounds t = 1 + x to 1.0: many ties, all at t = 1.
+        let hit = bvh.intersect(&r).unwrap();
+        assert_eq!(hit.t, 1.0);
+        assert!(tris[hit.prim as usize].v[0].x < 6e-8);
+    }
+
+    #[test]
+    fn refit_after_moving_vertices_conforms() {
+        let scene = scenes::triangle_scene("sphere_mesh");
+        let mut bvh = Bvh::build(&scene.prims, BvhParams::balanced()).unwrap();
+        // Squash and shift every vertex: the tree shape stays, the answers must follow.
+        let moved: Vec<Triangle> = scene
+            .prims
+            .iter()
+            .map(|t| Triangle {
+                v: t.v
+                    .map(|p| Vec3::new(p.x * 2.0, p.y * 0.5 + 0.3, p.z + p.x)),
+            })
+            .collect();
+        bvh.refit(&moved).unwrap();
+        let moved_scene = rt_testkit::Scene::new("sphere_mesh_moved", moved.clone());
+        let bvh_once = std::cell::RefCell::new(Some(bvh));
+        rt_testkit::conformance::assert_conforms(&moved_scene, |_p: &[Triangle]| {
+            Ok::<_, BuildError>(bvh_once.borrow_mut().take().expect("built once"))
+        });
+        let mut bvh = Bvh::build(&scene.prims, BvhParams::balanced()).unwrap();
+        assert!(bvh.refit(&moved[..10]).is_err());
+        let mut bad = moved.clone();
+        bad[3].v[0].x = f32::NAN;
+        assert_eq!(bvh.refit(&bad), Err(BuildError::NonFinite { prim: 3 }));
+    }
+}

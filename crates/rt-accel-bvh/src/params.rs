@@ -1,0 +1,109 @@
+//! Build parameters with presets.
+
+use rt_geom::BuildError;
+
+/// How a [`Bvh`](crate::Bvh) chooses its splits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BvhBuilder {
+    /// Split the largest centroid extent at its middle (naive, fast to build).
+    Midpoint,
+    /// Split at the median primitive along the largest centroid extent (naive, balanced).
+    Median,
+    /// Surface area heuristic over `bins` centroid bins per axis (Wald 2007).
+    BinnedSah { bins: u32 },
+    /// Surface area heuristic over every split between sorted centroids (full sweep).
+    SweepSah,
+}
+
+/// Parameters of [`Bvh::build`](crate::Bvh::build).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BvhParams {
+    pub builder: BvhBuilder,
+    /// Leaves hold at most this many primitives (1..=255), except at the depth cap.
+    pub max_leaf_size: u32,
+    /// SAH cost of traversing an inner node, relative to one primitive test.
+    pub traversal_cost: f32,
+    /// SAH cost of one primitive test.
+    pub intersection_cost: f32,
+    /// Subtrees with more primitives than this are built in parallel (rayon).
+    pub parallel_threshold: usize,
+}
+
+/// No leaf lies deeper than this; a leaf at the cap may exceed `max_leaf_size`.
+pub const MAX_DEPTH: usize = 64;
+
+impl BvhParams {
+    /// Binned SAH with 8 bins, leaves of up to 8.
+    pub const fn fast() -> Self {
+        Self {
+            builder: BvhBuilder::BinnedSah { bins: 8 },
+            max_leaf_size: 8,
+            traversal_cost: 1.0,
+            intersection_cost: 1.0,
+            parallel_threshold: 4096,
+        }
+    }
+
+    /// Binned SAH with 16 bins, leaves of up to 4.
+    pub const fn balanced() -> Self {
+        Self {
+            builder: BvhBuilder::BinnedSah { bins: 16 },
+            max_leaf_size: 4,
+            ..Self::fast()
+        }
+    }
+
+    /// Full sweep SAH, leaves of up to 4.
+    pub const fn quality() -> Self {
+        Self {
+            builder: BvhBuilder::SweepSah,
+            max_leaf_size: 4,
+            ..Self::fast()
+        }
+    }
+
+    pub const fn with_builder(mut self, builder: BvhBuilder) -> Self {
+        self.builder = builder;
+        self
+    }
+
+    /// Checks every field; the error names the first one out of range.
+    pub fn validate(&self) -> Result<(), BuildError> {
+        let bad = |name, value: String, expected| {
+            Err(BuildError::InvalidParameter {
+                name,
+                value,
+                expected,
+            })
+        };
+        if let BvhBuilder::BinnedSah { bins } = self.builder {
+            if !(2..=256).contains(&bins) {
+                return bad("bins", bins.to_string(), "2..=256");
+            }
+        }
+        if !(1..=255).contains(&self.max_leaf_size) {
+            return bad("max_leaf_size", self.max_leaf_size.to_string(), "1..=255");
+        }
+        if !(self.traversal_cost.is_finite() && self.traversal_cost >= 0.0) {
+            return bad(
+                "traversal_cost",
+                self.traversal_cost.to_string(),
+                "finite, >= 0",
+            );
+        }
+        if !(self.intersection_cost.is_finite() && self.intersection_cost > 0.0) {
+            return bad(
+                "intersection_cost",
+                self.intersection_cost.to_string(),
+                "finite, > 0",
+            );
+        }
+        Ok(())
+    }
+}
+
+impl Default for BvhParams {
+    fn default() -> Self {
+        Self::balanced()
+    }
+}

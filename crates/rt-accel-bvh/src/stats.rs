@@ -1,0 +1,114 @@
+//! `stats()` and `validate()`: what the tree reports about itself, and its invariants.
+
+use crate::Bvh;
+use crate::params::MAX_DEPTH;
+use rt_geom::{AccelStats, Primitive};
+
+impl<P: Primitive> Bvh<P> {
+    /// Calls `f(node index, depth)` for every node, parents before children.
+    pub(crate) fn walk(&self, mut f: impl FnMut(usize, usize)) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut stack = vec![(0usize, 0usize)];
+        while let Some((i, d)) = stack.pop() {
+            f(i, d);
+            let n = &self.nodes[i];
+            if !n.is_leaf() {
+                stack.push((n.offset as usize, d + 1));
+                stack.push((i + 1, d + 1));
+            }
+        }
+    }
+
+    pub(crate) fn compute_stats(&self) -> AccelStats {
+        let mut s = AccelStats {
+            primitives: self.prims.len(),
+            nodes: self.nodes.len(),
+            bytes: std::mem::size_of_val(self.nodes.as_slice())
+                + std::mem::size_of_val(self.prims.as_slice())
+                + std::mem::size_of_val(self.ids.as_slice()),
+            ..AccelStats::default()
+        };
+        if self.nodes.is_empty() {
+            return s;
+        }
+        let root_area = self.nodes[0].bounds().half_area();
+        let mut sah = 0.0f64;
+        self.walk(|i, d| {
+            let n = &self.nodes[i];
+            s.max_depth = s.max_depth.max(d);
+            let area = n.bounds().half_area() as f64;
+            if n.is_leaf() {
+                s.leaves += 1;
+                s.references += n.count() as usize;
+                sah += area * self.params.intersection_cost as f64 * n.count() as f64;
+            } else {
+                sah += area * self.params.traversal_cost as f64;
+            }
+        });
+        s.sah_cost = Some(if root_area > 0.0 {
+            (sah / root_area as f64) as f32
+        } else {
+            0.0
+        });
+        s
+    }
+
+    pub(crate) fn check(&self) -> Result<(), String> {
+        if self.prims.len() != self.ids.len() {
+            return Err("primitive and id arrays differ in length".into());
+        }
+        if self.nodes.is_empty() {
+            return if self.prims.is_empty() {
+                Ok(())
+            } else {
+                Err("no nodes for a non-empty scene".into())
+            };
+        }
+        let mut seen = vec![false; self.prims.len()];
+        let mut err: Option<String> = None;
+        let mut fail = |e: String| {
+            err.get_or_insert(e);
+        };
+        self.walk(|i, d| {
+            let n = &self.nodes[i];
+            let b = n.bounds();
+            if d > MAX_DEPTH {
+                fail(format!("node {i} at depth {d} > {MAX_DEPTH}"));
+            }
+            if n.is_leaf() {
+                let (first, count) = (n.offset as usize, n.count() as usize);
+                if first + count > self.prims.len() {
+                    return fail(format!("leaf {i} points past the primitives"));
+                }
+                for k in first..first + count {
+                    if !b.contains(&self.prims[k].bounds()) {
+                        fail(format!("primitive {} pokes out of leaf {i}", self.ids[k]));
+                    }
+                    match seen.get_mut(self.ids[k] as usize) {
+                        Some(s) if !*s => *s = true,
+                        Some(_) => fail(format!("primitive {} in two leaves", self.ids[k])),
+                        None => fail(format!("id {} out of range", self.ids[k])),
+                    }
+                }
+            } else {
+                for c in [i + 1, n.offset as usize] {
+                    if c >= self.nodes.len() || c <= i {
+                        return fail(format!("node {i} has child index {c}"));
+                    }
+                    if !b.contains(&self.nodes[c].bounds()) {
+                        fail(format!("node {c} pokes out of its parent {i}"));
+                    }
+                }
+            }
+        });
+        if let Some(e) = err {
+            return Err(e);
+        }
+        match seen.iter().position(|s| !s) {
+            Some(p) => Err(format!("primitive {p} is in no leaf")),
+            None => Ok(()),
+        }
+    }
+}

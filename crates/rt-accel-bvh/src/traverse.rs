@@ -1,0 +1,121 @@
+//! Closest-hit and any-hit traversal, written once (`traverse::<ANY_HIT>`).
+
+use crate::Bvh;
+use crate::node::BvhNode;
+use crate::params::MAX_DEPTH;
+use rt_geom::aabb::{pad_down, pad_up};
+use rt_geom::{Hit, PrimHit, Primitive, Ray, Vec3};
+
+/// Per-ray constants of the slab test.
+struct RayBoxes {
+    origin: Vec3,
+    inv: Vec3,
+    /// `dir[axis] < 0` (or `-0.0`): the near plane is the box's max.
+    neg: [bool; 3],
+}
+
+impl RayBoxes {
+    fn new(ray: &Ray) -> Self {
+        let inv = ray.inv_dir();
+        Self {
+            origin: ray.origin(),
+            inv,
+            neg: [
+                inv.x.is_sign_negative(),
+                inv.y.is_sign_negative(),
+                inv.z.is_sign_negative(),
+            ],
+        }
+    }
+
+    /// Entry distance into the node's box within `[tmin, tmax]`, padded as
+    /// [`Aabb::clip_ray`](rt_geom::Aabb::clip_ray) (same answers, fewer branches).
+    #[inline(always)]
+    fn entry(&self, node: &BvhNode, tmin: f32, tmax: f32) -> Option<f32> {
+        let mut t0 = tmin;
+        let mut t1 = tmax;
+        for a in 0..3 {
+            let (near, far) = if self.neg[a] {
+                (node.max[a], node.min[a])
+            } else {
+                (node.min[a], node.max[a])
+            };
+            let tn = (near - self.origin[a]) * self.inv[a];
+            let tf = (far - self.origin[a]) * self.inv[a];
+            // NaN (origin on the plane, zero direction) leaves the interval unchanged.
+            t0 = if tn > t0 { tn } else { t0 };
+            t1 = if tf < t1 { tf } else { t1 };
+        }
+        let t0 = pad_down(t0);
+        (t0 <= pad_up(t1)).then_some(t0.max(tmin))
+    }
+}
+
+impl<P: Primitive> Bvh<P> {
+    /// Depth-first traversal with an explicit stack, nearer child first (by entry distance);
+    /// subtrees entered beyond the closest hit so far are skipped. With `ANY_HIT`, returns the
+    /// first hit found.
+    #[inline]
+    pub(crate) fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
+        if self.nodes.is_empty() || !ray.is_valid() {
+            return None;
+        }
+        let boxes = RayBoxes::new(ray);
+        let mut r = *ray;
+        boxes.entry(&self.nodes[0], r.tmin, r.tmax)?;
+        let mut best: Option<(PrimHit, u32)> = None;
+        // The build caps depth at MAX_DEPTH, so the far children pending never exceed it.
+        let mut stack = [(0u32, 0.0f32); MAX_DEPTH + 1];
+        let mut sp = 0;
+        let mut index = 0usize;
+        loop {
+            let node = &self.nodes[index];
+            if node.is_leaf() {
+                let first = node.offset as usize;
+                for i in first..first + node.count() as usize {
+                    if let Some(h) = self.prims[i].intersect(&r) {
+                        if ANY_HIT {
+                            return Some(Hit::new(h, self.ids[i]));
+                        }
+                        r.tmax = h.t;
+                        best = Some((h, self.ids[i]));
+                    }
+                }
+            } else {
+                let (a, b) = (index + 1, node.offset as usize);
+                let ta = boxes.entry(&self.nodes[a], r.tmin, r.tmax);
+                let tb = boxes.entry(&self.nodes[b], r.tmin, r.tmax);
+                match (ta, tb) {
+                    (Some(ta), Some(tb)) => {
+                        let (near, far, tfar) = if ta <= tb { (a, b, tb) } else { (b, a, ta) };
+                        stack[sp] = (far as u32, tfar);
+                        sp += 1;
+                        index = near;
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        index = a;
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        index = b;
+                        continue;
+                    }
+                    (None, None) => {}
+                }
+            }
+            // Pop the next pending subtree; it may have been passed by the closest hit.
+            loop {
+                if sp == 0 {
+                    return best.map(|(h, id)| Hit::new(h, id));
+                }
+                sp -= 1;
+                let (next, entry) = stack[sp];
+                if entry <= r.tmax {
+                    index = next as usize;
+                    break;
+                }
+            }
+        }
+    }
+}
