@@ -2,7 +2,7 @@
 //! every entry here; a new structure is one more line in [`REGISTRY`].
 
 use crate::obvhs_accel::{ObvhsBvh2, ObvhsCwBvh};
-use rt_accel_bvh::{Bvh, BvhBuilder, BvhParams};
+use rt_accel_bvh::{Bvh, Bvh4, Bvh8, BvhBuilder, BvhParams};
 use rt_geom::{Accel, BruteForce, BuildError, Triangle};
 use rt_testkit::Tolerance;
 
@@ -68,6 +68,16 @@ pub static REGISTRY: &[AccelEntry] = &[
         "bvh",
         "rt BVH2, binned SAH (16 bins), leaves of up to 4, parallel build (BvhParams::balanced)",
         |p| boxed(Bvh::build(p, BvhParams::balanced())),
+    ),
+    own(
+        "bvh4",
+        "rt BVH4 collapsed from the balanced BVH2 (largest child opened first), 4 boxes per test",
+        |p| boxed(Bvh4::build(p, BvhParams::balanced())),
+    ),
+    own(
+        "bvh8",
+        "rt BVH8 collapsed from the balanced BVH2 (largest child opened first), 8 boxes per test",
+        |p| boxed(Bvh8::build(p, BvhParams::balanced())),
     ),
     own(
         "bvh-fast",

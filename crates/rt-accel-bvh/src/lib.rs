@@ -8,6 +8,7 @@
 //! | `traverse` | closest-hit and any-hit traversal, one generic function |
 //! | `stats` | `stats()` and `validate()` |
 //! | `refit` | [`Bvh::refit`] after vertices move |
+//! | [`wide`] | [`Bvh4`], [`Bvh8`]: collapsed wide BVHs, all children tested at once |
 //!
 //! ```
 //! use rt_accel_bvh::{Bvh, BvhParams};
@@ -29,9 +30,11 @@ pub mod params;
 mod refit;
 mod stats;
 mod traverse;
+pub mod wide;
 
 pub use node::BvhNode;
 pub use params::{BvhBuilder, BvhParams, MAX_DEPTH};
+pub use wide::{Bvh4, Bvh8, WideBvh, WideNode};
 
 use rt_geom::{Accel, AccelStats, BuildError, Hit, Primitive, Ray, check_primitives};
 

@@ -25,6 +25,10 @@ pub struct Ray {
     /// Watertight test: `kz` is the dominant axis of `dir`; `kx`, `ky` follow it (swapped when
     /// `dir[kz] < 0`, which keeps the winding of the projected triangle).
     axes: [u8; 3],
+    /// The shear as three row vectors, `p . rows[0] = p[kx] - Sx p[kz]`, `p . rows[1] =
+    /// p[ky] - Sy p[kz]`, `p . rows[2] = Sz p[kz]`: the same numbers (bit for bit: the other
+    /// terms are exact zeros) without indexing by a run-time axis.
+    shear_rows: [Vec3; 3],
     valid: bool,
 }
 
@@ -57,6 +61,12 @@ impl Ray {
         } else {
             Vec3::ZERO
         };
+        let unit = |k: usize| Vec3::AXES[k];
+        let shear_rows = [
+            unit(kx) - unit(kz) * shear.x,
+            unit(ky) - unit(kz) * shear.y,
+            unit(kz) * shear.z,
+        ];
         Self {
             origin,
             dir,
@@ -65,6 +75,7 @@ impl Ray {
             inv_dir,
             shear,
             axes: [kx as u8, ky as u8, kz as u8],
+            shear_rows,
             valid,
         }
     }
@@ -119,6 +130,12 @@ impl Ray {
     #[inline]
     pub fn watertight_shear(&self) -> Vec3 {
         self.shear
+    }
+
+    /// The shear of the watertight test as row vectors (see the field's documentation).
+    #[inline]
+    pub fn watertight_rows(&self) -> &[Vec3; 3] {
+        &self.shear_rows
     }
 
     /// Whether `t` lies in `[tmin, tmax]`.

@@ -95,18 +95,18 @@ impl Triangle {
         if !ray.is_valid() {
             return None;
         }
-        let [kx, ky, kz] = ray.watertight_axes();
-        let s = ray.watertight_shear();
+        let [mx, my, _] = ray.watertight_rows();
         let o = ray.origin();
         let a = self.v[0] - o;
         let b = self.v[1] - o;
         let c = self.v[2] - o;
-        let ax = a[kx] - s.x * a[kz];
-        let ay = a[ky] - s.y * a[kz];
-        let bx = b[kx] - s.x * b[kz];
-        let by = b[ky] - s.y * b[kz];
-        let cx = c[kx] - s.x * c[kz];
-        let cy = c[ky] - s.y * c[kz];
+        // a[kx] - Sx a[kz] and a[ky] - Sy a[kz], as dot products with exact zero terms.
+        let ax = a.dot(*mx);
+        let ay = a.dot(*my);
+        let bx = b.dot(*mx);
+        let by = b.dot(*my);
+        let cx = c.dot(*mx);
+        let cy = c.dot(*my);
         let mut u = cx * by - cy * bx;
         let mut v = ax * cy - ay * cx;
         let mut w = bx * ay - by * ax;
@@ -282,6 +282,28 @@ mod tests {
             assert!(tri().intersect_with(&miss, k).is_none());
             assert!(tri().intersect_with(&r.with_range(0.0, 0.5), k).is_none());
             assert!(tri().intersect_with(&r.with_range(1.5, 9.0), k).is_none());
+        }
+    }
+
+    #[test]
+    fn shear_rows_give_the_indexed_shear_bit_for_bit() {
+        let mut state = 99u32;
+        let mut rnd = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            (state as f32 / u32::MAX as f32) * 4.0 - 2.0
+        };
+        for _ in 0..10_000 {
+            let d = Vec3::new(rnd(), rnd(), rnd());
+            let r = Ray::new(Vec3::ZERO, d);
+            let [kx, ky, kz] = r.watertight_axes();
+            let s = r.watertight_shear();
+            let [mx, my, mz] = r.watertight_rows();
+            let a = Vec3::new(rnd(), rnd(), rnd()) * 100.0;
+            assert_eq!(a.dot(*mx), a[kx] - s.x * a[kz]);
+            assert_eq!(a.dot(*my), a[ky] - s.y * a[kz]);
+            assert_eq!(a.dot(*mz), s.z * a[kz]);
         }
     }
 
