@@ -229,12 +229,12 @@ fn fill_ratios(records: &mut [Record]) {
 
 pub fn print_table(records: &[Record]) {
     println!(
-        "{:<14} {:<12} {:<8} {:>3} {:>10} {:>9} {:>8} {:>8} {:>8} {:>7}",
+        "{:<18} {:<12} {:<8} {:>3} {:>10} {:>9} {:>8} {:>8} {:>8} {:>7}",
         "accel", "scene", "rays", "thr", "build_ms", "Mrays/s", "vs obvhs", "B/prim", "MiB", "sah"
     );
     for r in records {
         println!(
-            "{:<14} {:<12} {:<8} {:>3} {:>10.1} {:>9.2} {:>8} {:>8} {:>8.1} {:>7}",
+            "{:<18} {:<12} {:<8} {:>3} {:>10.1} {:>9.2} {:>8} {:>8} {:>8.1} {:>7}",
             r.accel,
             r.scene,
             r.rays,

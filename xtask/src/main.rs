@@ -102,7 +102,7 @@ fn run(command: Command) -> Result<ExitCode, String> {
         Command::Accels { long } => {
             for e in registry::REGISTRY {
                 if long {
-                    println!("{:<14} {}", e.name, e.about);
+                    println!("{:<18} {}", e.name, e.about);
                 } else {
                     println!("{}", e.name);
                 }

@@ -2,8 +2,8 @@
 //! every entry here; a new structure is one more line in [`REGISTRY`].
 
 use crate::obvhs_accel::{ObvhsBvh2, ObvhsCwBvh};
-use rt_accel_bvh::{Bvh, Bvh4, Bvh8, BvhBuilder, BvhParams};
-use rt_geom::{Accel, BruteForce, BuildError, Triangle};
+use rt_accel_bvh::{BvList, BvListParams, Bvh, Bvh4, Bvh8, BvhBuilder, BvhParams};
+use rt_geom::{Aabb, Accel, BoundingSphere, BruteForce, BuildError, Kdop7, Triangle};
 use rt_testkit::Tolerance;
 
 /// A structure that can be built from triangles.
@@ -17,7 +17,8 @@ pub struct AccelEntry {
     pub tolerance: Tolerance,
     /// A reference implementation from another crate (not rt's own work).
     pub external: bool,
-    /// Largest scene `bench` runs it on by default (brute force is O(n) per ray).
+    /// Largest scene `bench` and `verify` run it on (brute force and flat volume lists are
+    /// O(n) per ray).
     pub bench_max_prims: usize,
 }
 
@@ -52,6 +53,24 @@ const fn own(
         tolerance: Tolerance::EXACT,
         external: false,
         bench_max_prims: usize::MAX,
+    }
+}
+
+impl AccelEntry {
+    /// Limits the scenes `bench` runs the entry on by default.
+    const fn bench_up_to(mut self, prims: usize) -> Self {
+        self.bench_max_prims = prims;
+        self
+    }
+}
+
+/// Flat bounding-volume lists test every volume per ray: benched up to this size.
+const BVLIST_BENCH_MAX: usize = 100_000;
+
+fn bvlist_two_level() -> BvListParams {
+    BvListParams {
+        two_level: Some(32),
+        ..BvListParams::default()
     }
 }
 
@@ -108,6 +127,34 @@ pub static REGISTRY: &[AccelEntry] = &[
                 BvhParams::balanced().with_builder(BvhBuilder::Median),
             ))
         },
+    ),
+    own(
+        "bvlist-sphere",
+        "flat list of bounding spheres, one per Morton cluster of 32 primitives, front to back",
+        |p| {
+            boxed(BvList::<_, BoundingSphere>::build(
+                p,
+                BvListParams::default(),
+            ))
+        },
+    )
+    .bench_up_to(BVLIST_BENCH_MAX),
+    own(
+        "bvlist-box",
+        "flat list of bounding boxes, one per Morton cluster of 32 primitives, front to back",
+        |p| boxed(BvList::<_, Aabb>::build(p, BvListParams::default())),
+    )
+    .bench_up_to(BVLIST_BENCH_MAX),
+    own(
+        "bvlist-kdop",
+        "flat list of 7-slab k-DOPs (Kay & Kajiya), one per Morton cluster of 32 primitives",
+        |p| boxed(BvList::<_, Kdop7>::build(p, BvListParams::default())),
+    )
+    .bench_up_to(BVLIST_BENCH_MAX),
+    own(
+        "bvlist-box-2level",
+        "boxes of 32 primitives grouped under boxes of 32 boxes (volumes of volumes)",
+        |p| boxed(BvList::<_, Aabb>::build(p, bvlist_two_level())),
     ),
     AccelEntry {
         name: "obvhs",

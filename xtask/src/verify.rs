@@ -181,13 +181,13 @@ fn compare_parallel(
 
 fn print_table(rows: &[Row]) {
     println!(
-        "{:<14} {:<32} {:>8} {:>8} {:>10} {:>9} {:>10} {:>10}",
+        "{:<18} {:<32} {:>8} {:>8} {:>10} {:>9} {:>10} {:>10}",
         "accel", "scene", "rays", "hits", "mismatches", "tolerated", "max|dt|", "ms"
     );
     for r in rows {
         match &r.report {
             Ok(rep) => println!(
-                "{:<14} {:<32} {:>8} {:>8} {:>10} {:>9} {:>10.3e} {:>10.1}",
+                "{:<18} {:<32} {:>8} {:>8} {:>10} {:>9} {:>10.3e} {:>10.1}",
                 r.accel,
                 r.scene,
                 rep.rays,
@@ -197,7 +197,7 @@ fn print_table(rows: &[Row]) {
                 rep.max_dt,
                 r.build_ms
             ),
-            Err(e) => println!("{:<14} {:<32} ERROR: {e}", r.accel, r.scene),
+            Err(e) => println!("{:<18} {:<32} ERROR: {e}", r.accel, r.scene),
         }
     }
 }

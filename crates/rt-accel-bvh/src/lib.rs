@@ -2,6 +2,7 @@
 //!
 //! | module | what it holds |
 //! |---|---|
+//! | [`bvlist`] | [`BvList`]: flat lists of bounding volumes (sphere, box, k-DOP), optionally two levels |
 //! | [`node`] | [`BvhNode`], the 32-byte flattened node (layout documented there) |
 //! | [`params`] | [`BvhParams`] with presets `fast()`, `balanced()`, `quality()`; [`BvhBuilder`] |
 //! | `build` | top-down builders: midpoint, median, binned SAH (Wald 2007), sweep SAH; flattening |
@@ -25,6 +26,7 @@
 //! ```
 
 mod build;
+pub mod bvlist;
 pub mod node;
 pub mod params;
 mod refit;
@@ -32,6 +34,7 @@ mod stats;
 mod traverse;
 pub mod wide;
 
+pub use bvlist::{BvList, BvListParams, Grouping};
 pub use node::BvhNode;
 pub use params::{BvhBuilder, BvhParams, MAX_DEPTH};
 pub use wide::{Bvh4, Bvh8, WideBvh, WideNode};

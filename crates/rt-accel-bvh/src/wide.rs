@@ -166,20 +166,41 @@ impl<P: Primitive, const N: usize> WideBvh<P, N> {
         let o = ray.origin().to_array();
         let inv = ray.inv_dir().to_array();
         let neg = inv.map(f32::is_sign_negative);
-        // (child, count, entry): at most N - 1 pending siblings per level.
-        let mut stack = [(0u32, 0u32, 0.0f32); 8 * (MAX_DEPTH + 1)];
+        STACK.with(|cell| {
+            let mut stack = cell.borrow_mut();
+            self.traverse_nodes::<ANY_HIT>(&mut stack, &mut r, &mut best, &o, &inv, &neg);
+        });
+        best.map(|(h, id)| Hit::new(h, id))
+    }
+
+    /// The traversal loop proper, over a reusable per-thread stack of `(child, count, entry)`.
+    #[inline(always)]
+    fn traverse_nodes<const ANY_HIT: bool>(
+        &self,
+        stack: &mut Vec<(u32, u32, f32)>,
+        r: &mut Ray,
+        best: &mut Option<(PrimHit, u32)>,
+        o: &[f32; 3],
+        inv: &[f32; 3],
+        neg: &[bool; 3],
+    ) {
+        // At most N - 1 pending siblings per level.
+        let need = (N - 1) * (self.depth + 1) + N;
+        if stack.len() < need {
+            stack.resize(need, (0, 0, 0.0));
+        }
         let mut sp = 0usize;
         let mut next = (0u32, 0u32, r.tmin);
         loop {
             let (child, count, entry) = next;
             if entry <= r.tmax {
                 if count > 0 {
-                    if self.test_leaf::<ANY_HIT>(child, count, &mut r, &mut best) {
-                        return best.map(|(h, id)| Hit::new(h, id));
+                    if self.test_leaf::<ANY_HIT>(child, count, r, best) {
+                        return;
                     }
                 } else {
                     let node = &self.nodes[child as usize];
-                    let t = entries(node, &o, &inv, &neg, r.tmin, r.tmax);
+                    let t = entries(node, o, inv, neg, r.tmin, r.tmax);
                     // Push hit lanes far to near (insertion by entry, descending).
                     let base = sp;
                     for lane in 0..N {
@@ -199,12 +220,17 @@ impl<P: Primitive, const N: usize> WideBvh<P, N> {
                 }
             }
             if sp == 0 {
-                return best.map(|(h, id)| Hit::new(h, id));
+                return;
             }
             sp -= 1;
             next = stack[sp];
         }
     }
+}
+
+thread_local! {
+    /// Traversal stacks are reused per thread: no allocation and no zeroing per ray.
+    static STACK: std::cell::RefCell<Vec<(u32, u32, f32)>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// Entry distance per lane, NaN for lanes the ray misses (written as plain lane loops: one SIMD

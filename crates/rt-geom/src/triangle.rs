@@ -84,12 +84,13 @@ impl Triangle {
     /// for both triangles. Hits exactly on an edge or vertex count. Zero-area triangles never
     /// hit.
     ///
-    /// Where the edge tests accept, `t`, `u` and `v` are computed in `f64` ([`Self::refine`]).
-    /// In `f32`, `t = (U az + V bz + W cz) / (U + V + W)` loses most of its digits on thin
-    /// slivers, whose edge functions cancel: a sliver of the test scenes reports a hit 5e-5
-    /// (relative) before its own plane and before its bounding box, where no box-culling
-    /// structure can agree with brute force. In `f64` the error stays far below the padding of
-    /// [`Aabb::clip_ray`], so every structure that culls by box entry agrees exactly.
+    /// Where the edge tests accept, `t` is computed in `f64` from the plane equation
+    /// ([`Self::refine`]). In `f32`, the paper's `t = (U az + V bz + W cz) / (U + V + W)` loses
+    /// most of its digits on thin slivers, whose edge functions cancel: a sliver of the test
+    /// scenes reports a hit 5e-5 (relative) before its own plane and before its bounding box,
+    /// where no box-culling structure can agree with brute force. In `f64` the error stays far
+    /// below the padding of [`Aabb::clip_ray`], so every structure that culls by box entry
+    /// agrees exactly.
     #[inline]
     pub fn intersect_watertight(&self, ray: &Ray) -> Option<PrimHit> {
         if !ray.is_valid() {
@@ -124,42 +125,34 @@ impl Triangle {
         if u + v + w == 0.0 || self.is_degenerate() {
             return None;
         }
-        self.refine(ray)
+        self.refine(ray, (u, v, w))
     }
 
-    /// Distance and barycentrics of a hit that the edge tests accepted, in `f64` from the
-    /// `f32` inputs: `None` when the `f64` determinant is zero or `t` is outside
-    /// `[tmin, tmax]`. SIMD kernels call this on their candidate hits to report bit-identical
-    /// answers.
+    /// Distance of a hit that the edge tests accepted, in `f64` from the `f32` inputs, with
+    /// the barycentrics `(u, v) = (V, W) / (U + V + W)` of those tests: `None` when the ray is
+    /// parallel to the triangle's plane or `t` is outside `[tmin, tmax]`. SIMD kernels call
+    /// this on their candidate hits to report bit-identical answers.
+    ///
+    /// `t = n . (v0 - o) / n . d` with `n = (v1 - v0) x (v2 - v0)`: in `f64` the edges and
+    /// `v0 - o` are exact and each component of `n` is rounded once, so `t` is the distance to
+    /// the triangle's plane, correct to a few ulps of `f64` unless the ray grazes the plane.
     #[inline]
-    pub fn refine(&self, ray: &Ray) -> Option<PrimHit> {
-        let [kx, ky, kz] = ray.watertight_axes();
-        let o = ray.origin().as_dvec3();
-        let d = ray.dir().as_dvec3();
-        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
-        let a = self.v[0].as_dvec3() - o;
-        let b = self.v[1].as_dvec3() - o;
-        let c = self.v[2].as_dvec3() - o;
-        let (ax, ay) = (a[kx] - sx * a[kz], a[ky] - sy * a[kz]);
-        let (bx, by) = (b[kx] - sx * b[kz], b[ky] - sy * b[kz]);
-        let (cx, cy) = (c[kx] - sx * c[kz], c[ky] - sy * c[kz]);
-        let u = cx * by - cy * bx;
-        let v = ax * cy - ay * cx;
-        let w = bx * ay - by * ax;
-        let det = u + v + w;
-        if det == 0.0 {
+    pub fn refine(&self, ray: &Ray, (u, v, w): (f32, f32, f32)) -> Option<PrimHit> {
+        let v0 = self.v[0].as_dvec3();
+        let n = (self.v[1].as_dvec3() - v0).cross(self.v[2].as_dvec3() - v0);
+        let den = n.dot(ray.dir().as_dvec3());
+        if den == 0.0 {
             return None;
         }
-        let t_scaled = (u * a[kz] + v * b[kz] + w * c[kz]) * sz;
-        let inv = 1.0 / det;
-        let t = (t_scaled * inv) as f32;
+        let t = (n.dot(v0 - ray.origin().as_dvec3()) / den) as f32;
         if !ray.in_range(t) {
             return None;
         }
+        let rcp = 1.0 / (u + v + w);
         Some(PrimHit {
             t,
-            u: (v * inv) as f32,
-            v: (w * inv) as f32,
+            u: v * rcp,
+            v: w * rcp,
         })
     }
 
