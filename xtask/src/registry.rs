@@ -2,7 +2,9 @@
 //! every entry here; a new structure is one more line in [`REGISTRY`].
 
 use crate::obvhs_accel::{ObvhsBvh2, ObvhsCwBvh};
-use rt_accel_bvh::{BvList, BvListParams, Bvh, Bvh4, Bvh8, BvhBuilder, BvhParams};
+use rt_accel_bvh::{
+    BvList, BvListParams, Bvh, Bvh4, Bvh8, BvhBuilder, BvhParams, TriBvh4, TriBvh8,
+};
 use rt_geom::{Aabb, Accel, BoundingSphere, BruteForce, BuildError, Kdop7, Triangle};
 use rt_testkit::Tolerance;
 
@@ -97,6 +99,16 @@ pub static REGISTRY: &[AccelEntry] = &[
         "bvh8",
         "rt BVH8 collapsed from the balanced BVH2 (largest child opened first), 8 boxes per test",
         |p| boxed(Bvh8::build(p, BvhParams::balanced())),
+    ),
+    own(
+        "bvh4-tri",
+        "rt BVH4 over SoA triangles, four watertight triangle tests at once (balanced build)",
+        |p| boxed(TriBvh4::build(p, BvhParams::balanced())),
+    ),
+    own(
+        "bvh8-tri",
+        "rt BVH8 over SoA triangles, four watertight triangle tests at once (balanced build)",
+        |p| boxed(TriBvh8::build(p, BvhParams::balanced())),
     ),
     own(
         "bvh-fast",

@@ -9,7 +9,8 @@
 //! | `traverse` | closest-hit and any-hit traversal, one generic function |
 //! | `stats` | `stats()` and `validate()` |
 //! | `refit` | [`Bvh::refit`] after vertices move |
-//! | [`wide`] | [`Bvh4`], [`Bvh8`]: collapsed wide BVHs, all children tested at once |
+//! | [`wide`] | [`Bvh4`], [`Bvh8`]: collapsed wide BVHs, all children tested at once ([`WideTree`]) |
+//! | [`tri`] | [`TriBvh4`], [`TriBvh8`]: wide BVHs over triangles stored as SoA, four tested at once |
 //!
 //! ```
 //! use rt_accel_bvh::{Bvh, BvhParams};
@@ -32,12 +33,14 @@ pub mod params;
 mod refit;
 mod stats;
 mod traverse;
+pub mod tri;
 pub mod wide;
 
 pub use bvlist::{BvList, BvListParams, Grouping};
 pub use node::BvhNode;
 pub use params::{BvhBuilder, BvhParams, MAX_DEPTH};
-pub use wide::{Bvh4, Bvh8, WideBvh, WideNode};
+pub use tri::{TriBvh, TriBvh4, TriBvh8, TriangleSoa};
+pub use wide::{Bvh4, Bvh8, WideBvh, WideNode, WideTree};
 
 use rt_geom::{Accel, AccelStats, BuildError, Hit, Primitive, Ray, check_primitives};
 

@@ -18,7 +18,7 @@
 use crate::node::BvhNode;
 use crate::params::MAX_DEPTH;
 use crate::{Bvh, BvhParams};
-use rt_geom::aabb::{FAR_PAD, pad_down};
+use rt_geom::aabb::{pad_down, pad_up};
 use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray};
 
 /// A node of a `N`-wide BVH.
@@ -62,18 +62,26 @@ impl<const N: usize> WideNode<N> {
     }
 }
 
+/// The topology of a wide BVH: nodes, root box, depth. Leaves are ranges of a leaf-ordered
+/// primitive array kept by the owner ([`WideBvh`], or `TriBvh` with SIMD triangle leaves), which
+/// supplies the leaf test to [`WideTree::traverse`].
+#[derive(Clone, Debug)]
+pub struct WideTree<const N: usize> {
+    pub(crate) nodes: Vec<WideNode<N>>,
+    pub(crate) root_bounds: Aabb,
+    /// The root is a single leaf (`first`, `count`) when the whole scene fits one leaf.
+    pub(crate) root_leaf: Option<(u32, u32)>,
+    pub(crate) depth: usize,
+}
+
 /// A BVH with `N` children per node (`N` = 4 or 8), sharing the leaf-ordered primitives of the
 /// binary tree it was collapsed from.
 #[derive(Clone, Debug)]
 pub struct WideBvh<P, const N: usize> {
-    nodes: Vec<WideNode<N>>,
-    root_bounds: Aabb,
-    /// The root is a single leaf (`first`, `count`) when the whole scene fits one leaf.
-    root_leaf: Option<(u32, u32)>,
+    tree: WideTree<N>,
     prims: Vec<P>,
     ids: Vec<u32>,
     params: BvhParams,
-    depth: usize,
 }
 
 pub type Bvh4<P> = WideBvh<P, 4>;
@@ -85,38 +93,22 @@ impl<P: Primitive, const N: usize> WideBvh<P, N> {
         Ok(Self::from_binary(Bvh::build(prims, params)?))
     }
 
-    /// Collapses a binary BVH: each wide node takes the binary node's two children and keeps
-    /// opening the inner child of largest surface area (the one most rays enter) until it has
-    /// `N` children or only leaves are left.
+    /// Collapses a binary BVH (see [`WideTree::collapse`]).
     pub fn from_binary(bvh: Bvh<P>) -> Self {
-        assert!(N >= 2 && N <= 32, "2..=32 lanes");
+        let tree = WideTree::collapse(&bvh.nodes);
         let Bvh {
-            nodes: bin,
-            prims,
-            ids,
-            params,
+            prims, ids, params, ..
         } = bvh;
-        let mut out = Self {
-            nodes: Vec::new(),
-            root_bounds: bin.first().map_or(Aabb::EMPTY, |n| n.bounds()),
-            root_leaf: None,
+        Self {
+            tree,
             prims,
             ids,
             params,
-            depth: 0,
-        };
-        match bin.first() {
-            None => {}
-            Some(root) if root.is_leaf() => out.root_leaf = Some((root.offset, root.count())),
-            Some(_) => {
-                out.depth = collapse(&bin, 0, &mut out.nodes, 1);
-            }
         }
-        out
     }
 
-    pub fn nodes(&self) -> &[WideNode<N>] {
-        &self.nodes
+    pub fn tree(&self) -> &WideTree<N> {
+        &self.tree
     }
 
     pub fn prims(&self) -> &[P] {
@@ -127,29 +119,60 @@ impl<P: Primitive, const N: usize> WideBvh<P, N> {
         &self.ids
     }
 
-    #[inline]
-    fn test_leaf<const ANY_HIT: bool>(
-        &self,
-        first: u32,
-        count: u32,
-        r: &mut Ray,
-        best: &mut Option<(PrimHit, u32)>,
-    ) -> bool {
-        let first = first as usize;
-        for i in first..first + count as usize {
-            if let Some(h) = self.prims[i].intersect(r) {
-                *best = Some((h, self.ids[i]));
-                if ANY_HIT {
-                    return true;
+    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
+        self.tree.traverse::<ANY_HIT>(ray, |first, count, r, best| {
+            let first = first as usize;
+            for i in first..first + count as usize {
+                if let Some(h) = self.prims[i].intersect(r) {
+                    *best = Some((h, self.ids[i]));
+                    if ANY_HIT {
+                        return true;
+                    }
+                    r.tmax = h.t;
                 }
-                r.tmax = h.t;
             }
+            false
+        })
+    }
+}
+
+impl<const N: usize> WideTree<N> {
+    /// Collapses a binary BVH: each wide node takes the binary node's two children and keeps
+    /// opening the inner child of largest surface area (the one most rays enter) until it has
+    /// `N` children or only leaves are left. Leaves keep their primitive ranges.
+    pub fn collapse(bin: &[BvhNode]) -> Self {
+        assert!((2..=32).contains(&N), "2..=32 lanes");
+        let mut tree = Self {
+            nodes: Vec::new(),
+            root_bounds: bin.first().map_or(Aabb::EMPTY, |n| n.bounds()),
+            root_leaf: None,
+            depth: 0,
+        };
+        match bin.first() {
+            None => {}
+            Some(root) if root.is_leaf() => tree.root_leaf = Some((root.offset, root.count())),
+            Some(_) => tree.depth = collapse(bin, 0, &mut tree.nodes, 1),
         }
-        false
+        tree
+    }
+
+    pub fn nodes(&self) -> &[WideNode<N>] {
+        &self.nodes
+    }
+
+    pub fn depth(&self) -> usize {
+        self.depth
     }
 
     /// Stack traversal; all children of a node are tested at once and pushed far to near.
-    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
+    /// `leaf(first, count, ray, best)` tests a leaf, shrinking `ray.tmax` and updating `best`
+    /// `(hit, caller's id)`; it returns true to stop (any-hit queries).
+    #[inline(always)]
+    pub fn traverse<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        mut leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<(PrimHit, u32)>) -> bool,
+    ) -> Option<Hit> {
         if !ray.is_valid() {
             return None;
         }
@@ -157,7 +180,7 @@ impl<P: Primitive, const N: usize> WideBvh<P, N> {
         self.root_bounds.clip_ray(&r)?;
         let mut best = None;
         if let Some((first, count)) = self.root_leaf {
-            self.test_leaf::<ANY_HIT>(first, count, &mut r, &mut best);
+            leaf(first, count, &mut r, &mut best);
             return best.map(|(h, id)| Hit::new(h, id));
         }
         if self.nodes.is_empty() {
@@ -168,63 +191,128 @@ impl<P: Primitive, const N: usize> WideBvh<P, N> {
         let neg = inv.map(f32::is_sign_negative);
         STACK.with(|cell| {
             let mut stack = cell.borrow_mut();
-            self.traverse_nodes::<ANY_HIT>(&mut stack, &mut r, &mut best, &o, &inv, &neg);
+            // At most N - 1 pending siblings per level.
+            let need = (N - 1) * (self.depth + 1) + N;
+            if stack.len() < need {
+                stack.resize(need, (0, 0, 0.0));
+            }
+            let mut sp = 0usize;
+            let mut next = (0u32, 0u32, r.tmin);
+            loop {
+                let (child, count, entry) = next;
+                if entry <= r.tmax {
+                    if count > 0 {
+                        if leaf(child, count, &mut r, &mut best) {
+                            return;
+                        }
+                    } else {
+                        let node = &self.nodes[child as usize];
+                        let t = entries(node, &o, &inv, &neg, r.tmin, r.tmax);
+                        // Push hit lanes far to near (insertion by entry, descending).
+                        let base = sp;
+                        for lane in 0..N {
+                            let te = t[lane];
+                            if te.is_nan() {
+                                continue;
+                            }
+                            let item = (node.child[lane], node.count[lane], te);
+                            let mut k = sp;
+                            while k > base && stack[k - 1].2 < te {
+                                stack[k] = stack[k - 1];
+                                k -= 1;
+                            }
+                            stack[k] = item;
+                            sp += 1;
+                        }
+                    }
+                }
+                if sp == 0 {
+                    return;
+                }
+                sp -= 1;
+                next = stack[sp];
+            }
         });
         best.map(|(h, id)| Hit::new(h, id))
     }
 
-    /// The traversal loop proper, over a reusable per-thread stack of `(child, count, entry)`.
-    #[inline(always)]
-    fn traverse_nodes<const ANY_HIT: bool>(
-        &self,
-        stack: &mut Vec<(u32, u32, f32)>,
-        r: &mut Ray,
-        best: &mut Option<(PrimHit, u32)>,
-        o: &[f32; 3],
-        inv: &[f32; 3],
-        neg: &[bool; 3],
-    ) {
-        // At most N - 1 pending siblings per level.
-        let need = (N - 1) * (self.depth + 1) + N;
-        if stack.len() < need {
-            stack.resize(need, (0, 0, 0.0));
+    /// Statistics of the topology; `bytes` counts the nodes only.
+    pub fn stats(&self, prims: usize, params: &BvhParams) -> AccelStats {
+        let mut s = AccelStats {
+            primitives: prims,
+            nodes: self.nodes.len(),
+            max_depth: self.depth,
+            bytes: std::mem::size_of_val(self.nodes.as_slice()),
+            ..AccelStats::default()
+        };
+        let root_area = self.root_bounds.half_area();
+        let mut sah = 0.0f64;
+        if let Some((_, count)) = self.root_leaf {
+            s.leaves = 1;
+            s.nodes = 1;
+            s.references = count as usize;
+            sah = root_area as f64 * count as f64 * params.intersection_cost as f64;
         }
-        let mut sp = 0usize;
-        let mut next = (0u32, 0u32, r.tmin);
-        loop {
-            let (child, count, entry) = next;
-            if entry <= r.tmax {
-                if count > 0 {
-                    if self.test_leaf::<ANY_HIT>(child, count, r, best) {
-                        return;
-                    }
+        for (i, n) in self.nodes.iter().enumerate() {
+            if i == 0 {
+                sah += root_area as f64 * params.traversal_cost as f64;
+            }
+            for lane in (0..N).filter(|&l| n.is_used(l)) {
+                let area = n.bounds(lane).half_area() as f64;
+                if n.count[lane] > 0 {
+                    s.leaves += 1;
+                    s.references += n.count[lane] as usize;
+                    sah += area * n.count[lane] as f64 * params.intersection_cost as f64;
                 } else {
-                    let node = &self.nodes[child as usize];
-                    let t = entries(node, o, inv, neg, r.tmin, r.tmax);
-                    // Push hit lanes far to near (insertion by entry, descending).
-                    let base = sp;
-                    for lane in 0..N {
-                        let te = t[lane];
-                        if te.is_nan() {
-                            continue;
-                        }
-                        let item = (node.child[lane], node.count[lane], te);
-                        let mut k = sp;
-                        while k > base && stack[k - 1].2 < te {
-                            stack[k] = stack[k - 1];
-                            k -= 1;
-                        }
-                        stack[k] = item;
-                        sp += 1;
-                    }
+                    sah += area * params.traversal_cost as f64;
                 }
             }
-            if sp == 0 {
-                return;
-            }
-            sp -= 1;
-            next = stack[sp];
         }
+        s.nodes += s.leaves;
+        s.sah_cost = Some(if root_area > 0.0 {
+            (sah / root_area as f64) as f32
+        } else {
+            0.0
+        });
+        s
+    }
+
+    /// Checks the topology; `leaf(first, count, bounds)` checks each leaf's primitives.
+    pub fn check(
+        &self,
+        mut leaf: impl FnMut(u32, u32, &Aabb) -> Result<(), String>,
+    ) -> Result<(), String> {
+        if let Some((first, count)) = self.root_leaf {
+            return leaf(first, count, &self.root_bounds);
+        }
+        if self.nodes.is_empty() {
+            return Ok(());
+        }
+        let mut stack = vec![(0usize, self.root_bounds, 0usize)];
+        while let Some((i, parent, depth)) = stack.pop() {
+            if depth > MAX_DEPTH {
+                return Err(format!("node {i} deeper than {MAX_DEPTH}"));
+            }
+            let n = self
+                .nodes
+                .get(i)
+                .ok_or(format!("child index {i} out of range"))?;
+            for lane in (0..N).filter(|&l| n.is_used(l)) {
+                let b = n.bounds(lane);
+                if !parent.contains(&b) {
+                    return Err(format!("node {i} lane {lane} pokes out of its parent"));
+                }
+                if n.count[lane] > 0 {
+                    leaf(n.child[lane], n.count[lane], &b)?;
+                } else {
+                    if n.child[lane] as usize <= i {
+                        return Err(format!("node {i} lane {lane} points backwards"));
+                    }
+                    stack.push((n.child[lane] as usize, b, depth + 1));
+                }
+            }
+        }
+        Ok(())
     }
 }
 
@@ -263,11 +351,7 @@ fn entries<const N: usize>(
     let mut out = [f32::NAN; N];
     for l in 0..N {
         let lo = pad_down(t0[l]);
-        let hi = if t1[l] > 0.0 {
-            t1[l] * FAR_PAD
-        } else {
-            t1[l] * (2.0 - FAR_PAD)
-        };
+        let hi = pad_up(t1[l]);
         out[l] = if lo <= hi { lo.max(tmin) } else { f32::NAN };
     }
     out
@@ -329,50 +413,15 @@ impl<P: Primitive, const N: usize> Accel for WideBvh<P, N> {
     }
 
     fn stats(&self) -> AccelStats {
-        let mut s = AccelStats {
-            primitives: self.prims.len(),
-            nodes: self.nodes.len(),
-            max_depth: self.depth,
-            bytes: std::mem::size_of_val(self.nodes.as_slice())
-                + std::mem::size_of_val(self.prims.as_slice())
-                + std::mem::size_of_val(self.ids.as_slice()),
-            ..AccelStats::default()
-        };
-        let root_area = self.root_bounds.half_area();
-        let mut sah = 0.0f64;
-        if let Some((_, count)) = self.root_leaf {
-            s.leaves = 1;
-            s.nodes = 1;
-            s.references = count as usize;
-            sah = root_area as f64 * count as f64 * self.params.intersection_cost as f64;
-        }
-        for (i, n) in self.nodes.iter().enumerate() {
-            if i == 0 {
-                sah += root_area as f64 * self.params.traversal_cost as f64;
-            }
-            for lane in (0..N).filter(|&l| n.is_used(l)) {
-                let area = n.bounds(lane).half_area() as f64;
-                if n.count[lane] > 0 {
-                    s.leaves += 1;
-                    s.references += n.count[lane] as usize;
-                    sah += area * n.count[lane] as f64 * self.params.intersection_cost as f64;
-                } else {
-                    sah += area * self.params.traversal_cost as f64;
-                }
-            }
-        }
-        s.nodes += s.leaves;
-        s.sah_cost = Some(if root_area > 0.0 {
-            (sah / root_area as f64) as f32
-        } else {
-            0.0
-        });
+        let mut s = self.tree.stats(self.prims.len(), &self.params);
+        s.bytes += std::mem::size_of_val(self.prims.as_slice())
+            + std::mem::size_of_val(self.ids.as_slice());
         s
     }
 
     fn validate(&self) -> Result<(), String> {
         let mut seen = vec![false; self.prims.len()];
-        let mut mark = |first: u32, count: u32, bounds: &Aabb| -> Result<(), String> {
+        self.tree.check(|first, count, bounds| {
             for k in first as usize..(first + count) as usize {
                 let p = self.prims.get(k).ok_or("leaf points past the primitives")?;
                 if !bounds.contains(&p.bounds()) {
@@ -384,35 +433,7 @@ impl<P: Primitive, const N: usize> Accel for WideBvh<P, N> {
                 }
             }
             Ok(())
-        };
-        if let Some((first, count)) = self.root_leaf {
-            mark(first, count, &self.root_bounds)?;
-        } else if !self.nodes.is_empty() {
-            let mut stack = vec![(0usize, self.root_bounds, 0usize)];
-            while let Some((i, parent, depth)) = stack.pop() {
-                if depth > MAX_DEPTH {
-                    return Err(format!("node {i} deeper than {MAX_DEPTH}"));
-                }
-                let n = self
-                    .nodes
-                    .get(i)
-                    .ok_or(format!("child index {i} out of range"))?;
-                for lane in (0..N).filter(|&l| n.is_used(l)) {
-                    let b = n.bounds(lane);
-                    if !parent.contains(&b) {
-                        return Err(format!("node {i} lane {lane} pokes out of its parent"));
-                    }
-                    if n.count[lane] > 0 {
-                        mark(n.child[lane], n.count[lane], &b)?;
-                    } else {
-                        if n.child[lane] as usize <= i {
-                            return Err(format!("node {i} lane {lane} points backwards"));
-                        }
-                        stack.push((n.child[lane] as usize, b, depth + 1));
-                    }
-                }
-            }
-        }
+        })?;
         match seen.iter().position(|s| !s) {
             Some(p) => Err(format!("primitive {p} is in no leaf")),
             None => Ok(()),

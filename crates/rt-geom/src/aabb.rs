@@ -15,24 +15,19 @@ pub const fn gamma(n: i32) -> f32 {
 /// JCGT 2013: `1 + 2 gamma(3)`).
 pub const FAR_PAD: f32 = 1.0 + 2.0 * gamma(3);
 
-/// `t` moved towards `-inf` by the relative margin of [`FAR_PAD`].
+/// The relative margin of [`FAR_PAD`]: `2 gamma(3)`.
+pub const PAD: f32 = 2.0 * gamma(3);
+
+/// `t` moved towards `-inf` by the relative margin [`PAD`] (branch-free: `t - |t| PAD`).
 #[inline]
 pub fn pad_down(t: f32) -> f32 {
-    if t > 0.0 {
-        t * (2.0 - FAR_PAD)
-    } else {
-        t * FAR_PAD
-    }
+    t - t.abs() * PAD
 }
 
-/// `t` moved towards `+inf` by the relative margin of [`FAR_PAD`].
+/// `t` moved towards `+inf` by the relative margin [`PAD`] (branch-free: `t + |t| PAD`).
 #[inline]
 pub fn pad_up(t: f32) -> f32 {
-    if t > 0.0 {
-        t * FAR_PAD
-    } else {
-        t * (2.0 - FAR_PAD)
-    }
+    t + t.abs() * PAD
 }
 
 /// An axis-aligned box. The empty box has `min = +inf`, `max = -inf`, so that `union` with it is

@@ -45,5 +45,5 @@ pub use mesh::{Mesh, MeshError, MeshGroup, load_obj, parse_obj};
 pub use primitive::Primitive;
 pub use ray::{Hit, PrimHit, Ray};
 pub use sphere::Sphere;
-pub use triangle::{Triangle, TriangleKernel};
+pub use triangle::{Triangle, TriangleKernel, watertight_edges};
 pub use volume::{BoundingSphere, BoundingVolume, KDOP7_NORMALS, Kdop7};

@@ -102,23 +102,23 @@ impl Triangle {
         let b = self.v[1] - o;
         let c = self.v[2] - o;
         // a[kx] - Sx a[kz] and a[ky] - Sy a[kz], as dot products with exact zero terms.
-        let ax = a.dot(*mx);
-        let ay = a.dot(*my);
-        let bx = b.dot(*mx);
-        let by = b.dot(*my);
-        let cx = c.dot(*mx);
-        let cy = c.dot(*my);
-        let mut u = cx * by - cy * bx;
-        let mut v = ax * cy - ay * cx;
-        let mut w = bx * ay - by * ax;
-        if u == 0.0 || v == 0.0 || w == 0.0 {
-            let (ax, ay, bx, by, cx, cy) = (
-                ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64,
-            );
-            u = (cx * by - cy * bx) as f32;
-            v = (ax * cy - ay * cx) as f32;
-            w = (bx * ay - by * ax) as f32;
-        }
+        let sheared = [
+            a.dot(*mx),
+            a.dot(*my),
+            b.dot(*mx),
+            b.dot(*my),
+            c.dot(*mx),
+            c.dot(*my),
+        ];
+        self.finish_watertight(ray, watertight_edges(sheared))
+    }
+
+    /// The rest of the watertight test once the edge functions `(U, V, W)` are known (from
+    /// [`watertight_edges`]): the sign test, the zero-area rejections and [`Self::refine`].
+    /// SIMD kernels compute the edge functions lane by lane with the same arithmetic and call
+    /// this for the lanes that pass, so that they report exactly what the scalar kernel does.
+    #[inline]
+    pub fn finish_watertight(&self, ray: &Ray, (u, v, w): (f32, f32, f32)) -> Option<PrimHit> {
         if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
             return None;
         }
@@ -240,6 +240,28 @@ impl Triangle {
         }
         out.intersection(*clip).intersection(bounds)
     }
+}
+
+/// The 2D edge functions `(U, V, W)` of the watertight test from the sheared vertex
+/// coordinates `[ax, ay, bx, by, cx, cy]` (vertex minus ray origin, dotted with the ray's
+/// [`Ray::watertight_rows`]). An edge function that is exactly zero in `f32` is recomputed,
+/// with the other two, in `f64`, as Woop, Benthin & Wald prescribe for edges hit exactly.
+#[inline]
+pub fn watertight_edges([ax, ay, bx, by, cx, cy]: [f32; 6]) -> (f32, f32, f32) {
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    if u == 0.0 || v == 0.0 || w == 0.0 {
+        let (ax, ay, bx, by, cx, cy) = (
+            ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64,
+        );
+        return (
+            (cx * by - cy * bx) as f32,
+            (ax * cy - ay * cx) as f32,
+            (bx * ay - by * ax) as f32,
+        );
+    }
+    (u, v, w)
 }
 
 fn next_up(v: Vec3) -> Vec3 {
