@@ -111,6 +111,11 @@ pub static REGISTRY: &[AccelEntry] = &[
         |p| boxed(TriBvh8::build(p, BvhParams::balanced())),
     ),
     own(
+        "bvh8-tri-fast",
+        "rt BVH8 over SoA triangles, binned SAH with 8 bins and leaves of up to 8 (two 4-lane tests)",
+        |p| boxed(TriBvh8::build(p, BvhParams::fast())),
+    ),
+    own(
         "bvh-fast",
         "rt BVH2, binned SAH (8 bins), leaves of up to 8 (BvhParams::fast)",
         |p| boxed(Bvh::build(p, BvhParams::fast())),

@@ -217,7 +217,8 @@ impl<const N: usize> WideTree<N> {
                             }
                             let item = (node.child[lane], node.count[lane], te);
                             let mut k = sp;
-                            while k > base && stack[k - 1].2 < te {
+                            // Any-hit queries stop at the first hit anywhere: no ordering.
+                            while !ANY_HIT && k > base && stack[k - 1].2 < te {
                                 stack[k] = stack[k - 1];
                                 k -= 1;
                             }
