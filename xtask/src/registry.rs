@@ -126,6 +126,16 @@ pub static REGISTRY: &[AccelEntry] = &[
         |p| boxed(Bvh::build(p, BvhParams::quality())),
     ),
     own(
+        "bvh-spatial",
+        "rt BVH2, binned SAH with spatial splits (SBVH, alpha 1e-5, up to one extra reference per primitive)",
+        |p| boxed(Bvh::build(p, BvhParams::spatial())),
+    ),
+    own(
+        "bvh8-spatial",
+        "rt BVH8 collapsed from the spatial-split BVH2",
+        |p| boxed(Bvh8::build(p, BvhParams::spatial())),
+    ),
+    own(
         "bvh-midpoint",
         "rt BVH2, naive: largest centroid extent split at its middle, leaves of up to 4",
         |p| {

@@ -50,8 +50,10 @@ pub struct Bvh<P> {
     nodes: Vec<BvhNode>,
     /// Primitives in leaf order.
     prims: Vec<P>,
-    /// `ids[i]`: the caller's index of `prims[i]`.
+    /// `ids[i]`: the caller's index of `prims[i]` (repeated with spatial splits).
     ids: Vec<u32>,
+    /// Primitives the tree was built from (`prims` may hold some several times).
+    count: usize,
     params: BvhParams,
 }
 
@@ -60,24 +62,34 @@ impl<P: Primitive> Bvh<P> {
     pub fn build(prims: &[P], params: BvhParams) -> Result<Self, BuildError> {
         params.validate()?;
         check_primitives(prims, u32::MAX as usize - 1)?;
+        let prims_len = prims.len();
         if prims.is_empty() {
             return Ok(Self {
                 nodes: vec![],
                 prims: vec![],
                 ids: vec![],
+                count: 0,
                 params,
             });
         }
         let mut refs = build::prim_refs(prims);
-        let (root, count) = build::build_tree(&mut refs, &params);
+        let (root, count, ids) = match (params.builder, params.spatial_alpha) {
+            (BvhBuilder::BinnedSah { bins }, Some(alpha)) => {
+                build::spatial::build(prims, refs, &params, bins, alpha, params.spatial_budget)
+            }
+            _ => {
+                let (root, count) = build::build_tree(&mut refs, &params);
+                (root, count, refs.iter().map(|r| r.index).collect())
+            }
+        };
         let nodes = build::flatten(&root, count);
         drop(root);
-        let ids: Vec<u32> = refs.iter().map(|r| r.index).collect();
         let prims = ids.iter().map(|&i| prims[i as usize].clone()).collect();
         Ok(Self {
             nodes,
             prims,
             ids,
+            count: prims_len,
             params,
         })
     }
@@ -99,6 +111,11 @@ impl<P: Primitive> Bvh<P> {
 
     pub fn params(&self) -> &BvhParams {
         &self.params
+    }
+
+    /// Primitives the tree was built from.
+    pub fn primitive_count(&self) -> usize {
+        self.count
     }
 }
 
@@ -149,6 +166,57 @@ mod tests {
         leaf1: BvhParams { max_leaf_size: 1, ..BvhParams::balanced() },
         serial: BvhParams { parallel_threshold: usize::MAX, ..BvhParams::balanced() },
         parallel: BvhParams { parallel_threshold: 16, ..BvhParams::balanced() },
+        spatial: BvhParams::spatial(),
+        spatial_everywhere: BvhParams { spatial_alpha: Some(0.0), spatial_budget: 4.0, ..BvhParams::spatial() },
+        spatial_parallel: BvhParams { parallel_threshold: 16, ..BvhParams::spatial() },
+        spatial_no_budget: BvhParams { spatial_budget: 0.0, ..BvhParams::spatial() },
+    }
+
+    #[test]
+    fn spatial_splits_duplicate_long_triangles() {
+        // Two clusters of small triangles at x = 0 and x = 10, bridged by a few long slivers:
+        // object splits put the slivers on one side, whose box then spans everything; a
+        // spatial split at x = 5 cuts them and leaves two compact halves.
+        let mut tris = scenes::random_soup(200, 7);
+        for t in tris.iter_mut().skip(100) {
+            t.v = t.v.map(|p| p + Vec3::new(9.0, 0.0, 0.0));
+        }
+        for i in 0..8 {
+            let y = i as f32 * 0.1;
+            tris.push(Triangle::new(
+                Vec3::new(0.0, y, 0.0),
+                Vec3::new(10.0, y, 0.0),
+                Vec3::new(10.0, y + 0.01, 0.0),
+            ));
+        }
+        let plain = Bvh::build(&tris, BvhParams::balanced()).unwrap();
+        let split = Bvh::build(&tris, BvhParams::spatial()).unwrap();
+        split.validate().unwrap();
+        let (p, s) = (plain.stats(), split.stats());
+        assert_eq!(s.primitives, tris.len());
+        assert!(s.references > p.references, "{s}");
+        assert!(
+            s.references <= 2 * tris.len(),
+            "budget of one extra reference each: {s}"
+        );
+        // The root is cut in space: neither child spans the whole scene along x.
+        let n = split.nodes();
+        for child in [1, n[0].offset as usize] {
+            assert!(
+                n[child].bounds().extent().x < 9.0,
+                "{:?}",
+                n[child].bounds()
+            );
+        }
+        let pn = plain.nodes();
+        let spans = [1, pn[0].offset as usize]
+            .iter()
+            .filter(|&&c| pn[c].bounds().extent().x >= 9.0)
+            .count();
+        assert!(
+            spans >= 1,
+            "object splits keep a child that spans the scene"
+        );
     }
 
     #[test]
@@ -167,6 +235,45 @@ mod tests {
             bvh.intersect(&Ray::new(Vec3::ZERO, p)).unwrap().t,
             1.0 - 0.1 / p.length()
         );
+    }
+
+    /// A primitive with no data, so that more than `u32::MAX` of them fit in memory.
+    #[derive(Clone, Copy, Debug)]
+    struct Nothing;
+
+    impl Primitive for Nothing {
+        fn bounds(&self) -> rt_geom::Aabb {
+            rt_geom::Aabb::new(Vec3::ZERO, Vec3::ZERO)
+        }
+        fn centroid(&self) -> Vec3 {
+            Vec3::ZERO
+        }
+        fn intersect(&self, _: &Ray) -> Option<rt_geom::PrimHit> {
+            None
+        }
+        fn clipped_bounds(&self, clip: &rt_geom::Aabb) -> rt_geom::Aabb {
+            self.bounds().intersection(*clip)
+        }
+        fn extent_along(&self, _: Vec3) -> (f32, f32) {
+            (0.0, 0.0)
+        }
+        fn farthest_distance(&self, _: Vec3) -> f32 {
+            0.0
+        }
+        fn is_finite(&self) -> bool {
+            true
+        }
+    }
+
+    #[test]
+    fn more_primitives_than_the_index_type_holds() {
+        let too_many = vec![Nothing; u32::MAX as usize];
+        let err = Bvh::build(&too_many, BvhParams::balanced()).unwrap_err();
+        assert!(matches!(err, BuildError::TooManyPrimitives { .. }), "{err}");
+        assert!(matches!(
+            BvList::<_, rt_geom::Aabb>::build(&too_many, BvListParams::default()),
+            Err(BuildError::TooManyPrimitives { .. })
+        ));
     }
 
     #[test]

@@ -27,6 +27,12 @@ pub struct BvhParams {
     pub intersection_cost: f32,
     /// Subtrees with more primitives than this are built in parallel (rayon).
     pub parallel_threshold: usize,
+    /// Spatial splits (SBVH, with the binned builder only): tried where the two sides of the
+    /// best object split overlap by more than this fraction of the root's surface area
+    /// (Stich et al. use 1e-5). `None`: object splits only.
+    pub spatial_alpha: Option<f32>,
+    /// Spatial splits stop once they have added this many references per primitive.
+    pub spatial_budget: f32,
 }
 
 /// No leaf lies deeper than this; a leaf at the cap may exceed `max_leaf_size`.
@@ -41,6 +47,8 @@ impl BvhParams {
             traversal_cost: 1.0,
             intersection_cost: 1.0,
             parallel_threshold: 4096,
+            spatial_alpha: None,
+            spatial_budget: 1.0,
         }
     }
 
@@ -60,6 +68,19 @@ impl BvhParams {
             max_leaf_size: 4,
             ..Self::fast()
         }
+    }
+
+    /// Binned SAH with 16 bins and spatial splits (SBVH), leaves of up to 4.
+    pub const fn spatial() -> Self {
+        Self {
+            spatial_alpha: Some(1e-5),
+            ..Self::balanced()
+        }
+    }
+
+    /// Whether the tree may reference a primitive from several leaves.
+    pub const fn splits_primitives(&self) -> bool {
+        self.spatial_alpha.is_some() && matches!(self.builder, BvhBuilder::BinnedSah { .. })
     }
 
     pub const fn with_builder(mut self, builder: BvhBuilder) -> Self {
@@ -97,6 +118,14 @@ impl BvhParams {
                 self.intersection_cost.to_string(),
                 "finite, > 0",
             );
+        }
+        if let Some(alpha) = self.spatial_alpha {
+            if !(0.0..=1.0).contains(&alpha) {
+                return bad("spatial_alpha", alpha.to_string(), "0..=1");
+            }
+        }
+        if !(0.0..=16.0).contains(&self.spatial_budget) {
+            return bad("spatial_budget", self.spatial_budget.to_string(), "0..=16");
         }
         Ok(())
     }

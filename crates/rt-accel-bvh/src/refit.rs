@@ -9,7 +9,7 @@ impl<P: Primitive> Bvh<P> {
     /// recomputes every box. Fails, leaving the tree unchanged, on a count mismatch or
     /// non-finite input.
     pub fn refit(&mut self, prims: &[P]) -> Result<(), BuildError> {
-        if prims.len() != self.prims.len() {
+        if prims.len() != self.count {
             return Err(BuildError::InvalidParameter {
                 name: "prims.len()",
                 value: prims.len().to_string(),

@@ -2,7 +2,35 @@
 
 use crate::Bvh;
 use crate::params::MAX_DEPTH;
-use rt_geom::{AccelStats, Primitive};
+use rt_geom::{Aabb, AccelStats, Primitive};
+
+/// The leaf invariants every tree of this crate checks: the leaf's box contains the primitive
+/// (with spatial splits: the primitive's part inside the box is not empty, and a primitive
+/// may be in several leaves), and the id is in range and, without spatial splits, seen once.
+pub(crate) fn check_leaf_primitive<P: Primitive>(
+    prim: &P,
+    id: u32,
+    leaf: &Aabb,
+    seen: &mut [bool],
+    split: bool,
+) -> Result<(), String> {
+    let inside = if split {
+        !prim.clipped_bounds(leaf).is_empty()
+    } else {
+        leaf.contains(&prim.bounds())
+    };
+    if !inside {
+        return Err(format!("primitive {id} pokes out of its leaf"));
+    }
+    match seen.get_mut(id as usize) {
+        Some(s) if !*s || split => {
+            *s = true;
+            Ok(())
+        }
+        Some(_) => Err(format!("primitive {id} in two leaves")),
+        None => Err(format!("id {id} out of range")),
+    }
+}
 
 impl<P: Primitive> Bvh<P> {
     /// Calls `f(node index, depth)` for every node, parents before children.
@@ -23,7 +51,7 @@ impl<P: Primitive> Bvh<P> {
 
     pub(crate) fn compute_stats(&self) -> AccelStats {
         let mut s = AccelStats {
-            primitives: self.prims.len(),
+            primitives: self.count,
             nodes: self.nodes.len(),
             bytes: std::mem::size_of_val(self.nodes.as_slice())
                 + std::mem::size_of_val(self.prims.as_slice())
@@ -66,7 +94,7 @@ impl<P: Primitive> Bvh<P> {
                 Err("no nodes for a non-empty scene".into())
             };
         }
-        let mut seen = vec![false; self.prims.len()];
+        let mut seen = vec![false; self.count];
         let mut err: Option<String> = None;
         let mut fail = |e: String| {
             err.get_or_insert(e);
@@ -83,13 +111,14 @@ impl<P: Primitive> Bvh<P> {
                     return fail(format!("leaf {i} points past the primitives"));
                 }
                 for k in first..first + count {
-                    if !b.contains(&self.prims[k].bounds()) {
-                        fail(format!("primitive {} pokes out of leaf {i}", self.ids[k]));
-                    }
-                    match seen.get_mut(self.ids[k] as usize) {
-                        Some(s) if !*s => *s = true,
-                        Some(_) => fail(format!("primitive {} in two leaves", self.ids[k])),
-                        None => fail(format!("id {} out of range", self.ids[k])),
+                    if let Err(e) = check_leaf_primitive(
+                        &self.prims[k],
+                        self.ids[k],
+                        &b,
+                        &mut seen,
+                        self.params.splits_primitives(),
+                    ) {
+                        fail(e);
                     }
                 }
             } else {

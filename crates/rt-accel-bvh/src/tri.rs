@@ -7,6 +7,7 @@
 //! end. A leaf `(first, count)` covers indices `first .. first + count`; lanes past `count`
 //! belong to the next leaf and are masked off.
 
+use crate::stats::check_leaf_primitive;
 use crate::wide::WideTree;
 use crate::{Bvh, BvhParams};
 use rt_geom::{
@@ -138,6 +139,7 @@ pub struct TriBvh<const N: usize> {
     tree: WideTree<N>,
     tris: TriangleSoa,
     ids: Vec<u32>,
+    count: usize,
     params: BvhParams,
 }
 
@@ -155,6 +157,7 @@ impl<const N: usize> TriBvh<N> {
             tree: WideTree::collapse(&bvh.nodes),
             tris: TriangleSoa::new(&bvh.prims),
             ids: bvh.ids,
+            count: bvh.count,
             params: bvh.params,
         }
     }
@@ -198,25 +201,20 @@ impl<const N: usize> Accel for TriBvh<N> {
     }
 
     fn stats(&self) -> AccelStats {
-        let mut s = self.tree.stats(self.tris.len(), &self.params);
+        let mut s = self.tree.stats(self.count, &self.params);
         s.bytes += self.tris.bytes() + std::mem::size_of_val(self.ids.as_slice());
         s
     }
 
     fn validate(&self) -> Result<(), String> {
-        let mut seen = vec![false; self.tris.len()];
+        let mut seen = vec![false; self.count];
         self.tree.check(|first, count, bounds: &Aabb| {
             for k in first as usize..(first + count) as usize {
                 if k >= self.tris.len() {
                     return Err("leaf points past the triangles".into());
                 }
-                if !bounds.contains(&self.tris.get(k).bounds()) {
-                    return Err(format!("triangle {} pokes out of its leaf", self.ids[k]));
-                }
-                let id = self.ids[k] as usize;
-                if std::mem::replace(&mut seen[id], true) {
-                    return Err(format!("triangle {id} in two leaves"));
-                }
+                let split = self.params.splits_primitives();
+                check_leaf_primitive(&self.tris.get(k), self.ids[k], bounds, &mut seen, split)?;
             }
             Ok(())
         })?;

@@ -17,6 +17,7 @@
 
 use crate::node::BvhNode;
 use crate::params::MAX_DEPTH;
+use crate::stats::check_leaf_primitive;
 use crate::{Bvh, BvhParams};
 use rt_geom::aabb::{pad_down, pad_up};
 use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray};
@@ -81,6 +82,7 @@ pub struct WideBvh<P, const N: usize> {
     tree: WideTree<N>,
     prims: Vec<P>,
     ids: Vec<u32>,
+    count: usize,
     params: BvhParams,
 }
 
@@ -97,12 +99,17 @@ impl<P: Primitive, const N: usize> WideBvh<P, N> {
     pub fn from_binary(bvh: Bvh<P>) -> Self {
         let tree = WideTree::collapse(&bvh.nodes);
         let Bvh {
-            prims, ids, params, ..
+            prims,
+            ids,
+            count,
+            params,
+            ..
         } = bvh;
         Self {
             tree,
             prims,
             ids,
+            count,
             params,
         }
     }
@@ -414,24 +421,19 @@ impl<P: Primitive, const N: usize> Accel for WideBvh<P, N> {
     }
 
     fn stats(&self) -> AccelStats {
-        let mut s = self.tree.stats(self.prims.len(), &self.params);
+        let mut s = self.tree.stats(self.count, &self.params);
         s.bytes += std::mem::size_of_val(self.prims.as_slice())
             + std::mem::size_of_val(self.ids.as_slice());
         s
     }
 
     fn validate(&self) -> Result<(), String> {
-        let mut seen = vec![false; self.prims.len()];
+        let mut seen = vec![false; self.count];
         self.tree.check(|first, count, bounds| {
             for k in first as usize..(first + count) as usize {
                 let p = self.prims.get(k).ok_or("leaf points past the primitives")?;
-                if !bounds.contains(&p.bounds()) {
-                    return Err(format!("primitive {} pokes out of its leaf", self.ids[k]));
-                }
-                let id = self.ids[k] as usize;
-                if std::mem::replace(&mut seen[id], true) {
-                    return Err(format!("primitive {id} in two leaves"));
-                }
+                let split = self.params.splits_primitives();
+                check_leaf_primitive(p, self.ids[k], bounds, &mut seen, split)?;
             }
             Ok(())
         })?;

@@ -195,8 +195,13 @@ impl Triangle {
         if clip.contains(&bounds) {
             return bounds;
         }
-        let mut poly: Vec<DVec3> = self.v.iter().map(|p| p.as_dvec3()).collect();
-        let mut next = Vec::with_capacity(9);
+        // A triangle clipped by six planes has at most 9 vertices: fixed arrays, no allocation.
+        let mut poly = [DVec3::ZERO; 9];
+        let mut len = 3;
+        for (slot, p) in poly.iter_mut().zip(self.v) {
+            *slot = p.as_dvec3();
+        }
+        let mut next = [DVec3::ZERO; 9];
         for axis in 0..3 {
             for (plane, keep_above) in [(clip.min[axis], true), (clip.max[axis], false)] {
                 let plane = plane as f64;
@@ -207,29 +212,32 @@ impl Triangle {
                         p[axis] <= plane
                     }
                 };
-                next.clear();
-                for i in 0..poly.len() {
+                let mut n = 0;
+                for i in 0..len {
                     let p = poly[i];
-                    let q = poly[(i + 1) % poly.len()];
+                    let q = poly[(i + 1) % len];
                     let (pin, qin) = (inside(&p), inside(&q));
                     if pin {
-                        next.push(p);
+                        next[n] = p;
+                        n += 1;
                     }
                     if pin != qin {
                         let s = (plane - p[axis]) / (q[axis] - p[axis]);
                         let mut x = p + (q - p) * s;
                         x[axis] = plane;
-                        next.push(x);
+                        next[n] = x;
+                        n += 1;
                     }
                 }
                 std::mem::swap(&mut poly, &mut next);
-                if poly.is_empty() {
+                len = n;
+                if len == 0 {
                     return Aabb::EMPTY;
                 }
             }
         }
         let mut out = Aabb::EMPTY;
-        for p in &poly {
+        for p in &poly[..len] {
             // Round outwards so that the f32 box still contains the f64 polygon.
             let lo = p.as_vec3();
             let lo = Vec3::select(lo.as_dvec3().cmpgt(*p), next_down(lo), lo);

@@ -4,6 +4,7 @@
 
 pub(crate) mod naive;
 pub(crate) mod sah;
+pub(crate) mod spatial;
 
 use crate::node::BvhNode;
 use crate::params::{BvhBuilder, BvhParams, MAX_DEPTH};

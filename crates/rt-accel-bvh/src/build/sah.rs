@@ -85,14 +85,35 @@ impl Binner {
     }
 }
 
-/// The best binned SAH split (`bins` per axis), or `Leaf` when a leaf is cheaper and allowed.
-pub(crate) fn binned(
-    refs: &mut [PrimRef],
+/// The best binned object split found for a range of references.
+pub(crate) struct ObjectSplit {
+    pub cost: f32,
+    pub axis: usize,
+    /// First bin on the right.
+    plane: usize,
+    binner: Binner,
+    /// Boxes of the two sides (for the spatial-split overlap test).
+    pub left: Aabb,
+    pub right: Aabb,
+}
+
+impl ObjectSplit {
+    /// Whether a reference goes to the left side.
+    #[inline]
+    pub fn is_left(&self, r: &PrimRef) -> bool {
+        self.binner.bin(r, self.axis) < self.plane
+    }
+}
+
+/// The cheapest binned SAH object split (`bins` per axis), or `None` when all centroids
+/// coincide.
+pub(crate) fn best_binned(
+    refs: &[PrimRef],
     bounds: &Aabb,
     centroids: &Aabb,
     bins: u32,
     params: &BvhParams,
-) -> Split {
+) -> Option<ObjectSplit> {
     let k = bins as usize;
     let extent = centroids.extent();
     let mut binner = Binner {
@@ -107,7 +128,7 @@ pub(crate) fn binned(
         }
     }
     if binner.scale == [0.0; 3] {
-        return Split::Leaf;
+        return None;
     }
     let filled = if refs.len() > params.parallel_threshold {
         refs.par_chunks(16384)
@@ -117,8 +138,8 @@ pub(crate) fn binned(
         binner.fill(refs)
     };
     let parent = bounds.half_area();
-    let mut best: Option<(f32, usize, usize)> = None; // (cost, axis, first bin on the right)
-    let mut right_area = vec![0.0f32; k];
+    let mut best: Option<ObjectSplit> = None;
+    let mut right_box = vec![Aabb::EMPTY; k];
     for axis in 0..3 {
         if binner.scale[axis] == 0.0 {
             continue;
@@ -127,7 +148,7 @@ pub(crate) fn binned(
         let mut acc = Aabb::EMPTY;
         for i in (1..k).rev() {
             acc = acc.union(bins[i].bounds);
-            right_area[i] = acc.half_area();
+            right_box[i] = acc;
         }
         let mut left = Aabb::EMPTY;
         let mut nl = 0;
@@ -139,21 +160,47 @@ pub(crate) fn binned(
             if nl == 0 || nr == 0 {
                 continue;
             }
-            let cost = split_cost(params, parent, (left.half_area(), nl), (right_area[i], nr));
-            if best.is_none_or(|(c, _, _)| cost < c) {
-                best = Some((cost, axis, i));
+            let cost = split_cost(
+                params,
+                parent,
+                (left.half_area(), nl),
+                (right_box[i].half_area(), nr),
+            );
+            if best.as_ref().is_none_or(|b| cost < b.cost) {
+                best = Some(ObjectSplit {
+                    cost,
+                    axis,
+                    plane: i,
+                    binner,
+                    left,
+                    right: right_box[i],
+                });
             }
         }
     }
-    let Some((cost, axis, plane)) = best else {
+    best
+}
+
+/// The best binned SAH split (`bins` per axis), or `Leaf` when a leaf is cheaper and allowed.
+pub(crate) fn binned(
+    refs: &mut [PrimRef],
+    bounds: &Aabb,
+    centroids: &Aabb,
+    bins: u32,
+    params: &BvhParams,
+) -> Split {
+    let Some(best) = best_binned(refs, bounds, centroids, bins, params) else {
         return Split::Leaf;
     };
     let leaf_cost = params.intersection_cost * refs.len() as f32;
-    if refs.len() <= params.max_leaf_size as usize && leaf_cost <= cost {
+    if refs.len() <= params.max_leaf_size as usize && leaf_cost <= best.cost {
         return Split::Leaf;
     }
-    let mid = partition(refs, |r| binner.bin(r, axis) < plane);
-    Split::At { mid, axis }
+    let mid = partition(refs, |r| best.is_left(r));
+    Split::At {
+        mid,
+        axis: best.axis,
+    }
 }
 
 /// The best SAH split over all `n - 1` positions between sorted centroids on each axis.
