@@ -158,24 +158,27 @@ struct SpatialSplit {
     plane: f32,
 }
 
-/// The cheapest spatial split over `ctx.bins` equal bins of the node's box on each axis.
+/// The cheapest spatial split over equal bins of the node's box along its largest axis (8 bins
+/// at most: chopping references into bins is most of the build time, and the other axes
+/// rarely win).
 fn best_spatial<P: Primitive>(
     ctx: &Ctx<'_, P>,
     refs: &[PrimRef],
     bounds: &Aabb,
 ) -> Option<SpatialSplit> {
-    let k = ctx.bins;
+    let k = ctx.bins.min(8);
     let parent = bounds.half_area();
     let mut best: Option<SpatialSplit> = None;
     let mut bin_box = vec![Aabb::EMPTY; k];
     let mut enter = vec![0usize; k];
     let mut exit = vec![0usize; k];
     let mut right_box = vec![Aabb::EMPTY; k];
-    for axis in 0..3 {
+    {
+        let axis = bounds.largest_axis();
         let (lo, hi) = (bounds.min[axis], bounds.max[axis]);
         let width = (hi - lo) / k as f32;
         if !(width > 0.0) {
-            continue;
+            return None;
         }
         let plane = |i: usize| if i == k { hi } else { lo + width * i as f32 };
         let bin_of = |x: f32| (((x - lo) / width) as usize).min(k - 1);
