@@ -98,22 +98,36 @@ fn any_hit(tris: &[Triangle], ray: &Ray, prim: u32) -> f32 {
     }
 }
 
-/// obvhs's `Bvh2` built with [`params`].
-pub struct ObvhsBvh2 {
-    bvh: Option<Bvh2>,
+/// What the adapter needs from an obvhs tree; [`Bvh2`] and [`CwBvh`] implement it.
+pub trait ObvhsTree: Send + Sync + Sized {
+    fn build(tris: &[obvhs::triangle::Triangle]) -> Self;
+    /// Maps obvhs's primitive slots to the caller's triangle indices.
+    fn indices(&self) -> &[u32];
+    fn closest(&self, ray: ORay, hit: &mut RayHit, f: impl FnMut(&ORay, usize) -> f32) -> bool;
+    /// True when nothing is hit.
+    fn missed(&self, ray: ORay, f: impl FnMut(&ORay, usize) -> f32) -> bool;
+    /// Nodes, leaves, references, depth, node bytes, SAH (primitives and triangle bytes are
+    /// the adapter's).
+    fn tree_stats(&self) -> AccelStats;
+    /// Tree invariants, besides every primitive being referenced (checked by the adapter).
+    fn check(&self) -> Result<(), String>;
+}
+
+/// An obvhs tree over triangles, traversed with rt's kernel.
+pub struct Obvhs<T> {
+    bvh: Option<T>,
     tris: Vec<Triangle>,
 }
 
-impl ObvhsBvh2 {
+/// obvhs's `Bvh2` built with [`params`]: the correctness reference.
+pub type ObvhsBvh2 = Obvhs<Bvh2>;
+/// obvhs's compressed wide `CwBvh` built with [`params`]: a speed reference.
+pub type ObvhsCwBvh = Obvhs<CwBvh>;
+
+impl<T: ObvhsTree> Obvhs<T> {
     pub fn build(tris: &[Triangle]) -> Result<Self, BuildError> {
         check_primitives(tris, u32::MAX as usize - 1)?;
-        let bvh = (!tris.is_empty()).then(|| {
-            obvhs::bvh2::builder::build_bvh2_from_tris(
-                &to_obvhs(tris),
-                params(),
-                &mut Duration::default(),
-            )
-        });
+        let bvh = (!tris.is_empty()).then(|| T::build(&to_obvhs(tris)));
         Ok(Self {
             bvh,
             tris: tris.to_vec(),
@@ -121,7 +135,7 @@ impl ObvhsBvh2 {
     }
 }
 
-impl Accel for ObvhsBvh2 {
+impl<T: ObvhsTree> Accel for Obvhs<T> {
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let bvh = self.bvh.as_ref().filter(|_| ray.is_valid())?;
         let (oray, scale) = obvhs_ray(ray);
@@ -131,10 +145,8 @@ impl Accel for ObvhsBvh2 {
             scale,
             best: None,
         };
-        let mut hit = RayHit::none();
-        bvh.ray_traverse(oray, &mut hit, |r, id| {
-            c.visit(r, bvh.primitive_indices[id])
-        });
+        let indices = bvh.indices();
+        bvh.closest(oray, &mut RayHit::none(), |r, id| c.visit(r, indices[id]));
         c.hit()
     }
 
@@ -142,18 +154,66 @@ impl Accel for ObvhsBvh2 {
         let Some(bvh) = self.bvh.as_ref().filter(|_| ray.is_valid()) else {
             return false;
         };
-        !bvh.ray_traverse_miss(obvhs_ray(ray).0, |_, id| {
-            any_hit(&self.tris, ray, bvh.primitive_indices[id])
+        let indices = bvh.indices();
+        !bvh.missed(obvhs_ray(ray).0, |_, id| {
+            any_hit(&self.tris, ray, indices[id])
         })
     }
 
     fn stats(&self) -> AccelStats {
         let Some(bvh) = &self.bvh else {
-            return empty_stats();
+            return AccelStats::default();
         };
-        let root_area = bvh.nodes[0].aabb().half_area().max(f32::MIN_POSITIVE);
+        let mut s = bvh.tree_stats();
+        s.primitives = self.tris.len();
+        s.bytes +=
+            std::mem::size_of_val(bvh.indices()) + std::mem::size_of_val(self.tris.as_slice());
+        s
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        let Some(bvh) = &self.bvh else {
+            return if self.tris.is_empty() {
+                Ok(())
+            } else {
+                Err("no tree for a non-empty scene".into())
+            };
+        };
+        bvh.check()?;
+        let mut seen = vec![false; self.tris.len()];
+        for &p in bvh.indices() {
+            *seen
+                .get_mut(p as usize)
+                .ok_or_else(|| format!("primitive index {p} out of range"))? = true;
+        }
+        match seen.iter().position(|s| !s) {
+            Some(p) => Err(format!("primitive {p} is in no leaf")),
+            None => Ok(()),
+        }
+    }
+}
+
+impl ObvhsTree for Bvh2 {
+    fn build(tris: &[obvhs::triangle::Triangle]) -> Self {
+        obvhs::bvh2::builder::build_bvh2_from_tris(tris, params(), &mut Duration::default())
+    }
+
+    fn indices(&self) -> &[u32] {
+        &self.primitive_indices
+    }
+
+    fn closest(&self, ray: ORay, hit: &mut RayHit, f: impl FnMut(&ORay, usize) -> f32) -> bool {
+        self.ray_traverse(ray, hit, f)
+    }
+
+    fn missed(&self, ray: ORay, f: impl FnMut(&ORay, usize) -> f32) -> bool {
+        self.ray_traverse_miss(ray, f)
+    }
+
+    fn tree_stats(&self) -> AccelStats {
+        let root_area = self.nodes[0].aabb().half_area().max(f32::MIN_POSITIVE);
         let (mut leaves, mut refs, mut depth, mut sah) = (0, 0, 0, 0.0f32);
-        walk_bvh2(bvh, |node, d| {
+        walk_bvh2(self, |node, d| {
             depth = depth.max(d);
             let area = node.aabb().half_area() / root_area;
             if node.is_leaf() {
@@ -165,135 +225,61 @@ impl Accel for ObvhsBvh2 {
             }
         });
         AccelStats {
-            primitives: self.tris.len(),
-            nodes: bvh.nodes.len(),
+            nodes: self.nodes.len(),
             leaves,
             references: refs,
             max_depth: depth,
-            bytes: std::mem::size_of_val(bvh.nodes.as_slice())
-                + std::mem::size_of_val(bvh.primitive_indices.as_slice())
-                + std::mem::size_of_val(self.tris.as_slice()),
+            bytes: std::mem::size_of_val(self.nodes.as_slice()),
             sah_cost: Some(sah),
+            ..AccelStats::default()
         }
     }
 
-    fn validate(&self) -> Result<(), String> {
-        let Some(bvh) = &self.bvh else {
-            return if self.tris.is_empty() {
-                Ok(())
-            } else {
-                Err("no tree for a non-empty scene".into())
-            };
-        };
-        let mut seen = vec![false; self.tris.len()];
+    fn check(&self) -> Result<(), String> {
         let mut err = None;
-        walk_bvh2(bvh, |node, _| {
+        walk_bvh2(self, |node, _| {
             if node.is_leaf() {
-                let first = node.first_index as usize;
-                for &p in &bvh.primitive_indices[first..first + node.prim_count as usize] {
-                    match seen.get_mut(p as usize) {
-                        Some(s) => *s = true,
-                        None => err = Some(format!("primitive index {p} out of range")),
-                    }
+                let end = node.first_index as usize + node.prim_count as usize;
+                if end > self.primitive_indices.len() {
+                    err = Some("leaf points past the primitive indices".to_string());
                 }
             } else {
                 let b = node.aabb();
                 for child in [node.first_index, node.first_index + 1] {
-                    let c = bvh.nodes[child as usize].aabb();
+                    let c = self.nodes[child as usize].aabb();
                     if !(b.min.cmple(c.min).all() && b.max.cmpge(c.max).all()) {
                         err = Some(format!("node {child} pokes out of its parent"));
                     }
                 }
             }
         });
-        if let Some(e) = err {
-            return Err(e);
-        }
-        match seen.iter().position(|s| !s) {
-            Some(p) => Err(format!("primitive {p} is in no leaf")),
-            None => Ok(()),
-        }
+        err.map_or(Ok(()), Err)
     }
 }
 
-fn walk_bvh2(bvh: &Bvh2, mut f: impl FnMut(&obvhs::bvh2::node::Bvh2Node, usize)) {
-    let mut stack = vec![(0u32, 0usize)];
-    while let Some((i, d)) = stack.pop() {
-        let node = &bvh.nodes[i as usize];
-        f(node, d);
-        if !node.is_leaf() {
-            stack.push((node.first_index, d + 1));
-            stack.push((node.first_index + 1, d + 1));
-        }
-    }
-}
-
-fn empty_stats() -> AccelStats {
-    AccelStats {
-        leaves: 0,
-        nodes: 0,
-        ..AccelStats::default()
-    }
-}
-
-/// obvhs's compressed wide `CwBvh` built with [`params`] (speed reference).
-pub struct ObvhsCwBvh {
-    bvh: Option<CwBvh>,
-    tris: Vec<Triangle>,
-}
-
-impl ObvhsCwBvh {
-    pub fn build(tris: &[Triangle]) -> Result<Self, BuildError> {
-        check_primitives(tris, u32::MAX as usize - 1)?;
-        let bvh = (!tris.is_empty()).then(|| {
-            obvhs::cwbvh::builder::build_cwbvh_from_tris(
-                &to_obvhs(tris),
-                params(),
-                &mut Duration::default(),
-            )
-        });
-        Ok(Self {
-            bvh,
-            tris: tris.to_vec(),
-        })
-    }
-}
-
-impl Accel for ObvhsCwBvh {
-    fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        let bvh = self.bvh.as_ref().filter(|_| ray.is_valid())?;
-        let (oray, scale) = obvhs_ray(ray);
-        let mut c = Closest {
-            tris: &self.tris,
-            ray: *ray,
-            scale,
-            best: None,
-        };
-        let mut hit = RayHit::none();
-        bvh.ray_traverse(oray, &mut hit, |r, id| {
-            c.visit(r, bvh.primitive_indices[id])
-        });
-        c.hit()
+impl ObvhsTree for CwBvh {
+    fn build(tris: &[obvhs::triangle::Triangle]) -> Self {
+        obvhs::cwbvh::builder::build_cwbvh_from_tris(tris, params(), &mut Duration::default())
     }
 
-    fn occluded(&self, ray: &Ray) -> bool {
-        let Some(bvh) = self.bvh.as_ref().filter(|_| ray.is_valid()) else {
-            return false;
-        };
-        !bvh.ray_traverse_miss(obvhs_ray(ray).0, |_, id| {
-            any_hit(&self.tris, ray, bvh.primitive_indices[id])
-        })
+    fn indices(&self) -> &[u32] {
+        &self.primitive_indices
     }
 
-    fn stats(&self) -> AccelStats {
-        let Some(bvh) = &self.bvh else {
-            return empty_stats();
-        };
+    fn closest(&self, ray: ORay, hit: &mut RayHit, f: impl FnMut(&ORay, usize) -> f32) -> bool {
+        self.ray_traverse(ray, hit, f)
+    }
+
+    fn missed(&self, ray: ORay, f: impl FnMut(&ORay, usize) -> f32) -> bool {
+        self.ray_traverse_miss(ray, f)
+    }
+
+    fn tree_stats(&self) -> AccelStats {
         let (mut leaves, mut depth) = (0, 0);
         let mut stack = vec![(0u32, 0usize)];
         while let Some((i, d)) = stack.pop() {
             depth = depth.max(d);
-            let node = &bvh.nodes[i as usize];
+            let node = &self.nodes[i as usize];
             for child in 0..8 {
                 if node.is_child_empty(child) {
                     continue;
@@ -306,31 +292,40 @@ impl Accel for ObvhsCwBvh {
             }
         }
         AccelStats {
-            primitives: self.tris.len(),
-            nodes: bvh.nodes.len() + leaves,
+            nodes: self.nodes.len() + leaves,
             leaves,
-            references: bvh.primitive_indices.len(),
+            references: self.primitive_indices.len(),
             max_depth: depth + 1,
-            bytes: std::mem::size_of_val(bvh.nodes.as_slice())
-                + std::mem::size_of_val(bvh.primitive_indices.as_slice())
-                + std::mem::size_of_val(self.tris.as_slice()),
-            sah_cost: None,
+            bytes: std::mem::size_of_val(self.nodes.as_slice()),
+            ..AccelStats::default()
         }
     }
 
-    fn validate(&self) -> Result<(), String> {
-        let Some(bvh) = &self.bvh else {
-            return Ok(());
-        };
-        let mut seen = vec![false; self.tris.len()];
-        for &p in &bvh.primitive_indices {
-            *seen
-                .get_mut(p as usize)
-                .ok_or_else(|| format!("primitive index {p} out of range"))? = true;
+    fn check(&self) -> Result<(), String> {
+        for (i, node) in self.nodes.iter().enumerate() {
+            for child in (0..8).filter(|&c| !node.is_child_empty(c)) {
+                if node.is_leaf(child) {
+                    let (first, count) = node.child_primitives(child);
+                    if (first + count) as usize > self.primitive_indices.len() {
+                        return Err(format!("node {i} child {child} points past the indices"));
+                    }
+                } else if node.child_node_index(child) as usize >= self.nodes.len() {
+                    return Err(format!("node {i} child {child} points past the nodes"));
+                }
+            }
         }
-        match seen.iter().position(|s| !s) {
-            Some(p) => Err(format!("primitive {p} is in no leaf")),
-            None => Ok(()),
+        Ok(())
+    }
+}
+
+fn walk_bvh2(bvh: &Bvh2, mut f: impl FnMut(&obvhs::bvh2::node::Bvh2Node, usize)) {
+    let mut stack = vec![(0u32, 0usize)];
+    while let Some((i, d)) = stack.pop() {
+        let node = &bvh.nodes[i as usize];
+        f(node, d);
+        if !node.is_leaf() {
+            stack.push((node.first_index, d + 1));
+            stack.push((node.first_index + 1, d + 1));
         }
     }
 }

@@ -362,7 +362,7 @@ mod tests {
         };
         assert!(BvList::<_, Aabb>::build(&scene.prims, overlapping).is_err());
         let short = BvListParams {
-            grouping: Grouping::Ranges(vec![0..n - 1]),
+            grouping: Grouping::Ranges(std::iter::once(0..n - 1).collect()),
             two_level: None,
         };
         assert!(BvList::<_, Aabb>::build(&scene.prims, short).is_err());

@@ -310,7 +310,7 @@ mod tests {
         // Exponentially spaced triangles: naive midpoint splits peel one off per level.
         let tris: Vec<Triangle> = (0..200)
             .map(|i| {
-                let x = 2f32.powi(-(i as i32) / 2);
+                let x = 2f32.powi(-i / 2);
                 Triangle::new(
                     Vec3::new(x, 0.0, 0.0),
                     Vec3::new(x, 1.0, 0.0),

@@ -4,6 +4,14 @@ use crate::Bvh;
 use crate::params::MAX_DEPTH;
 use rt_geom::{Aabb, AccelStats, Primitive};
 
+/// Every primitive was found in some leaf.
+pub(crate) fn all_referenced(seen: &[bool]) -> Result<(), String> {
+    match seen.iter().position(|s| !s) {
+        Some(p) => Err(format!("primitive {p} is in no leaf")),
+        None => Ok(()),
+    }
+}
+
 /// The leaf invariants every tree of this crate checks: the leaf's box contains the primitive
 /// (with spatial splits: the primitive's part inside the box is not empty, and a primitive
 /// may be in several leaves), and the id is in range and, without spatial splits, seen once.
@@ -135,9 +143,6 @@ impl<P: Primitive> Bvh<P> {
         if let Some(e) = err {
             return Err(e);
         }
-        match seen.iter().position(|s| !s) {
-            Some(p) => Err(format!("primitive {p} is in no leaf")),
-            None => Ok(()),
-        }
+        all_referenced(&seen)
     }
 }

@@ -7,7 +7,7 @@
 //! end. A leaf `(first, count)` covers indices `first .. first + count`; lanes past `count`
 //! belong to the next leaf and are masked off.
 
-use crate::stats::check_leaf_primitive;
+use crate::stats::{all_referenced, check_leaf_primitive};
 use crate::wide::WideTree;
 use crate::{Bvh, BvhParams};
 use rt_geom::{
@@ -218,10 +218,7 @@ impl<const N: usize> Accel for TriBvh<N> {
             }
             Ok(())
         })?;
-        match seen.iter().position(|s| !s) {
-            Some(p) => Err(format!("triangle {p} is in no leaf")),
-            None => Ok(()),
-        }
+        all_referenced(&seen)
     }
 }
 

@@ -17,7 +17,7 @@
 
 use crate::node::BvhNode;
 use crate::params::MAX_DEPTH;
-use crate::stats::check_leaf_primitive;
+use crate::stats::{all_referenced, check_leaf_primitive};
 use crate::{Bvh, BvhParams};
 use rt_geom::aabb::{pad_down, pad_up};
 use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray};
@@ -217,8 +217,7 @@ impl<const N: usize> WideTree<N> {
                         let t = entries(node, &o, &inv, &neg, r.tmin, r.tmax);
                         // Push hit lanes far to near (insertion by entry, descending).
                         let base = sp;
-                        for lane in 0..N {
-                            let te = t[lane];
+                        for (lane, &te) in t.iter().enumerate() {
                             if te.is_nan() {
                                 continue;
                             }
@@ -437,10 +436,7 @@ impl<P: Primitive, const N: usize> Accel for WideBvh<P, N> {
             }
             Ok(())
         })?;
-        match seen.iter().position(|s| !s) {
-            Some(p) => Err(format!("primitive {p} is in no leaf")),
-            None => Ok(()),
-        }
+        all_referenced(&seen)
     }
 }
 
