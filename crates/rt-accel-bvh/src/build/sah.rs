@@ -114,7 +114,8 @@ pub(crate) fn best_binned(
     bins: u32,
     params: &BvhParams,
 ) -> Option<ObjectSplit> {
-    let k = bins as usize;
+    // Small ranges need no more bins than references (fewer bins to fill and sweep).
+    let k = (bins as usize).min(refs.len().next_power_of_two().max(4));
     let extent = centroids.extent();
     let mut binner = Binner {
         min: centroids.min.to_array(),
