@@ -20,17 +20,7 @@ fn traversal(c: &mut Criterion) {
             let rays = sets.by_name(set).unwrap();
             g.throughput(Throughput::Elements(rays.len() as u64));
             g.bench_function(set, |b| {
-                b.iter(|| {
-                    rays.iter()
-                        .filter(|r| {
-                            if occluded {
-                                accel.occluded(r)
-                            } else {
-                                accel.intersect(r).is_some()
-                            }
-                        })
-                        .count()
-                })
+                b.iter(|| xtask::run::count_hits(accel.as_ref(), rays, occluded))
             });
         }
         g.finish();

@@ -53,20 +53,24 @@ pub fn trace_count(
     let start = Instant::now();
     let hits = pool.install(|| {
         rays.par_chunks(CHUNK)
-            .map(|rays| {
-                rays.iter()
-                    .filter(|r| {
-                        if occluded {
-                            accel.occluded(r)
-                        } else {
-                            accel.intersect(r).is_some()
-                        }
-                    })
-                    .count()
-            })
+            .map(|rays| count_hits(accel, rays, occluded))
             .sum()
     });
     (hits, start.elapsed())
+}
+
+/// Rays that hit (`intersect`), or that are occluded, on the calling thread.
+#[inline]
+pub fn count_hits(accel: &dyn Accel, rays: &[Ray], occluded: bool) -> usize {
+    rays.iter()
+        .filter(|r| {
+            if occluded {
+                accel.occluded(r)
+            } else {
+                accel.intersect(r).is_some()
+            }
+        })
+        .count()
 }
 
 /// The median of a non-empty list of durations.
