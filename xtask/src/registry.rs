@@ -5,6 +5,7 @@ use crate::obvhs_accel::{ObvhsBvh2, ObvhsCwBvh};
 use rt_accel_bvh::{
     BvList, BvListParams, Bvh, Bvh4, Bvh8, BvhBuilder, BvhParams, TriBvh4, TriBvh8,
 };
+use rt_accel_kd::{KdParams, KdTraversal, KdTree};
 use rt_geom::{Aabb, Accel, BoundingSphere, BruteForce, BuildError, Kdop7, Triangle};
 use rt_testkit::Tolerance;
 
@@ -182,6 +183,31 @@ pub static REGISTRY: &[AccelEntry] = &[
         "bvlist-box-2level",
         "boxes of 32 primitives grouped under boxes of 32 boxes (volumes of volumes)",
         |p| boxed(BvList::<_, Aabb>::build(p, bvlist_two_level())),
+    ),
+    own(
+        "kd",
+        "rt kd-tree, SAH over all clipped-box planes in O(N log N) (Wald & Havran 2006), iterative traversal",
+        |p| boxed(KdTree::build(p, KdParams::sah())),
+    ),
+    own(
+        "kd-recursive",
+        "the same SAH kd-tree, traversed by the seeds' recursive front-to-back descent",
+        |p| {
+            boxed(KdTree::build(
+                p,
+                KdParams::sah().with_traversal(KdTraversal::Recursive),
+            ))
+        },
+    ),
+    own(
+        "kd-midpoint",
+        "rt kd-tree, naive: largest extent split at its middle, leaves of up to 8",
+        |p| boxed(KdTree::build(p, KdParams::midpoint())),
+    ),
+    own(
+        "kd-centroid",
+        "rt kd-tree, naive: largest extent split at the centre of gravity, leaves of up to 8",
+        |p| boxed(KdTree::build(p, KdParams::centroid())),
     ),
     AccelEntry {
         name: "obvhs",

@@ -1,0 +1,121 @@
+//! `stats()` and `validate()`: what the tree reports about itself, and its invariants.
+
+use crate::KdTree;
+use crate::build::child_bounds;
+use crate::params::MAX_DEPTH;
+use rt_geom::{Aabb, AccelStats, Primitive};
+
+impl<P: Primitive> KdTree<P> {
+    /// Calls `f(node index, cell, depth)` for every node, parents before children.
+    pub(crate) fn walk(&self, mut f: impl FnMut(usize, &Aabb, usize)) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut stack = vec![(0usize, self.bounds, 0usize)];
+        while let Some((i, cell, d)) = stack.pop() {
+            f(i, &cell, d);
+            let n = &self.nodes[i];
+            if !n.is_leaf() && n.above() < self.nodes.len() && i + 1 < self.nodes.len() {
+                let (below, above) = child_bounds(&cell, n.axis(), n.split());
+                stack.push((n.above(), above, d + 1));
+                stack.push((i + 1, below, d + 1));
+            }
+        }
+    }
+
+    pub(crate) fn compute_stats(&self) -> AccelStats {
+        let mut s = AccelStats {
+            primitives: self.prims.len(),
+            nodes: self.nodes.len(),
+            bytes: std::mem::size_of_val(self.nodes.as_slice())
+                + std::mem::size_of_val(self.indices.as_slice())
+                + std::mem::size_of_val(self.prims.as_slice()),
+            ..AccelStats::default()
+        };
+        if self.nodes.is_empty() {
+            return s;
+        }
+        let root_area = self.bounds.half_area() as f64;
+        let (kt, ki) = (
+            self.params.traversal_cost as f64,
+            self.params.intersection_cost as f64,
+        );
+        let mut sah = 0.0f64;
+        self.walk(|i, cell, d| {
+            let n = &self.nodes[i];
+            s.max_depth = s.max_depth.max(d);
+            let area = cell.half_area() as f64;
+            if n.is_leaf() {
+                if n.count() > 0 {
+                    s.leaves += 1;
+                    s.references += n.count();
+                }
+                sah += area * ki * n.count() as f64;
+            } else {
+                sah += area * kt;
+            }
+        });
+        // Normalised as the BVHs' (per unit of intersection cost, relative to the root).
+        s.sah_cost = Some(if root_area > 0.0 {
+            (sah / root_area / ki) as f32
+        } else {
+            0.0
+        });
+        s
+    }
+
+    pub(crate) fn check(&self) -> Result<(), String> {
+        if self.nodes.is_empty() {
+            return if self.prims.is_empty() {
+                Ok(())
+            } else {
+                Err("no nodes for a non-empty scene".into())
+            };
+        }
+        let mut seen = vec![false; self.prims.len()];
+        let mut err: Option<String> = None;
+        let mut fail = |e: String| {
+            err.get_or_insert(e);
+        };
+        let len = self.nodes.len();
+        self.walk(|i, cell, d| {
+            let n = &self.nodes[i];
+            if d > MAX_DEPTH as usize {
+                return fail(format!("node {i} at depth {d} > {MAX_DEPTH}"));
+            }
+            if !n.is_leaf() {
+                let (a, split) = (n.axis(), n.split());
+                if n.above() <= i + 1 || n.above() >= len || i + 1 >= len {
+                    return fail(format!("node {i} has children {} and {}", i + 1, n.above()));
+                }
+                if !(split >= cell.min[a] && split <= cell.max[a]) {
+                    return fail(format!("node {i} splits at {split}, outside its cell"));
+                }
+                return;
+            }
+            if n.count() > 1 && n.data() as usize + n.count() > self.indices.len() {
+                return fail(format!("leaf {i} points past the index array"));
+            }
+            // A referenced primitive really overlaps the cell (grown by a relative margin for
+            // the rounding of clipped bounds).
+            let pad = (cell.max - cell.min).max(cell.max.abs().max(cell.min.abs())) * 1e-6;
+            let grown = Aabb::new(cell.min - pad, cell.max + pad);
+            for &p in n.leaf_prims(&self.indices) {
+                let Some(prim) = self.prims.get(p as usize) else {
+                    return fail(format!("leaf {i} holds primitive {p}, out of range"));
+                };
+                if prim.clipped_bounds(&grown).is_empty() {
+                    return fail(format!("primitive {p} is in leaf {i} but not in its cell"));
+                }
+                seen[p as usize] = true;
+            }
+        });
+        if let Some(e) = err {
+            return Err(e);
+        }
+        match seen.iter().position(|s| !s) {
+            Some(p) => Err(format!("primitive {p} is in no leaf")),
+            None => Ok(()),
+        }
+    }
+}
