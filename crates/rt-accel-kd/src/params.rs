@@ -93,7 +93,9 @@ impl KdParams {
     pub fn depth_cap(&self, n: usize) -> u32 {
         match self.max_depth {
             Some(d) => d.min(MAX_DEPTH),
-            None => (8.0 + 1.3 * (n.max(1) as f64).log2()).round().min(MAX_DEPTH as f64) as u32,
+            None => (8.0 + 1.3 * (n.max(1) as f64).log2())
+                .round()
+                .min(MAX_DEPTH as f64) as u32,
         }
     }
 

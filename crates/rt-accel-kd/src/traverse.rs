@@ -11,8 +11,8 @@
 
 use crate::KdTree;
 use crate::params::MAX_DEPTH;
-use rt_geom::aabb::{pad_down, pad_up};
-use rt_geom::{Hit, Primitive, Ray, Vec3};
+use rt_geom::aabb::PAD;
+use rt_geom::{Hit, Primitive, Ray};
 
 /// Which children of an inner node the ray visits, first = on the side of the origin.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -26,28 +26,28 @@ pub enum Step {
 }
 
 /// True when the child below the plane is the first one the ray visits: the origin is below
-/// it, or on it and the ray leaves upwards... which means it *came* from below.
+/// the plane, or on it with the ray heading up (it crosses at `t = 0`, coming from below).
 #[inline(always)]
 pub fn below_first(origin: f32, dir: f32, split: f32) -> bool {
-    origin < split || (origin == split && dir > 0.0)
+    (origin < split) | ((origin == split) & (dir > 0.0))
 }
 
 /// The step at a plane for one axis of a ray over `[t0, t1]`.
+///
+/// The crossing `ts` is behind the origin (`ts < 0`: first only), beyond `t1` (which covers a
+/// ray parallel to the plane, `ts = inf`: first only), before `t0` (second only), or inside:
+/// both. A ray lying in the plane gives `ts = NaN`, which fails every comparison and lands in
+/// the last case, where `min`/`max` ignore the NaN: both children over the whole interval.
 #[inline(always)]
 pub fn step(origin: f32, inv_dir: f32, split: f32, t0: f32, t1: f32) -> Step {
     let ts = (split - origin) * inv_dir;
-    if ts.is_nan() {
-        // The ray lies in the plane (origin on it, zero direction): both sides touch it.
-        return Step::Both {
-            first_end: t1,
-            second_start: t0,
-        };
-    }
-    if !(ts >= 0.0) || ts == f32::INFINITY {
-        // Behind the origin, or parallel: the ray stays on its side.
+    if ts < 0.0 {
         return Step::First;
     }
-    let (lo, hi) = (pad_down(ts), pad_up(ts));
+    // ts >= 0 (or NaN) here: the padding of `pad_down`/`pad_up` as one product each, which
+    // keeps ts = inf infinite.
+    let lo = ts * (1.0 - PAD);
+    let hi = ts * (1.0 + PAD);
     if lo > t1 {
         Step::First
     } else if hi < t0 {
@@ -62,17 +62,18 @@ pub fn step(origin: f32, inv_dir: f32, split: f32, t0: f32, t1: f32) -> Step {
 
 /// The per-ray constants of the walk.
 struct Walk {
-    origin: Vec3,
-    dir: Vec3,
-    inv: Vec3,
+    // Arrays, not `Vec3`: indexing by the node's axis is then a load, not a branch.
+    origin: [f32; 3],
+    dir: [f32; 3],
+    inv: [f32; 3],
 }
 
 impl Walk {
     fn new(ray: &Ray) -> Self {
         Self {
-            origin: ray.origin(),
-            dir: ray.dir(),
-            inv: ray.inv_dir(),
+            origin: ray.origin().to_array(),
+            dir: ray.dir().to_array(),
+            inv: ray.inv_dir().to_array(),
         }
     }
 
@@ -82,12 +83,15 @@ impl Walk {
         let node = &tree_nodes[i];
         let a = node.axis();
         let split = node.split();
-        let (first, second) = if below_first(self.origin[a], self.dir[a], split) {
-            (i + 1, node.above())
-        } else {
-            (node.above(), i + 1)
-        };
-        (first, second, step(self.origin[a], self.inv[a], split, t0, t1))
+        // Selected by index, not by a branch the ray's direction makes unpredictable.
+        let children = [i + 1, node.above()];
+        let f = !below_first(self.origin[a], self.dir[a], split) as usize;
+        let (first, second) = (children[f], children[f ^ 1]);
+        (
+            first,
+            second,
+            step(self.origin[a], self.inv[a], split, t0, t1),
+        )
     }
 }
 
@@ -95,7 +99,12 @@ impl<P: Primitive> KdTree<P> {
     /// Tests a leaf's primitives against `r`, shrinking `r.tmax` to the closest hit. Returns
     /// true when `ANY_HIT` and something was hit.
     #[inline(always)]
-    fn test_leaf<const ANY_HIT: bool>(&self, i: usize, r: &mut Ray, best: &mut Option<Hit>) -> bool {
+    fn test_leaf<const ANY_HIT: bool>(
+        &self,
+        i: usize,
+        r: &mut Ray,
+        best: &mut Option<Hit>,
+    ) -> bool {
         for &p in self.nodes[i].leaf_prims(&self.indices) {
             if let Some(h) = self.prims[p as usize].intersect(r) {
                 *best = Some(Hit::new(h, p));

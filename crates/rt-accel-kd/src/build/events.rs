@@ -57,7 +57,11 @@ impl Event {
     #[inline]
     fn order(&self) -> u64 {
         let bits = self.pos.to_bits();
-        let ordered = if bits >> 31 == 1 { !bits } else { bits | 1 << 31 };
+        let ordered = if bits >> 31 == 1 {
+            !bits
+        } else {
+            bits | 1 << 31
+        };
         ((ordered as u64) << 2) | self.kind() as u64
     }
 }
@@ -121,8 +125,16 @@ mod tests {
     #[test]
     fn order_is_position_then_kind() {
         let mut ev: AxisEvents = Default::default();
-        push_box(&mut ev, 0, &Aabb::new(Vec3::new(-1.0, 0.0, 2.0), Vec3::new(1.0, 0.0, 3.0)));
-        push_box(&mut ev, 1, &Aabb::new(Vec3::new(-0.0, -2.0, 1.0), Vec3::new(2.0, 0.0, 2.0)));
+        push_box(
+            &mut ev,
+            0,
+            &Aabb::new(Vec3::new(-1.0, 0.0, 2.0), Vec3::new(1.0, 0.0, 3.0)),
+        );
+        push_box(
+            &mut ev,
+            1,
+            &Aabb::new(Vec3::new(-0.0, -2.0, 1.0), Vec3::new(2.0, 0.0, 2.0)),
+        );
         sort(&mut ev);
         let x: Vec<(f32, u32)> = ev[0].iter().map(|e| (e.pos, e.kind())).collect();
         assert_eq!(x, [(-1.0, START), (0.0, START), (1.0, END), (2.0, END)]);

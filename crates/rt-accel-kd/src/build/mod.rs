@@ -53,11 +53,7 @@ pub(crate) struct Ctx<'a, P> {
 }
 
 /// Builds the tree over all of `prims` inside `bounds`; returns the root.
-pub(crate) fn build_tree<P: Primitive>(
-    prims: &[P],
-    bounds: Aabb,
-    params: &KdParams,
-) -> BuildNode {
+pub(crate) fn build_tree<P: Primitive>(prims: &[P], bounds: Aabb, params: &KdParams) -> BuildNode {
     let n = prims.len();
     let mut events: AxisEvents = std::array::from_fn(|_| Vec::with_capacity(2 * n));
     for (i, p) in prims.iter().enumerate() {
@@ -87,7 +83,12 @@ fn leaf(mut ids: Vec<u32>) -> BuildNode {
 /// [`KdParams::reference_budget`]): a split is made only if both children together fit, and
 /// the budget is shared in proportion to their counts, so the whole tree stays within the
 /// root's.
-fn build_node<P: Primitive>(ctx: &Ctx<P>, input: NodeInput, depth: u32, budget: usize) -> BuildNode {
+fn build_node<P: Primitive>(
+    ctx: &Ctx<P>,
+    input: NodeInput,
+    depth: u32,
+    budget: usize,
+) -> BuildNode {
     let n = input.ids.len();
     if n == 0 || depth >= ctx.depth_cap {
         return leaf(input.ids);
@@ -181,7 +182,9 @@ fn partition<P: Primitive>(prims: &[P], input: &NodeInput, split: Split) -> (Nod
         if *s == BOTH {
             let p = &prims[input.ids[l] as usize];
             let (b, a) = (p.clipped_bounds(&box_below), p.clipped_bounds(&box_above));
-            *s = CLIPPED | (!b.is_empty() as u8) * BELOW | (!a.is_empty() as u8) * ABOVE;
+            *s = CLIPPED
+                | if b.is_empty() { 0 } else { BELOW }
+                | if a.is_empty() { 0 } else { ABOVE };
             clipped.push((l as u32, b, a));
         }
     }
@@ -233,7 +236,11 @@ fn partition<P: Primitive>(prims: &[P], input: &NodeInput, split: Split) -> (Nod
     let merge_all = |kept: AxisEvents, new: AxisEvents| -> AxisEvents {
         let [k0, k1, k2] = kept;
         let [n0, n1, n2] = new;
-        [events::merge(k0, n0), events::merge(k1, n1), events::merge(k2, n2)]
+        [
+            events::merge(k0, n0),
+            events::merge(k1, n1),
+            events::merge(k2, n2),
+        ]
     };
     (
         NodeInput {

@@ -26,9 +26,7 @@ impl Costs {
         let area_below = self.cross + (pos - self.lo) * self.perimeter;
         let area_above = self.cross + (self.hi - pos) * self.perimeter;
         let c = self.kt
-            + self.ki
-                * self.inv_area
-                * (area_below * n_below as f32 + area_above * n_above as f32);
+            + self.ki * self.inv_area * (area_below * n_below as f32 + area_above * n_above as f32);
         let empty = (n_below == 0 && pos > self.lo) || (n_above == 0 && pos < self.hi);
         if empty { c * (1.0 - self.bonus) } else { c }
     }

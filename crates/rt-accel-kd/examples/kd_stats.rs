@@ -1,0 +1,38 @@
+//! Builds every kd-tree preset over an OBJ mesh and prints build time and `stats()`.
+//!
+//! `cargo run --release -p rt-accel-kd --example kd_stats -- path/to/mesh.obj`
+
+use rt_accel_kd::{KdParams, KdTree};
+use rt_geom::{Accel, load_obj};
+use std::time::Instant;
+
+fn main() {
+    let Some(path) = std::env::args().nth(1) else {
+        eprintln!("usage: kd_stats MESH.obj");
+        std::process::exit(2);
+    };
+    let mesh = match load_obj(&path) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(1);
+        }
+    };
+    let tris = mesh.triangles();
+    println!("{path}: {} triangles", tris.len());
+    for (name, params) in [
+        ("sah", KdParams::sah()),
+        ("midpoint", KdParams::midpoint()),
+        ("centroid", KdParams::centroid()),
+    ] {
+        let start = Instant::now();
+        match KdTree::build(&tris, params) {
+            Ok(kd) => println!(
+                "{name:>9}: {:8.1} ms  {}",
+                start.elapsed().as_secs_f64() * 1e3,
+                kd.stats()
+            ),
+            Err(e) => println!("{name:>9}: {e}"),
+        }
+    }
+}
