@@ -56,7 +56,12 @@ impl<P: Primitive> KdTree<P> {
         let mut indices = Vec::new();
         if !prims.is_empty() {
             let root = build::build_tree(prims, bounds, &params);
-            build::flatten(&root, &mut nodes, &mut indices);
+            build::flatten(
+                &root,
+                &mut nodes,
+                &mut indices,
+                &mut |&(axis, pos), above| KdNode::inner(axis, pos, above),
+            );
             if nodes.len() > node::MAX_NODE_FIELD as usize {
                 return Err(BuildError::TooManyPrimitives {
                     count: prims.len(),
@@ -107,18 +112,12 @@ impl<P: Primitive> KdTree<P> {
 impl<P: Primitive> Accel for KdTree<P> {
     #[inline]
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        match self.params.traversal {
-            KdTraversal::Iterative => self.traverse_iterative::<false>(ray),
-            KdTraversal::Recursive => self.traverse_recursive::<false>(ray),
-        }
+        self.traverse::<false>(ray)
     }
 
     #[inline]
     fn occluded(&self, ray: &Ray) -> bool {
-        match self.params.traversal {
-            KdTraversal::Iterative => self.traverse_iterative::<true>(ray).is_some(),
-            KdTraversal::Recursive => self.traverse_recursive::<true>(ray).is_some(),
-        }
+        self.traverse::<true>(ray).is_some()
     }
 
     fn stats(&self) -> AccelStats {

@@ -9,8 +9,8 @@
 //! the plane crosses it at `t = 0`. Pending cells are skipped once the closest hit lies before
 //! their entry, which is the seeds' "stop when the hit lies inside the current cell".
 
-use crate::KdTree;
-use crate::params::MAX_DEPTH;
+use crate::params::{KdTraversal, MAX_DEPTH};
+use crate::{KdNode, KdTree};
 use rt_geom::aabb::PAD;
 use rt_geom::{Hit, Primitive, Ray};
 
@@ -60,155 +60,209 @@ pub fn step(origin: f32, inv_dir: f32, split: f32, t0: f32, t1: f32) -> Step {
     }
 }
 
-/// The per-ray constants of the walk.
-struct Walk {
-    // Arrays, not `Vec3`: indexing by the node's axis is then a load, not a branch.
+/// What the walk needs of a tree: its nodes, the index array, and how a ray meets the plane
+/// of an inner node. [`KdTree`] and [`BspTree`](crate::BspTree) implement it; the walks below
+/// are written once for both.
+pub(crate) trait SplitPlanes {
+    /// Per-ray constants (reciprocal direction, ...).
+    type RayData;
+    fn ray_data(ray: &Ray) -> Self::RayData;
+    fn nodes(&self) -> &[KdNode];
+    fn indices(&self) -> &[u32];
+    /// `(first, second, step)` at inner node `i` for the ray's interval `[t0, t1]`.
+    fn at(&self, ray: &Self::RayData, i: usize, t0: f32, t1: f32) -> (usize, usize, Step);
+}
+
+/// The first and second child of inner node `i` (child below the plane at `i + 1`), selected
+/// by index rather than by a branch that the ray's direction makes unpredictable.
+#[inline(always)]
+pub(crate) fn ordered_children(i: usize, node: &KdNode, below_first: bool) -> (usize, usize) {
+    let children = [i + 1, node.above()];
+    let f = !below_first as usize;
+    (children[f], children[f ^ 1])
+}
+
+/// Tests a leaf's primitives against `r`, shrinking `r.tmax` to the closest hit. Returns true
+/// when `ANY_HIT` and something was hit.
+#[inline(always)]
+fn test_leaf<P: Primitive, const ANY_HIT: bool>(
+    prims: &[P],
+    ids: &[u32],
+    r: &mut Ray,
+    best: &mut Option<Hit>,
+) -> bool {
+    for &p in ids {
+        if let Some(h) = prims[p as usize].intersect(r) {
+            *best = Some(Hit::new(h, p));
+            if ANY_HIT {
+                return true;
+            }
+            r.tmax = h.t;
+        }
+    }
+    false
+}
+
+/// Iterative front-to-back traversal with an explicit stack of pending far cells, from the
+/// ray's interval `[t0, t1]` inside the root cell.
+pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
+    tree: &T,
+    prims: &[P],
+    ray: &Ray,
+    (mut t0, mut t1): (f32, f32),
+) -> Option<Hit> {
+    let data = T::ray_data(ray);
+    let (nodes, indices) = (tree.nodes(), tree.indices());
+    let mut r = *ray;
+    let mut best = None;
+    // One pending cell per level at most: the depth cap bounds the stack.
+    let mut stack = [(0u32, 0.0f32, 0.0f32); MAX_DEPTH as usize + 1];
+    let mut sp = 0;
+    let mut i = 0usize;
+    loop {
+        if !nodes[i].is_leaf() {
+            let (first, second, step) = tree.at(&data, i, t0, t1);
+            match step {
+                Step::First => i = first,
+                Step::Second => i = second,
+                Step::Both {
+                    first_end,
+                    second_start,
+                } => {
+                    stack[sp] = (second as u32, second_start, t1);
+                    sp += 1;
+                    i = first;
+                    t1 = first_end;
+                }
+            }
+            continue;
+        }
+        if test_leaf::<P, ANY_HIT>(prims, nodes[i].leaf_prims(indices), &mut r, &mut best) {
+            return best;
+        }
+        // The next pending cell that starts before the closest hit.
+        loop {
+            if sp == 0 {
+                return best;
+            }
+            sp -= 1;
+            let (n, a, b) = stack[sp];
+            if best.is_none() || a <= r.tmax {
+                (i, t0, t1) = (n as usize, a, b);
+                break;
+            }
+        }
+    }
+}
+
+/// The seeds' recursive traversal: the near child, then, unless a hit already lies before
+/// the far child, the far child.
+pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
+    tree: &T,
+    prims: &[P],
+    ray: &Ray,
+    (t0, t1): (f32, f32),
+) -> Option<Hit> {
+    struct Walk<'a, T: SplitPlanes, P> {
+        tree: &'a T,
+        prims: &'a [P],
+        data: T::RayData,
+        r: Ray,
+        best: Option<Hit>,
+    }
+    impl<T: SplitPlanes, P: Primitive> Walk<'_, T, P> {
+        /// Returns true when the search is over (any-hit found).
+        fn visit<const ANY_HIT: bool>(&mut self, i: usize, t0: f32, t1: f32) -> bool {
+            let node = &self.tree.nodes()[i];
+            if node.is_leaf() {
+                let ids = node.leaf_prims(self.tree.indices());
+                return test_leaf::<P, ANY_HIT>(self.prims, ids, &mut self.r, &mut self.best);
+            }
+            let (first, second, step) = self.tree.at(&self.data, i, t0, t1);
+            match step {
+                Step::First => self.visit::<ANY_HIT>(first, t0, t1),
+                Step::Second => self.visit::<ANY_HIT>(second, t0, t1),
+                Step::Both {
+                    first_end,
+                    second_start,
+                } => {
+                    if self.visit::<ANY_HIT>(first, t0, first_end) {
+                        return true;
+                    }
+                    if self.best.is_some() && second_start > self.r.tmax {
+                        return false;
+                    }
+                    self.visit::<ANY_HIT>(second, second_start, t1)
+                }
+            }
+        }
+    }
+    let mut walk = Walk {
+        tree,
+        prims,
+        data: T::ray_data(ray),
+        r: *ray,
+        best: None,
+    };
+    walk.visit::<ANY_HIT>(0, t0, t1);
+    walk.best
+}
+
+/// The ray as the kd-tree's planes need it. Arrays, not `Vec3`: indexing by the node's axis
+/// is then a load, not a branch.
+pub(crate) struct AxisRay {
     origin: [f32; 3],
     dir: [f32; 3],
     inv: [f32; 3],
 }
 
-impl Walk {
-    fn new(ray: &Ray) -> Self {
-        Self {
+impl<P: Primitive> SplitPlanes for KdTree<P> {
+    type RayData = AxisRay;
+
+    fn ray_data(ray: &Ray) -> AxisRay {
+        AxisRay {
             origin: ray.origin().to_array(),
             dir: ray.dir().to_array(),
             inv: ray.inv_dir().to_array(),
         }
     }
 
-    /// `(first, second, step)` at inner node `i`.
     #[inline(always)]
-    fn at(&self, tree_nodes: &[crate::KdNode], i: usize, t0: f32, t1: f32) -> (usize, usize, Step) {
-        let node = &tree_nodes[i];
+    fn nodes(&self) -> &[KdNode] {
+        &self.nodes
+    }
+
+    #[inline(always)]
+    fn indices(&self) -> &[u32] {
+        &self.indices
+    }
+
+    #[inline(always)]
+    fn at(&self, ray: &AxisRay, i: usize, t0: f32, t1: f32) -> (usize, usize, Step) {
+        let node = &self.nodes[i];
         let a = node.axis();
         let split = node.split();
-        // Selected by index, not by a branch the ray's direction makes unpredictable.
-        let children = [i + 1, node.above()];
-        let f = !below_first(self.origin[a], self.dir[a], split) as usize;
-        let (first, second) = (children[f], children[f ^ 1]);
+        let (first, second) =
+            ordered_children(i, node, below_first(ray.origin[a], ray.dir[a], split));
         (
             first,
             second,
-            step(self.origin[a], self.inv[a], split, t0, t1),
+            step(ray.origin[a], ray.inv[a], split, t0, t1),
         )
     }
 }
 
 impl<P: Primitive> KdTree<P> {
-    /// Tests a leaf's primitives against `r`, shrinking `r.tmax` to the closest hit. Returns
-    /// true when `ANY_HIT` and something was hit.
-    #[inline(always)]
-    fn test_leaf<const ANY_HIT: bool>(
-        &self,
-        i: usize,
-        r: &mut Ray,
-        best: &mut Option<Hit>,
-    ) -> bool {
-        for &p in self.nodes[i].leaf_prims(&self.indices) {
-            if let Some(h) = self.prims[p as usize].intersect(r) {
-                *best = Some(Hit::new(h, p));
-                if ANY_HIT {
-                    return true;
-                }
-                r.tmax = h.t;
-            }
-        }
-        false
-    }
-
-    /// Iterative front-to-back traversal with an explicit stack of pending far cells.
-    pub(crate) fn traverse_iterative<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
+    /// Closest hit (or any hit) by the traversal the tree was configured with.
+    #[inline]
+    pub(crate) fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
         if self.nodes.is_empty() || !ray.is_valid() {
             return None;
         }
-        let (mut t0, mut t1) = self.bounds.clip_ray(ray)?;
-        let walk = Walk::new(ray);
-        let mut r = *ray;
-        let mut best = None;
-        // One pending cell per level at most: the depth cap bounds the stack.
-        let mut stack = [(0u32, 0.0f32, 0.0f32); MAX_DEPTH as usize + 1];
-        let mut sp = 0;
-        let mut i = 0usize;
-        loop {
-            if !self.nodes[i].is_leaf() {
-                let (first, second, step) = walk.at(&self.nodes, i, t0, t1);
-                match step {
-                    Step::First => i = first,
-                    Step::Second => i = second,
-                    Step::Both {
-                        first_end,
-                        second_start,
-                    } => {
-                        stack[sp] = (second as u32, second_start, t1);
-                        sp += 1;
-                        i = first;
-                        t1 = first_end;
-                    }
-                }
-                continue;
-            }
-            if self.test_leaf::<ANY_HIT>(i, &mut r, &mut best) {
-                return best;
-            }
-            // The next pending cell that starts before the closest hit.
-            loop {
-                if sp == 0 {
-                    return best;
-                }
-                sp -= 1;
-                let (n, a, b) = stack[sp];
-                if best.is_none() || a <= r.tmax {
-                    (i, t0, t1) = (n as usize, a, b);
-                    break;
-                }
-            }
-        }
-    }
-
-    /// The seeds' recursive traversal: the near child, then, unless a hit already lies
-    /// before the far child, the far child.
-    pub(crate) fn traverse_recursive<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        if self.nodes.is_empty() || !ray.is_valid() {
-            return None;
-        }
-        let (t0, t1) = self.bounds.clip_ray(ray)?;
-        let walk = Walk::new(ray);
-        let mut r = *ray;
-        let mut best = None;
-        self.recurse::<ANY_HIT>(&walk, 0, t0, t1, &mut r, &mut best);
-        best
-    }
-
-    /// Returns true when the search is over (any-hit found).
-    fn recurse<const ANY_HIT: bool>(
-        &self,
-        walk: &Walk,
-        i: usize,
-        t0: f32,
-        t1: f32,
-        r: &mut Ray,
-        best: &mut Option<Hit>,
-    ) -> bool {
-        if self.nodes[i].is_leaf() {
-            return self.test_leaf::<ANY_HIT>(i, r, best);
-        }
-        let (first, second, step) = walk.at(&self.nodes, i, t0, t1);
-        match step {
-            Step::First => self.recurse::<ANY_HIT>(walk, first, t0, t1, r, best),
-            Step::Second => self.recurse::<ANY_HIT>(walk, second, t0, t1, r, best),
-            Step::Both {
-                first_end,
-                second_start,
-            } => {
-                if self.recurse::<ANY_HIT>(walk, first, t0, first_end, r, best) {
-                    return true;
-                }
-                if best.is_some() && second_start > r.tmax {
-                    return false;
-                }
-                self.recurse::<ANY_HIT>(walk, second, second_start, t1, r, best)
-            }
+        let span = self.bounds.clip_ray(ray)?;
+        match self.params.traversal {
+            KdTraversal::Iterative => iterative::<_, _, ANY_HIT>(self, &self.prims, ray, span),
+            KdTraversal::Recursive => recursive::<_, _, ANY_HIT>(self, &self.prims, ray, span),
         }
     }
 }

@@ -26,16 +26,19 @@ pub(crate) struct Split {
     pub planar_below: bool,
 }
 
-/// The tree before flattening.
-pub(crate) enum BuildNode {
+/// The tree before flattening; `S` is the plane (`(axis, position)` for kd-trees, a general
+/// plane for BSP trees).
+pub(crate) enum BuildNode<S> {
     /// Global primitive indices, ascending.
     Leaf(Vec<u32>),
     Inner {
-        axis: usize,
-        pos: f32,
-        children: Box<[BuildNode; 2]>,
+        split: S,
+        children: Box<[BuildNode<S>; 2]>,
     },
 }
+
+/// The kd-tree's plane: axis and position.
+pub(crate) type AxisPlane = (usize, f32);
 
 /// What a node is built from.
 pub(crate) struct NodeInput {
@@ -53,7 +56,11 @@ pub(crate) struct Ctx<'a, P> {
 }
 
 /// Builds the tree over all of `prims` inside `bounds`; returns the root.
-pub(crate) fn build_tree<P: Primitive>(prims: &[P], bounds: Aabb, params: &KdParams) -> BuildNode {
+pub(crate) fn build_tree<P: Primitive>(
+    prims: &[P],
+    bounds: Aabb,
+    params: &KdParams,
+) -> BuildNode<AxisPlane> {
     let n = prims.len();
     let mut events: AxisEvents = std::array::from_fn(|_| Vec::with_capacity(2 * n));
     for (i, p) in prims.iter().enumerate() {
@@ -70,13 +77,40 @@ pub(crate) fn build_tree<P: Primitive>(prims: &[P], bounds: Aabb, params: &KdPar
         events,
         bounds,
     };
-    let budget = ((params.reference_budget as f64) * n as f64).floor() as usize;
-    build_node(&ctx, input, 0, budget.max(n))
+    build_node(&ctx, input, 0, root_budget(params.reference_budget, n))
 }
 
-fn leaf(mut ids: Vec<u32>) -> BuildNode {
+/// A leaf, its primitives in ascending order.
+pub(crate) fn leaf<S>(mut ids: Vec<u32>) -> BuildNode<S> {
     ids.sort_unstable();
     BuildNode::Leaf(ids)
+}
+
+/// The references the whole tree may hold: `factor * n`, at least `n`.
+pub(crate) fn root_budget(factor: f32, n: usize) -> usize {
+    ((factor as f64 * n as f64).floor() as usize).max(n)
+}
+
+/// A node's budget shared by its children in proportion to their counts (`n_below +
+/// n_above <= budget`): each child gets at least its count, and the two shares add up to the
+/// parent's, so by induction the leaves never hold more than the root's budget.
+pub(crate) fn share_budget(budget: usize, n_below: usize, n_above: usize) -> (usize, usize) {
+    let below = (budget as u128 * n_below as u128 / (n_below + n_above).max(1) as u128) as usize;
+    (below, budget - below)
+}
+
+/// Builds the two children, in parallel when the node is large.
+pub(crate) fn join<S: Send>(
+    parallel: bool,
+    below: impl FnOnce() -> BuildNode<S> + Send,
+    above: impl FnOnce() -> BuildNode<S> + Send,
+) -> [BuildNode<S>; 2] {
+    if parallel {
+        let (b, a) = rayon::join(below, above);
+        [b, a]
+    } else {
+        [below(), above()]
+    }
 }
 
 /// Builds one subtree. `budget` bounds the references its leaves may hold (see
@@ -88,7 +122,7 @@ fn build_node<P: Primitive>(
     input: NodeInput,
     depth: u32,
     budget: usize,
-) -> BuildNode {
+) -> BuildNode<AxisPlane> {
     let n = input.ids.len();
     if n == 0 || depth >= ctx.depth_cap {
         return leaf(input.ids);
@@ -113,23 +147,15 @@ fn build_node<P: Primitive>(
         return leaf(input.ids);
     }
     drop(input);
-    let budget_below = (budget as u128 * nb as u128 / (nb + na) as u128) as usize;
-    let budget_above = budget - budget_below;
-    let (b, a) = if n > ctx.params.parallel_threshold {
-        rayon::join(
-            || build_node(ctx, below, depth + 1, budget_below),
-            || build_node(ctx, above, depth + 1, budget_above),
-        )
-    } else {
-        (
-            build_node(ctx, below, depth + 1, budget_below),
-            build_node(ctx, above, depth + 1, budget_above),
-        )
-    };
+    let (budget_below, budget_above) = share_budget(budget, nb, na);
+    let children = join(
+        n > ctx.params.parallel_threshold,
+        || build_node(ctx, below, depth + 1, budget_below),
+        || build_node(ctx, above, depth + 1, budget_above),
+    );
     BuildNode::Inner {
-        axis: split.axis,
-        pos: split.pos,
-        children: Box::new([b, a]),
+        split: (split.axis, split.pos),
+        children: Box::new(children),
     }
 }
 
@@ -257,8 +283,14 @@ fn partition<P: Primitive>(prims: &[P], input: &NodeInput, split: Split) -> (Nod
 }
 
 /// Flattens the tree depth-first (the child below the plane right after its parent); leaves
-/// of more than one primitive get a range of `indices`.
-pub(crate) fn flatten(node: &BuildNode, nodes: &mut Vec<KdNode>, indices: &mut Vec<u32>) {
+/// of more than one primitive get a range of `indices`. `inner(plane, above)` makes the node
+/// of a plane whose child above is node `above`.
+pub(crate) fn flatten<S>(
+    node: &BuildNode<S>,
+    nodes: &mut Vec<KdNode>,
+    indices: &mut Vec<u32>,
+    inner: &mut impl FnMut(&S, u32) -> KdNode,
+) {
     match node {
         BuildNode::Leaf(ids) => nodes.push(match ids.len() {
             0 => KdNode::leaf(0, 0),
@@ -269,17 +301,13 @@ pub(crate) fn flatten(node: &BuildNode, nodes: &mut Vec<KdNode>, indices: &mut V
                 KdNode::leaf(n as u32, first)
             }
         }),
-        BuildNode::Inner {
-            axis,
-            pos,
-            children,
-        } => {
+        BuildNode::Inner { split, children } => {
             let me = nodes.len();
             nodes.push(KdNode::leaf(0, 0));
-            flatten(&children[0], nodes, indices);
+            flatten(&children[0], nodes, indices, inner);
             let above = nodes.len() as u32;
-            flatten(&children[1], nodes, indices);
-            nodes[me] = KdNode::inner(*axis, *pos, above);
+            flatten(&children[1], nodes, indices, inner);
+            nodes[me] = inner(split, above);
         }
     }
 }
