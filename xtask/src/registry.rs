@@ -5,7 +5,7 @@ use crate::obvhs_accel::{ObvhsBvh2, ObvhsCwBvh};
 use rt_accel_bvh::{
     BvList, BvListParams, Bvh, Bvh4, Bvh8, BvhBuilder, BvhParams, TriBvh4, TriBvh8,
 };
-use rt_accel_kd::{KdParams, KdTraversal, KdTree};
+use rt_accel_kd::{BspParams, BspTree, KdParams, KdTraversal, KdTree};
 use rt_geom::{Aabb, Accel, BoundingSphere, BruteForce, BuildError, Kdop7, Triangle};
 use rt_testkit::Tolerance;
 
@@ -208,6 +208,16 @@ pub static REGISTRY: &[AccelEntry] = &[
         "kd-centroid",
         "rt kd-tree, naive: largest extent split at the centre of gravity, leaves of up to 8",
         |p| boxed(KdTree::build(p, KdParams::centroid())),
+    ),
+    own(
+        "bsp",
+        "rt BSP tree, planes of any orientation: 16 of the node's triangle planes and 3 axis-aligned, SAH on cell boxes",
+        |p| boxed(BspTree::build(p, BspParams::standard())),
+    ),
+    own(
+        "bsp-auto",
+        "rt BSP tree by autopartition: only the triangles' own planes (16 tried per node)",
+        |p| boxed(BspTree::build(p, BspParams::autopartition())),
     ),
     AccelEntry {
         name: "obvhs",

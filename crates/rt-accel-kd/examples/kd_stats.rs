@@ -1,8 +1,8 @@
-//! Builds every kd-tree preset over an OBJ mesh and prints build time and `stats()`.
+//! Builds every kd-tree and BSP preset over an OBJ mesh and prints build time and `stats()`.
 //!
 //! `cargo run --release -p rt-accel-kd --example kd_stats -- path/to/mesh.obj`
 
-use rt_accel_kd::{KdParams, KdTree};
+use rt_accel_kd::{BspParams, BspTree, KdParams, KdTree};
 use rt_geom::{Accel, load_obj};
 use std::time::Instant;
 
@@ -31,6 +31,20 @@ fn main() {
                 "{name:>9}: {:8.1} ms  {}",
                 start.elapsed().as_secs_f64() * 1e3,
                 kd.stats()
+            ),
+            Err(e) => println!("{name:>9}: {e}"),
+        }
+    }
+    for (name, params) in [
+        ("bsp", BspParams::standard()),
+        ("bsp-auto", BspParams::autopartition()),
+    ] {
+        let start = Instant::now();
+        match BspTree::build(&tris, params) {
+            Ok(t) => println!(
+                "{name:>9}: {:8.1} ms  {}",
+                start.elapsed().as_secs_f64() * 1e3,
+                t.stats()
             ),
             Err(e) => println!("{name:>9}: {e}"),
         }

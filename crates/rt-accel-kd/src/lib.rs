@@ -7,6 +7,7 @@
 //! | `build` | split-plane events, the O(N log N) SAH sweep (Wald & Havran 2006), naive planes, perfect splits, flattening |
 //! | [`traverse`] | front-to-back traversal, iterative and recursive, closest- and any-hit ([`traverse::step`]) |
 //! | `stats` | `stats()` and `validate()` |
+//! | [`bsp`] | [`BspTree`]: planes of any orientation (the primitives' own, and axis-aligned), same nodes and walk |
 //!
 //! ```
 //! use rt_accel_kd::{KdParams, KdTree};
@@ -22,12 +23,14 @@
 //! kd.validate().unwrap();
 //! ```
 
+pub mod bsp;
 mod build;
 pub mod node;
 pub mod params;
 mod stats;
 pub mod traverse;
 
+pub use bsp::{BspParams, BspTree, SplitPlane};
 pub use node::KdNode;
 pub use params::{KdBuilder, KdParams, KdTraversal, MAX_DEPTH};
 

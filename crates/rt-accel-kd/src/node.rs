@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! offset  size  field
-//!      0     4  data   inner: the split position (f32 bits);
+//!      0     4  data   inner: the split position (f32 bits; a BSP tree: its plane's index);
 //!                      leaf with one primitive: its index;
 //!                      leaf with more: index of its first entry in the tree's index array
 //!      4     4  meta   bits 0..=1: split axis (0 = x, 1 = y, 2 = z), or 3 for a leaf;
@@ -38,6 +38,15 @@ impl KdNode {
         Self {
             data: split.to_bits(),
             meta: (above << 2) | axis as u32,
+        }
+    }
+
+    /// An inner node of a [`BspTree`](crate::BspTree): `data` is the index of its plane.
+    pub fn inner_plane(plane: u32, above: u32) -> Self {
+        debug_assert!(above <= MAX_NODE_FIELD);
+        Self {
+            data: plane,
+            meta: above << 2,
         }
     }
 

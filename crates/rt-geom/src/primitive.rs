@@ -27,6 +27,13 @@ pub trait Primitive: Clone + Send + Sync + 'static {
 
     /// All coordinates finite (builders reject the rest with `BuildError::NonFinite`).
     fn is_finite(&self) -> bool;
+
+    /// The plane a flat primitive lies in, as `(unit normal n, d)` with `n . p = d` for its
+    /// points; `None` for primitives that are not flat (or have no area). BSP trees take
+    /// their candidate planes from it.
+    fn plane(&self) -> Option<(Vec3, f32)> {
+        None
+    }
 }
 
 impl Primitive for Triangle {
@@ -60,6 +67,13 @@ impl Primitive for Triangle {
 
     fn is_finite(&self) -> bool {
         self.v.iter().all(|p| p.is_finite())
+    }
+
+    fn plane(&self) -> Option<(Vec3, f32)> {
+        // In f64: the cross product of tiny (1e-6) edges underflows in f32.
+        let [a, b, c] = self.v.map(|p| p.as_dvec3());
+        let n = (b - a).cross(c - a).try_normalize()?;
+        Some((n.as_vec3(), n.dot((a + b + c) / 3.0) as f32))
     }
 }
 
