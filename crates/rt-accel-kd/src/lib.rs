@@ -135,7 +135,7 @@ impl<P: Primitive> Accel for KdTree<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rt_geom::{Sphere, Triangle};
+    use rt_geom::{Sphere, Triangle, Vec3};
 
     macro_rules! per_builder {
         ($($name:ident: $params:expr),* $(,)?) => {$(
@@ -161,5 +161,304 @@ mod tests {
         sah_no_budget: KdParams { reference_budget: 1.0, ..KdParams::sah() },
         midpoint_leaf1: KdParams { max_leaf_size: 1, ..KdParams::midpoint() },
         shallow: KdParams { max_depth: Some(3), ..KdParams::sah() },
+    }
+
+    /// The stated memory bound: at most `reference_budget * N` references, and at most
+    /// `2 * depth_cap` nodes per reference (plus the root).
+    fn assert_bounded(kd: &KdTree<Triangle>) -> AccelStats {
+        kd.validate().unwrap();
+        let s = kd.stats();
+        let n = s.primitives;
+        let cap = kd.params().depth_cap(n) as usize;
+        assert!(
+            s.references as f32 <= kd.params().reference_budget * n as f32,
+            "{s}"
+        );
+        assert!(s.nodes <= 2 * cap * s.references.max(1) + 1, "{s}");
+        assert!(s.max_depth <= cap, "{s}");
+        s
+    }
+
+    /// Answers on `tris` agree with brute force for rays through the scene.
+    fn assert_agrees(tris: &[Triangle], kd: &KdTree<Triangle>) {
+        let brute = rt_geom::BruteForce::build(tris).unwrap();
+        let mut rng = rt_testkit::Rng::new(5);
+        let b = kd.bounds();
+        for _ in 0..2000 {
+            let o = b.center() + (rng.unit_vector() * 3.0 * b.extent().length().max(1.0));
+            let target = rng.point_in(b.min, b.max);
+            let ray = Ray::new(o, target - o);
+            assert_eq!(
+                kd.intersect(&ray).map(|h| h.t),
+                brute.intersect(&ray).map(|h| h.t),
+                "{ray:?}"
+            );
+            assert_eq!(kd.occluded(&ray), brute.occluded(&ray));
+        }
+    }
+
+    #[test]
+    fn memory_is_bounded_when_everything_overlaps_one_point() {
+        let mut rng = rt_testkit::Rng::new(1);
+        let p = Vec3::splat(0.5);
+        let tris: Vec<Triangle> = (0..3000)
+            .map(|_| Triangle::new(p, p + rng.unit_vector(), p + rng.unit_vector()))
+            .collect();
+        for params in [KdParams::sah(), KdParams::midpoint(), KdParams::centroid()] {
+            let kd = KdTree::build(&tris, params).unwrap();
+            assert_bounded(&kd);
+            assert_agrees(&tris, &kd);
+        }
+        // Zero-area triangles at one point: nothing to split.
+        let dots = vec![Triangle::new(p, p, p); 1000];
+        let kd = KdTree::build(&dots, KdParams::sah()).unwrap();
+        let s = assert_bounded(&kd);
+        assert_eq!((s.leaves, s.references), (1, 1000), "{s}");
+    }
+
+    #[test]
+    fn memory_is_bounded_on_long_slivers() {
+        // Slivers crossing the whole scene along x, y and z: every plane cuts a third of them.
+        let mut rng = rt_testkit::Rng::new(2);
+        let tris: Vec<Triangle> = (0..3000)
+            .map(|i| {
+                let axis = Vec3::AXES[i % 3];
+                let a = rng.point_in(Vec3::ZERO, Vec3::splat(10.0));
+                let a = a - axis * a.dot(axis);
+                Triangle::new(
+                    a,
+                    a + axis * 10.0,
+                    a + axis * 10.0 + rng.unit_vector() * 1e-3,
+                )
+            })
+            .collect();
+        for budget in [1.0, 2.0, 8.0] {
+            let params = KdParams {
+                reference_budget: budget,
+                ..KdParams::sah()
+            };
+            let kd = KdTree::build(&tris, params).unwrap();
+            let s = assert_bounded(&kd);
+            // With a budget of 1 no split may duplicate, and every useful plane here does.
+            assert!(budget == 1.0 || s.leaves > 1, "{s}");
+            assert_agrees(&tris, &kd);
+        }
+    }
+
+    #[test]
+    fn depth_cap_follows_havran_and_is_respected() {
+        let p = KdParams::sah();
+        assert_eq!(p.depth_cap(1), 8);
+        assert_eq!(p.depth_cap(1 << 20), 34);
+        assert_eq!(p.depth_cap(usize::MAX), MAX_DEPTH);
+        let tris = rt_testkit::scenes::triangle_scene("soup").prims;
+        for d in [0, 1, 5] {
+            let kd = KdTree::build(
+                &tris,
+                KdParams {
+                    max_depth: Some(d),
+                    ..KdParams::sah()
+                },
+            )
+            .unwrap();
+            assert!(kd.stats().max_depth <= d as usize);
+            assert_agrees(&tris, &kd);
+        }
+    }
+
+    #[test]
+    fn sah_beats_the_naive_planes() {
+        let tris = rt_testkit::scenes::triangle_scene("teapot_in_stadium").prims;
+        let cost = |p| KdTree::build(&tris, p).unwrap().stats().sah_cost.unwrap();
+        let sah = cost(KdParams::sah());
+        assert!(sah < cost(KdParams::midpoint()), "{sah}");
+        assert!(sah < cost(KdParams::centroid()), "{sah}");
+    }
+
+    #[test]
+    fn bad_parameters_are_rejected() {
+        let tris = rt_testkit::scenes::random_soup(10, 1);
+        let s = KdParams::sah();
+        for params in [
+            KdParams {
+                traversal_cost: f32::NAN,
+                ..s
+            },
+            KdParams {
+                traversal_cost: -1.0,
+                ..s
+            },
+            KdParams {
+                intersection_cost: 0.0,
+                ..s
+            },
+            KdParams {
+                intersection_cost: f32::INFINITY,
+                ..s
+            },
+            KdParams {
+                empty_bonus: 1.0,
+                ..s
+            },
+            KdParams {
+                empty_bonus: -0.1,
+                ..s
+            },
+            KdParams {
+                max_depth: Some(65),
+                ..s
+            },
+            KdParams {
+                max_leaf_size: 0,
+                ..s
+            },
+            KdParams {
+                reference_budget: 0.5,
+                ..s
+            },
+            KdParams {
+                reference_budget: f32::NAN,
+                ..s
+            },
+        ] {
+            let err = KdTree::build(&tris, params).unwrap_err();
+            assert!(
+                matches!(err, BuildError::InvalidParameter { .. }),
+                "{params:?}: {err}"
+            );
+            // The BSP tree shares every field but the empty bonus, and the same checks.
+            let bsp = BspParams {
+                traversal_cost: params.traversal_cost,
+                intersection_cost: params.intersection_cost,
+                max_depth: params.max_depth,
+                max_leaf_size: params.max_leaf_size,
+                reference_budget: params.reference_budget,
+                ..BspParams::standard()
+            };
+            let shared = params.empty_bonus == s.empty_bonus;
+            assert_eq!(BspTree::build(&tris, bsp).is_err(), shared, "{bsp:?}");
+        }
+        for bad in [
+            BspParams {
+                candidates: 0,
+                axis_planes: false,
+                ..BspParams::standard()
+            },
+            BspParams {
+                candidates: 5000,
+                ..BspParams::standard()
+            },
+        ] {
+            assert!(matches!(
+                BspTree::build(&tris, bad),
+                Err(BuildError::InvalidParameter { .. })
+            ));
+        }
+    }
+
+    #[test]
+    fn non_finite_and_too_many_primitives_are_errors() {
+        let mut tris = rt_testkit::scenes::random_soup(10, 1);
+        tris[4].v[1].y = f32::NAN;
+        assert_eq!(
+            KdTree::build(&tris, KdParams::sah()).unwrap_err(),
+            BuildError::NonFinite { prim: 4 }
+        );
+        assert_eq!(
+            BspTree::build(&tris, BspParams::standard()).unwrap_err(),
+            BuildError::NonFinite { prim: 4 }
+        );
+        let too_many = vec![Nothing; build::MAX_LOCAL + 1];
+        assert!(matches!(
+            KdTree::build(&too_many, KdParams::sah()),
+            Err(BuildError::TooManyPrimitives { .. })
+        ));
+        assert!(matches!(
+            BspTree::build(&too_many, BspParams::standard()),
+            Err(BuildError::TooManyPrimitives { .. })
+        ));
+    }
+
+    /// A primitive with no data, so that more than `MAX_LOCAL` of them fit in memory.
+    #[derive(Clone, Copy, Debug)]
+    struct Nothing;
+
+    impl Primitive for Nothing {
+        fn bounds(&self) -> Aabb {
+            Aabb::new(Vec3::ZERO, Vec3::ZERO)
+        }
+        fn centroid(&self) -> Vec3 {
+            Vec3::ZERO
+        }
+        fn intersect(&self, _: &Ray) -> Option<rt_geom::PrimHit> {
+            None
+        }
+        fn clipped_bounds(&self, clip: &Aabb) -> Aabb {
+            self.bounds().intersection(*clip)
+        }
+        fn extent_along(&self, _: Vec3) -> (f32, f32) {
+            (0.0, 0.0)
+        }
+        fn farthest_distance(&self, _: Vec3) -> f32 {
+            0.0
+        }
+        fn is_finite(&self) -> bool {
+            true
+        }
+    }
+
+    #[test]
+    fn rays_along_and_onto_split_planes() {
+        // A 4x4 grid of unit quads in z = 0 and walls at every integer x: the SAH splits at
+        // the integers, and rays run inside those planes and start on them.
+        let mut tris = Vec::new();
+        for i in 0..4 {
+            for j in 0..4 {
+                let (x, y) = (i as f32, j as f32);
+                let q = [
+                    Vec3::new(x, y, 0.0),
+                    Vec3::new(x + 1.0, y, 0.0),
+                    Vec3::new(x + 1.0, y + 1.0, 0.0),
+                    Vec3::new(x, y + 1.0, 0.0),
+                ];
+                tris.push(Triangle::new(q[0], q[1], q[2]));
+                tris.push(Triangle::new(q[0], q[2], q[3]));
+            }
+            let x = i as f32;
+            tris.push(Triangle::new(
+                Vec3::new(x, 0.0, 0.0),
+                Vec3::new(x, 4.0, 0.0),
+                Vec3::new(x, 0.0, 2.0),
+            ));
+        }
+        let brute = rt_geom::BruteForce::build(&tris).unwrap();
+        for params in [
+            KdParams::sah(),
+            KdParams::sah().with_traversal(KdTraversal::Recursive),
+            KdParams::midpoint(),
+        ] {
+            let kd = KdTree::build(&tris, params).unwrap();
+            assert!(kd.stats().nodes > 1);
+            let bsp = BspTree::build(&tris, BspParams::standard()).unwrap();
+            for x in [0.0f32, 1.0, 2.0, 3.0, 0.5] {
+                for (o, d) in [
+                    // In the plane x = const, down onto the floor.
+                    (Vec3::new(x, 0.5, 1.0), Vec3::new(0.0, 0.3, -1.0)),
+                    // In the plane x = const and z = 0: grazes floor and wall edges.
+                    (Vec3::new(x, -1.0, 0.0), Vec3::Y),
+                    // Starting on the plane, leaving it either way.
+                    (Vec3::new(x, 0.5, 0.5), Vec3::new(1.0, 0.0, -1.0)),
+                    (Vec3::new(x, 0.5, 0.5), Vec3::new(-1.0, 0.0, -1.0)),
+                    // Crossing the planes at a shallow angle.
+                    (Vec3::new(-1.0, 0.5, 0.25), Vec3::new(1.0, 0.01, -0.01)),
+                ] {
+                    let ray = Ray::new(o, d);
+                    let want = brute.intersect(&ray).map(|h| h.t);
+                    assert_eq!(kd.intersect(&ray).map(|h| h.t), want, "{params:?} {ray:?}");
+                    assert_eq!(bsp.intersect(&ray).map(|h| h.t), want, "bsp {ray:?}");
+                    assert_eq!(kd.occluded(&ray), want.is_some());
+                }
+            }
+        }
     }
 }

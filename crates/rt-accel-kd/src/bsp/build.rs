@@ -85,9 +85,8 @@ impl<P> Ctx<'_, P> {
 fn candidates<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], cell: &Aabb) -> Vec<SplitPlane> {
     let want = ctx.params.candidates as usize;
     let mut planes = Vec::with_capacity(want + 3);
-    if want > 0 {
-        let stride = (ids.len() / want).max(1);
-        for &id in ids.iter().step_by(stride).take(want) {
+    if let Some(stride) = ids.len().checked_div(want) {
+        for &id in ids.iter().step_by(stride.max(1)).take(want) {
             if let Some((n, d)) = ctx.prims[id as usize].plane() {
                 planes.push(ctx.plane(n, d));
             }
