@@ -9,6 +9,7 @@
 //! | [`obvhs_accel`] | obvhs's BVH2 and CWBVH behind the `Accel` trait (the references) |
 //! | [`verify`] | every structure against brute force and obvhs |
 //! | [`bench`] | throughput, build time, memory, beside obvhs in the same run |
+//! | [`sweep`] | the scaling sweep: build time and time per ray against N (`bench --sweep`) |
 //! | [`trace`] | ray files in, hit files out; standard ray sets out |
 //! | [`rayfile`] | the `.rays` / `.hits` formats |
 //! | [`run`] | timed parallel tracing, medians, progress bars |
@@ -20,5 +21,6 @@ pub mod obvhs_accel;
 pub mod rayfile;
 pub mod registry;
 pub mod run;
+pub mod sweep;
 pub mod trace;
 pub mod verify;

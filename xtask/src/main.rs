@@ -1,7 +1,7 @@
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use xtask::{bench, native, registry, trace, verify};
+use xtask::{bench, native, registry, sweep, trace, verify};
 
 /// rt's command line: list, verify, measure and run the acceleration structures.
 #[derive(Parser)]
@@ -45,6 +45,11 @@ enum Command {
         /// Comma-separated thread counts.
         #[arg(long, value_delimiter = ',', default_value = "1,2")]
         threads: Vec<usize>,
+        /// The scaling sweep instead: build time and time per ray against N (1k to 1M
+        /// triangles; --quick: to 100k) on spheres and soups, with log-log slopes. Uses the
+        /// first thread count; default structures: brute,bvh,bvh8,kd,kd-midpoint,bsp,obvhs.
+        #[arg(long, conflicts_with = "scenes")]
+        sweep: bool,
     },
     /// Trace a ray file through a mesh; write a hit file; print one timing line.
     Trace {
@@ -120,9 +125,19 @@ fn run(command: Command) -> Result<ExitCode, String> {
             scenes,
             json,
             threads,
+            sweep,
         } => {
             if threads.is_empty() || threads.iter().any(|&t| t == 0 || t > 1024) {
                 return Err("--threads takes counts from 1 to 1024".into());
+            }
+            if sweep {
+                sweep::sweep(&sweep::SweepOptions {
+                    quick,
+                    accels,
+                    json,
+                    threads: threads[0],
+                })?;
+                return Ok(ExitCode::SUCCESS);
             }
             bench::bench(&bench::BenchOptions {
                 quick,
