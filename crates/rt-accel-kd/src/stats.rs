@@ -5,6 +5,50 @@ use crate::build::child_bounds;
 use crate::params::MAX_DEPTH;
 use rt_geom::{Aabb, AccelStats, Primitive};
 
+/// Sums what a walk over a kd- or BSP tree sees into its [`AccelStats`]: depth, leaves,
+/// references, and the SAH cost in the units every rt structure reports (1 per inner node, 1
+/// per primitive test, each weighted by its cell's area over the root's), so that the `sah`
+/// column of `bench` compares across structures.
+pub(crate) struct StatsSum {
+    stats: AccelStats,
+    root_area: f64,
+    sah: f64,
+}
+
+impl StatsSum {
+    pub fn new(stats: AccelStats, root: &Aabb) -> Self {
+        Self {
+            stats,
+            root_area: root.half_area() as f64,
+            sah: 0.0,
+        }
+    }
+
+    pub fn add(&mut self, node: &crate::KdNode, cell: &Aabb, depth: usize) {
+        let s = &mut self.stats;
+        s.max_depth = s.max_depth.max(depth);
+        let area = cell.half_area() as f64;
+        if node.is_leaf() {
+            if node.count() > 0 {
+                s.leaves += 1;
+                s.references += node.count();
+            }
+            self.sah += area * node.count() as f64;
+        } else {
+            self.sah += area;
+        }
+    }
+
+    pub fn finish(mut self) -> AccelStats {
+        self.stats.sah_cost = Some(if self.root_area > 0.0 {
+            (self.sah / self.root_area) as f32
+        } else {
+            0.0
+        });
+        self.stats
+    }
+}
+
 impl<P: Primitive> KdTree<P> {
     /// Calls `f(node index, cell, depth)` for every node, parents before children.
     pub(crate) fn walk(&self, mut f: impl FnMut(usize, &Aabb, usize)) {
@@ -24,7 +68,7 @@ impl<P: Primitive> KdTree<P> {
     }
 
     pub(crate) fn compute_stats(&self) -> AccelStats {
-        let mut s = AccelStats {
+        let s = AccelStats {
             primitives: self.prims.len(),
             nodes: self.nodes.len(),
             bytes: std::mem::size_of_val(self.nodes.as_slice())
@@ -35,33 +79,9 @@ impl<P: Primitive> KdTree<P> {
         if self.nodes.is_empty() {
             return s;
         }
-        let root_area = self.bounds.half_area() as f64;
-        let (kt, ki) = (
-            self.params.traversal_cost as f64,
-            self.params.intersection_cost as f64,
-        );
-        let mut sah = 0.0f64;
-        self.walk(|i, cell, d| {
-            let n = &self.nodes[i];
-            s.max_depth = s.max_depth.max(d);
-            let area = cell.half_area() as f64;
-            if n.is_leaf() {
-                if n.count() > 0 {
-                    s.leaves += 1;
-                    s.references += n.count();
-                }
-                sah += area * ki * n.count() as f64;
-            } else {
-                sah += area * kt;
-            }
-        });
-        // Normalised as the BVHs' (per unit of intersection cost, relative to the root).
-        s.sah_cost = Some(if root_area > 0.0 {
-            (sah / root_area / ki) as f32
-        } else {
-            0.0
-        });
-        s
+        let mut acc = StatsSum::new(s, &self.bounds);
+        self.walk(|i, cell, d| acc.add(&self.nodes[i], cell, d));
+        acc.finish()
     }
 
     pub(crate) fn check(&self) -> Result<(), String> {

@@ -11,6 +11,7 @@ mod build;
 
 use crate::build::{BuildNode, MAX_LOCAL, flatten, root_budget};
 use crate::params::{KdTraversal, MAX_DEPTH};
+use crate::stats::StatsSum;
 use crate::traverse::{self, SplitPlanes, Step, ordered_children};
 use crate::{KdNode, KdParams};
 use build::{Side, classify, clip_cell};
@@ -302,7 +303,7 @@ impl<P: Primitive> Accel for BspTree<P> {
     }
 
     fn stats(&self) -> AccelStats {
-        let mut s = AccelStats {
+        let s = AccelStats {
             primitives: self.prims.len(),
             nodes: self.nodes.len(),
             bytes: std::mem::size_of_val(self.nodes.as_slice())
@@ -311,34 +312,12 @@ impl<P: Primitive> Accel for BspTree<P> {
                 + std::mem::size_of_val(self.prims.as_slice()),
             ..AccelStats::default()
         };
-        let root_area = self.bounds.half_area() as f64;
-        let (kt, ki) = (
-            self.params.traversal_cost as f64,
-            self.params.intersection_cost as f64,
-        );
-        let mut sah = 0.0;
-        self.walk(|i, cell, path| {
-            let n = &self.nodes[i];
-            s.max_depth = s.max_depth.max(path.len());
-            let area = cell.half_area() as f64;
-            if n.is_leaf() {
-                if n.count() > 0 {
-                    s.leaves += 1;
-                    s.references += n.count();
-                }
-                sah += area * ki * n.count() as f64;
-            } else {
-                sah += area * kt;
-            }
-        });
-        if !self.nodes.is_empty() {
-            s.sah_cost = Some(if root_area > 0.0 {
-                (sah / root_area / ki) as f32
-            } else {
-                0.0
-            });
+        if self.nodes.is_empty() {
+            return s;
         }
-        s
+        let mut acc = StatsSum::new(s, &self.bounds);
+        self.walk(|i, cell, path| acc.add(&self.nodes[i], cell, path.len()));
+        acc.finish()
     }
 
     /// Structure and indices in range; every plane finite with a unit normal; every primitive
