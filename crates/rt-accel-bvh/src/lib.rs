@@ -145,32 +145,39 @@ mod tests {
     use rt_geom::{Sphere, Triangle, Vec3};
     use rt_testkit::scenes;
 
-    macro_rules! per_builder {
-        ($($name:ident: $params:expr),* $(,)?) => {$(
-            mod $name {
-                use super::*;
-                rt_testkit::conformance_tests!(
-                    triangles: |p: &[Triangle]| Bvh::build(p, $params),
-                    spheres: |p: &[Sphere]| Bvh::build(p, $params),
-                );
-            }
-        )*};
-    }
-
-    per_builder! {
+    rt_testkit::conformance_per_params!(Bvh::build {
         binned: BvhParams::balanced(),
         binned_fast: BvhParams::fast(),
         sweep: BvhParams::quality(),
         midpoint: BvhParams::balanced().with_builder(BvhBuilder::Midpoint),
         median: BvhParams::balanced().with_builder(BvhBuilder::Median),
-        leaf1: BvhParams { max_leaf_size: 1, ..BvhParams::balanced() },
-        serial: BvhParams { parallel_threshold: usize::MAX, ..BvhParams::balanced() },
-        parallel: BvhParams { parallel_threshold: 16, ..BvhParams::balanced() },
+        leaf1: BvhParams {
+            max_leaf_size: 1,
+            ..BvhParams::balanced()
+        },
+        serial: BvhParams {
+            parallel_threshold: usize::MAX,
+            ..BvhParams::balanced()
+        },
+        parallel: BvhParams {
+            parallel_threshold: 16,
+            ..BvhParams::balanced()
+        },
         spatial: BvhParams::spatial(),
-        spatial_everywhere: BvhParams { spatial_alpha: Some(0.0), spatial_budget: 4.0, ..BvhParams::spatial() },
-        spatial_parallel: BvhParams { parallel_threshold: 16, ..BvhParams::spatial() },
-        spatial_no_budget: BvhParams { spatial_budget: 0.0, ..BvhParams::spatial() },
-    }
+        spatial_everywhere: BvhParams {
+            spatial_alpha: Some(0.0),
+            spatial_budget: 4.0,
+            ..BvhParams::spatial()
+        },
+        spatial_parallel: BvhParams {
+            parallel_threshold: 16,
+            ..BvhParams::spatial()
+        },
+        spatial_no_budget: BvhParams {
+            spatial_budget: 0.0,
+            ..BvhParams::spatial()
+        },
+    });
 
     #[test]
     fn spatial_splits_duplicate_long_triangles() {
@@ -237,37 +244,9 @@ mod tests {
         );
     }
 
-    /// A primitive with no data, so that more than `u32::MAX` of them fit in memory.
-    #[derive(Clone, Copy, Debug)]
-    struct Nothing;
-
-    impl Primitive for Nothing {
-        fn bounds(&self) -> rt_geom::Aabb {
-            rt_geom::Aabb::new(Vec3::ZERO, Vec3::ZERO)
-        }
-        fn centroid(&self) -> Vec3 {
-            Vec3::ZERO
-        }
-        fn intersect(&self, _: &Ray) -> Option<rt_geom::PrimHit> {
-            None
-        }
-        fn clipped_bounds(&self, clip: &rt_geom::Aabb) -> rt_geom::Aabb {
-            self.bounds().intersection(*clip)
-        }
-        fn extent_along(&self, _: Vec3) -> (f32, f32) {
-            (0.0, 0.0)
-        }
-        fn farthest_distance(&self, _: Vec3) -> f32 {
-            0.0
-        }
-        fn is_finite(&self) -> bool {
-            true
-        }
-    }
-
     #[test]
     fn more_primitives_than_the_index_type_holds() {
-        let too_many = vec![Nothing; u32::MAX as usize];
+        let too_many = vec![rt_testkit::NoGeometry; u32::MAX as usize];
         let err = Bvh::build(&too_many, BvhParams::balanced()).unwrap_err();
         assert!(matches!(err, BuildError::TooManyPrimitives { .. }), "{err}");
         assert!(matches!(

@@ -1,6 +1,7 @@
 //! Builds every kd-tree and BSP preset over an OBJ mesh and prints build time and `stats()`.
 //!
-//! `cargo run --release -p rt-accel-kd --example kd_stats -- path/to/mesh.obj`
+//! `cargo run --release -p rt-accel-kd --example kd_stats -- path/to/mesh.obj`, or
+//! `-- sphere:N` for a tessellated sphere of about N triangles.
 
 use rt_accel_kd::{BspParams, BspTree, KdParams, KdTree};
 use rt_geom::{Accel, load_obj};
@@ -11,14 +12,16 @@ fn main() {
         eprintln!("usage: kd_stats MESH.obj");
         std::process::exit(2);
     };
-    let mesh = match load_obj(&path) {
-        Ok(m) => m,
-        Err(e) => {
-            eprintln!("{e}");
-            std::process::exit(1);
-        }
+    let tris = match path.strip_prefix("sphere:").map(str::parse::<usize>) {
+        Some(Ok(n)) => rt_testkit::scenes::tessellated_sphere(n, rt_geom::Vec3::ZERO, 1.0),
+        _ => match load_obj(&path) {
+            Ok(m) => m.triangles(),
+            Err(e) => {
+                eprintln!("{e}");
+                std::process::exit(1);
+            }
+        },
     };
-    let tris = mesh.triangles();
     println!("{path}: {} triangles", tris.len());
     for (name, params) in [
         ("sah", KdParams::sah()),

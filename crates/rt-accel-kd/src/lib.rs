@@ -115,12 +115,14 @@ impl<P: Primitive> KdTree<P> {
 impl<P: Primitive> Accel for KdTree<P> {
     #[inline]
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        self.traverse::<false>(ray)
+        let t = self.params.traversal;
+        traverse::query::<_, _, false>(self, &self.prims, &self.bounds, t, ray)
     }
 
     #[inline]
     fn occluded(&self, ray: &Ray) -> bool {
-        self.traverse::<true>(ray).is_some()
+        let t = self.params.traversal;
+        traverse::query::<_, _, true>(self, &self.prims, &self.bounds, t, ray).is_some()
     }
 
     fn stats(&self) -> AccelStats {
@@ -135,33 +137,40 @@ impl<P: Primitive> Accel for KdTree<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rt_geom::{Sphere, Triangle, Vec3};
+    use rt_geom::{Triangle, Vec3};
 
-    macro_rules! per_builder {
-        ($($name:ident: $params:expr),* $(,)?) => {$(
-            mod $name {
-                use super::*;
-                rt_testkit::conformance_tests!(
-                    triangles: |p: &[Triangle]| KdTree::build(p, $params),
-                    spheres: |p: &[Sphere]| KdTree::build(p, $params),
-                );
-            }
-        )*};
-    }
-
-    per_builder! {
+    rt_testkit::conformance_per_params!(KdTree::build {
         sah: KdParams::sah(),
         sah_recursive: KdParams::sah().with_traversal(KdTraversal::Recursive),
         midpoint: KdParams::midpoint(),
         centroid: KdParams::centroid(),
         centroid_recursive: KdParams::centroid().with_traversal(KdTraversal::Recursive),
-        sah_serial: KdParams { parallel_threshold: usize::MAX, ..KdParams::sah() },
-        sah_parallel: KdParams { parallel_threshold: 16, ..KdParams::sah() },
-        sah_cheap_traversal: KdParams { traversal_cost: 1.0, intersection_cost: 1.5, ..KdParams::sah() },
-        sah_no_budget: KdParams { reference_budget: 1.0, ..KdParams::sah() },
-        midpoint_leaf1: KdParams { max_leaf_size: 1, ..KdParams::midpoint() },
-        shallow: KdParams { max_depth: Some(3), ..KdParams::sah() },
-    }
+        sah_serial: KdParams {
+            parallel_threshold: usize::MAX,
+            ..KdParams::sah()
+        },
+        sah_parallel: KdParams {
+            parallel_threshold: 16,
+            ..KdParams::sah()
+        },
+        sah_cheap_traversal: KdParams {
+            traversal_cost: 1.0,
+            intersection_cost: 1.5,
+            ..KdParams::sah()
+        },
+        sah_no_budget: KdParams {
+            reference_budget: 1.0,
+            ..KdParams::sah()
+        },
+        midpoint_leaf1: KdParams {
+            max_leaf_size: 1,
+            ..KdParams::midpoint()
+        },
+        shallow: KdParams {
+            max_depth: Some(3),
+            ..KdParams::sah()
+        },
+    });
 
     /// The stated memory bound: at most `reference_budget * N` references, and at most
     /// `2 * depth_cap` nodes per reference (plus the root).
@@ -368,7 +377,7 @@ mod tests {
             BspTree::build(&tris, BspParams::standard()).unwrap_err(),
             BuildError::NonFinite { prim: 4 }
         );
-        let too_many = vec![Nothing; build::MAX_LOCAL + 1];
+        let too_many = vec![rt_testkit::NoGeometry; build::MAX_LOCAL + 1];
         assert!(matches!(
             KdTree::build(&too_many, KdParams::sah()),
             Err(BuildError::TooManyPrimitives { .. })
@@ -377,34 +386,6 @@ mod tests {
             BspTree::build(&too_many, BspParams::standard()),
             Err(BuildError::TooManyPrimitives { .. })
         ));
-    }
-
-    /// A primitive with no data, so that more than `MAX_LOCAL` of them fit in memory.
-    #[derive(Clone, Copy, Debug)]
-    struct Nothing;
-
-    impl Primitive for Nothing {
-        fn bounds(&self) -> Aabb {
-            Aabb::new(Vec3::ZERO, Vec3::ZERO)
-        }
-        fn centroid(&self) -> Vec3 {
-            Vec3::ZERO
-        }
-        fn intersect(&self, _: &Ray) -> Option<rt_geom::PrimHit> {
-            None
-        }
-        fn clipped_bounds(&self, clip: &Aabb) -> Aabb {
-            self.bounds().intersection(*clip)
-        }
-        fn extent_along(&self, _: Vec3) -> (f32, f32) {
-            (0.0, 0.0)
-        }
-        fn farthest_distance(&self, _: Vec3) -> f32 {
-            0.0
-        }
-        fn is_finite(&self) -> bool {
-            true
-        }
     }
 
     #[test]

@@ -12,7 +12,7 @@
 use crate::params::{KdTraversal, MAX_DEPTH};
 use crate::{KdNode, KdTree};
 use rt_geom::aabb::PAD;
-use rt_geom::{Hit, Primitive, Ray};
+use rt_geom::{Aabb, Hit, Primitive, Ray};
 
 /// Which children of an inner node the ray visits, first = on the side of the origin.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -252,18 +252,23 @@ impl<P: Primitive> SplitPlanes for KdTree<P> {
     }
 }
 
-impl<P: Primitive> KdTree<P> {
-    /// Closest hit (or any hit) by the traversal the tree was configured with.
-    #[inline]
-    pub(crate) fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        if self.nodes.is_empty() || !ray.is_valid() {
-            return None;
-        }
-        let span = self.bounds.clip_ray(ray)?;
-        match self.params.traversal {
-            KdTraversal::Iterative => iterative::<_, _, ANY_HIT>(self, &self.prims, ray, span),
-            KdTraversal::Recursive => recursive::<_, _, ANY_HIT>(self, &self.prims, ray, span),
-        }
+/// A whole query: empty trees and invalid rays miss; otherwise the ray is clipped to the root
+/// cell `bounds` and walked the configured way.
+#[inline]
+pub(crate) fn query<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
+    tree: &T,
+    prims: &[P],
+    bounds: &Aabb,
+    traversal: KdTraversal,
+    ray: &Ray,
+) -> Option<Hit> {
+    if tree.nodes().is_empty() || !ray.is_valid() {
+        return None;
+    }
+    let span = bounds.clip_ray(ray)?;
+    match traversal {
+        KdTraversal::Iterative => iterative::<T, P, ANY_HIT>(tree, prims, ray, span),
+        KdTraversal::Recursive => recursive::<T, P, ANY_HIT>(tree, prims, ray, span),
     }
 }
 

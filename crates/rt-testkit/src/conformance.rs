@@ -369,6 +369,28 @@ macro_rules! conformance_tests {
     };
 }
 
+/// One module of [`conformance_tests!`] per named parameter set of a builder that takes
+/// `(prims, params)`, over triangles and spheres:
+///
+/// ```ignore
+/// rt_testkit::conformance_per_params!(KdTree::build {
+///     sah: KdParams::sah(),
+///     midpoint: KdParams::midpoint(),
+/// });
+/// ```
+#[macro_export]
+macro_rules! conformance_per_params {
+    ($ty:ident :: $build:ident { $($name:ident: $params:expr),* $(,)? }) => {$(
+        mod $name {
+            use super::*;
+            $crate::conformance_tests!(
+                triangles: |p: &[$crate::rt_geom::Triangle]| $ty::$build(p, $params),
+                spheres: |p: &[$crate::rt_geom::Sphere]| $ty::$build(p, $params),
+            );
+        }
+    )*};
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

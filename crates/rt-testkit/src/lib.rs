@@ -26,4 +26,8 @@ pub mod scenes;
 pub use conformance::{Report, Tolerance};
 pub use rays::{RayKind, RaySets, TestRay, View};
 pub use rng::Rng;
+/// For the macros (`$crate::rt_geom::Triangle`).
+#[doc(hidden)]
+pub use rt_geom;
+pub use scenes::NoGeometry;
 pub use scenes::Scene;

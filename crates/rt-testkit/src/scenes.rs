@@ -293,3 +293,32 @@ mod tests {
         }
     }
 }
+
+/// A primitive with no data and no surface (a zero-sized type, never hit): a test can pass
+/// more of them than an index type holds without the memory, to check `TooManyPrimitives`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoGeometry;
+
+impl rt_geom::Primitive for NoGeometry {
+    fn bounds(&self) -> Aabb {
+        Aabb::new(Vec3::ZERO, Vec3::ZERO)
+    }
+    fn centroid(&self) -> Vec3 {
+        Vec3::ZERO
+    }
+    fn intersect(&self, _: &rt_geom::Ray) -> Option<rt_geom::PrimHit> {
+        None
+    }
+    fn clipped_bounds(&self, clip: &Aabb) -> Aabb {
+        self.bounds().intersection(*clip)
+    }
+    fn extent_along(&self, _: Vec3) -> (f32, f32) {
+        (0.0, 0.0)
+    }
+    fn farthest_distance(&self, _: Vec3) -> f32 {
+        0.0
+    }
+    fn is_finite(&self) -> bool {
+        true
+    }
+}

@@ -180,21 +180,6 @@ impl<P: Primitive> BspTree<P> {
         &self.params
     }
 
-    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        if self.nodes.is_empty() || !ray.is_valid() {
-            return None;
-        }
-        let span = self.bounds.clip_ray(ray)?;
-        match self.params.traversal {
-            KdTraversal::Iterative => {
-                traverse::iterative::<_, _, ANY_HIT>(self, &self.prims, ray, span)
-            }
-            KdTraversal::Recursive => {
-                traverse::recursive::<_, _, ANY_HIT>(self, &self.prims, ray, span)
-            }
-        }
-    }
-
     /// Calls `f(node, cell box, planes above the node with the side taken, depth)` for every
     /// node, parents first.
     fn walk(&self, mut f: impl FnMut(usize, &Aabb, &[(usize, bool)])) {
@@ -295,11 +280,13 @@ impl<P: Primitive> SplitPlanes for BspTree<P> {
 
 impl<P: Primitive> Accel for BspTree<P> {
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        self.traverse::<false>(ray)
+        let t = self.params.traversal;
+        traverse::query::<_, _, false>(self, &self.prims, &self.bounds, t, ray)
     }
 
     fn occluded(&self, ray: &Ray) -> bool {
-        self.traverse::<true>(ray).is_some()
+        let t = self.params.traversal;
+        traverse::query::<_, _, true>(self, &self.prims, &self.bounds, t, ray).is_some()
     }
 
     fn stats(&self) -> AccelStats {
@@ -387,24 +374,18 @@ impl<P: Primitive> Accel for BspTree<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rt_geom::{Sphere, Triangle};
 
-    macro_rules! per_params {
-        ($($name:ident: $params:expr),* $(,)?) => {$(
-            mod $name {
-                use super::*;
-                rt_testkit::conformance_tests!(
-                    triangles: |p: &[Triangle]| BspTree::build(p, $params),
-                    spheres: |p: &[Sphere]| BspTree::build(p, $params),
-                );
-            }
-        )*};
-    }
-
-    per_params! {
+    rt_testkit::conformance_per_params!(BspTree::build {
         standard: BspParams::standard(),
-        recursive: BspParams { traversal: KdTraversal::Recursive, ..BspParams::standard() },
+        recursive: BspParams {
+            traversal: KdTraversal::Recursive,
+            ..BspParams::standard()
+        },
         autopartition: BspParams::autopartition(),
-        many_candidates: BspParams { candidates: 64, parallel_threshold: 16, ..BspParams::standard() },
-    }
+        many_candidates: BspParams {
+            candidates: 64,
+            parallel_threshold: 16,
+            ..BspParams::standard()
+        },
+    });
 }
