@@ -5,6 +5,7 @@ use crate::obvhs_accel::{ObvhsBvh2, ObvhsCwBvh};
 use rt_accel_bvh::{
     BvList, BvListParams, Bvh, Bvh4, Bvh8, BvhBuilder, BvhParams, TriBvh4, TriBvh8,
 };
+use rt_accel_grid::{Grid, GridParams};
 use rt_accel_kd::{BspParams, BspTree, KdParams, KdTraversal, KdTree};
 use rt_geom::{Aabb, Accel, BoundingSphere, BruteForce, BuildError, Kdop7, Triangle};
 use rt_testkit::Tolerance;
@@ -218,6 +219,26 @@ pub static REGISTRY: &[AccelEntry] = &[
         "bsp-auto",
         "rt BSP tree by autopartition: only the triangles' own planes (16 tried per node)",
         |p| boxed(BspTree::build(p, BspParams::autopartition())),
+    ),
+    own(
+        "grid",
+        "rt uniform grid, 2 cells per primitive, exact triangle/cell overlap, 3D-DDA (Amanatides & Woo)",
+        |p| boxed(Grid::build(p, GridParams::uniform())),
+    ),
+    own(
+        "grid-mailbox",
+        "the same uniform grid, each ray skipping primitives it already tested (mailboxes)",
+        |p| boxed(Grid::build(p, GridParams::uniform().with_mailbox(true))),
+    ),
+    own(
+        "grid2",
+        "rt two-level grid (Kalojanov et al. 2011): 1 top cell per 8 primitives, each refined at 2 per primitive",
+        |p| boxed(Grid::build(p, GridParams::two_level())),
+    ),
+    own(
+        "grid-adaptive",
+        "rt adaptive grid (Jevans & Wyvill): cells of more than 8 primitives refined recursively, up to 4 levels",
+        |p| boxed(Grid::build(p, GridParams::adaptive())),
     ),
     AccelEntry {
         name: "obvhs",

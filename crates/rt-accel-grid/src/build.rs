@@ -1,0 +1,217 @@
+//! Building: primitives into the cells they really overlap (the box test narrowed by
+//! clipping the primitive to each cell), counted and scattered into one reference array per
+//! level, sub-grids for the cells the kind refines, then flattened.
+
+use crate::level::{Level, NO_CHILD};
+use crate::params::{GridKind, GridParams};
+use rayon::prelude::*;
+use rt_geom::{Aabb, Primitive};
+
+/// A level before flattening.
+pub(crate) struct LevelBuild {
+    pub level: Level,
+    /// Cell `c` holds `refs[offsets[c]..offsets[c + 1]]`.
+    pub offsets: Vec<u32>,
+    pub refs: Vec<u32>,
+    /// Refined cells and their sub-grids (the cell's own references are then dropped).
+    pub children: Vec<(u32, LevelBuild)>,
+}
+
+pub(crate) struct Ctx<'a, P> {
+    pub prims: &'a [P],
+    pub params: &'a GridParams,
+}
+
+/// Cells per primitive at `depth` for `kind`.
+fn density(params: &GridParams, depth: u32) -> f32 {
+    match params.kind {
+        GridKind::TwoLevel { top_density } if depth == 0 => top_density,
+        _ => params.density,
+    }
+}
+
+/// Whether a cell of `count` primitives at `depth` gets a sub-grid.
+fn refines(params: &GridParams, depth: u32, count: usize) -> bool {
+    match params.kind {
+        GridKind::Uniform => false,
+        GridKind::TwoLevel { .. } => depth == 0 && count > 1,
+        GridKind::Adaptive {
+            max_cell_prims,
+            max_levels,
+        } => depth + 1 < max_levels && count > max_cell_prims as usize,
+    }
+}
+
+/// The cells of `level` that primitive `p` overlaps, appended to `out`.
+fn cells_of<P: Primitive>(p: &P, level: &Level, out: &mut Vec<u32>) {
+    let b = p.clipped_bounds(&level.bounds);
+    if b.is_empty() {
+        return;
+    }
+    let lo: [u32; 3] = std::array::from_fn(|a| level.index_of(a, b.min[a]));
+    let hi: [u32; 3] = std::array::from_fn(|a| level.index_of(a, b.max[a]));
+    // A box ending exactly on a plane touches the next cell's face: `index_of` already put
+    // `hi` there. One cell: no test needed.
+    let single = lo == hi;
+    for z in lo[2]..=hi[2] {
+        for y in lo[1]..=hi[1] {
+            for x in lo[0]..=hi[0] {
+                let idx = [x, y, z];
+                if single || !p.clipped_bounds(&level.cell_box(idx)).is_empty() {
+                    out.push(level.linear(idx) as u32);
+                }
+            }
+        }
+    }
+}
+
+/// Upper bound on the references of `ids` in `level` (their boxes' cell ranges).
+fn reference_bound<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], level: &Level) -> u64 {
+    ids.par_iter()
+        .map(|&id| {
+            let b = ctx.prims[id as usize].bounds().intersection(level.bounds);
+            if b.is_empty() {
+                return 0;
+            }
+            (0..3)
+                .map(|a| (level.index_of(a, b.max[a]) - level.index_of(a, b.min[a]) + 1) as u64)
+                .product::<u64>()
+        })
+        .sum()
+}
+
+/// Builds the level over `ids` inside `bounds` and, recursively, its sub-grids, holding at
+/// most `budget` references in all (`budget >= ids.len()`).
+///
+/// The level is made coarser until its references fit the budget (large primitives in fine
+/// cells); what it leaves is shared by the refined cells in proportion to their counts, on
+/// top of the count each gives up (a refined cell keeps no references of its own). By
+/// induction the whole grid stays within the root's budget, `max_refs_per_prim * N`.
+pub(crate) fn build_level<P: Primitive>(
+    ctx: &Ctx<P>,
+    ids: &[u32],
+    bounds: Aabb,
+    depth: u32,
+    budget: u64,
+) -> LevelBuild {
+    let n = ids.len();
+    let params = ctx.params;
+    let mut cells = density(params, depth) as f64 * n as f64;
+    let mut level = Level::new(bounds, cells, params.max_cells);
+    while level.cell_count() > 1 && reference_bound(ctx, ids, &level) > budget {
+        if cells <= 1.0 {
+            // Down to the coarsest shape the box allows and still too many: one cell.
+            level = Level::new(bounds, 1.0, 1);
+            break;
+        }
+        cells = cells.min(level.cell_count() as f64) * 0.5;
+        level = Level::new(bounds, cells, params.max_cells);
+    }
+    let lists: Vec<Vec<u32>> = ids
+        .par_iter()
+        .with_min_len(256)
+        .map(|&id| {
+            let mut out = Vec::new();
+            cells_of(&ctx.prims[id as usize], &level, &mut out);
+            out
+        })
+        .collect();
+    // Counting sort by cell.
+    let count = level.cell_count();
+    let mut offsets = vec![0u32; count + 1];
+    for list in &lists {
+        for &c in list {
+            offsets[c as usize + 1] += 1;
+        }
+    }
+    for c in 0..count {
+        offsets[c + 1] += offsets[c];
+    }
+    let mut fill = offsets.clone();
+    let mut refs = vec![0u32; offsets[count] as usize];
+    for (list, &id) in lists.iter().zip(ids) {
+        for &c in list {
+            refs[fill[c as usize] as usize] = id;
+            fill[c as usize] += 1;
+        }
+    }
+    drop(lists);
+    // Sub-grids; one that separates nothing (every primitive in one sub-cell) is not kept.
+    let refine: Vec<u32> = (0..count as u32)
+        .filter(|&c| {
+            refines(
+                params,
+                depth,
+                (offsets[c as usize + 1] - offsets[c as usize]) as usize,
+            )
+        })
+        .collect();
+    let count_of = |c: u32| (offsets[c as usize + 1] - offsets[c as usize]) as u64;
+    let refined: u64 = refine.iter().map(|&c| count_of(c)).sum();
+    let spare = budget.saturating_sub(refs.len() as u64);
+    let children = refine
+        .into_par_iter()
+        .filter_map(|c| {
+            let cell_ids = &refs[offsets[c as usize] as usize..offsets[c as usize + 1] as usize];
+            let cell_box = level.cell_box(level.coords(c as usize));
+            let share = (spare as u128 * count_of(c) as u128 / refined.max(1) as u128) as u64;
+            let child = build_level(ctx, cell_ids, cell_box, depth + 1, count_of(c) + share);
+            let fullest = child
+                .offsets
+                .windows(2)
+                .map(|w| (w[1] - w[0]) as usize)
+                .max()
+                .unwrap_or(0);
+            (fullest < cell_ids.len() || !child.children.is_empty()).then_some((c, child))
+        })
+        .collect();
+    LevelBuild {
+        level,
+        offsets,
+        refs,
+        children,
+    }
+}
+
+/// The flattened arrays of a grid (see [`crate::level`]).
+#[derive(Default)]
+pub(crate) struct Flat {
+    pub levels: Vec<Level>,
+    pub offsets: Vec<u32>,
+    pub children: Vec<u32>,
+    pub refs: Vec<u32>,
+}
+
+/// Appends `b` and its sub-grids; returns the index of `b`'s level.
+pub(crate) fn flatten(b: &LevelBuild, out: &mut Flat) -> u32 {
+    let me = out.levels.len();
+    let mut level = b.level.clone();
+    level.first = out.offsets.len() as u32;
+    let count = level.cell_count();
+    level.first_child = if b.children.is_empty() {
+        NO_CHILD
+    } else {
+        let first = out.children.len() as u32;
+        out.children.resize(out.children.len() + count, NO_CHILD);
+        first
+    };
+    out.levels.push(level);
+    // This level's cells; refined cells keep no references of their own.
+    let mut refined = b.children.iter().map(|(c, _)| *c).peekable();
+    for c in 0..count {
+        out.offsets.push(out.refs.len() as u32);
+        if refined.peek() == Some(&(c as u32)) {
+            refined.next();
+            continue;
+        }
+        out.refs
+            .extend_from_slice(&b.refs[b.offsets[c] as usize..b.offsets[c + 1] as usize]);
+    }
+    out.offsets.push(out.refs.len() as u32);
+    for (c, child) in &b.children {
+        let l = flatten(child, out);
+        let first_child = out.levels[me].first_child;
+        out.children[first_child as usize + *c as usize] = l;
+    }
+    me as u32
+}

@@ -1,0 +1,241 @@
+//! # rt-accel-grid: uniform and hierarchical grids
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`params`] | [`GridParams`] with presets `uniform()`, `two_level()`, `adaptive()`; [`GridKind`] |
+//! | [`level`] | [`Level`]: one grid's box, resolution and cell planes; the array layout |
+//! | `build` | primitives into the cells they overlap (clipped, not just boxed), counting sort, sub-grids, flattening |
+//! | `traverse` | the 3D-DDA (Amanatides & Woo 1987) through every level, optional mailboxes |
+//!
+//! ```
+//! use rt_accel_grid::{Grid, GridParams};
+//! use rt_geom::{Accel, Ray, Triangle, Vec3};
+//!
+//! let tris = [
+//!     Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y),
+//!     Triangle::new(Vec3::new(0.0, 0.0, -1.0), Vec3::new(1.0, 0.0, -1.0), Vec3::new(0.0, 1.0, -1.0)),
+//! ];
+//! let grid = Grid::build(&tris, GridParams::uniform()).expect("finite input");
+//! let hit = grid.intersect(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z)).unwrap();
+//! assert_eq!((hit.t, hit.prim), (1.0, 0));
+//! grid.validate().unwrap();
+//! ```
+
+mod build;
+pub mod level;
+pub mod params;
+mod traverse;
+
+pub use level::Level;
+pub use params::{GridKind, GridParams};
+
+use level::NO_CHILD;
+use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, Primitive, Ray, check_primitives};
+
+/// A grid over primitives `P`: uniform, two-level or adaptive (see [`GridKind`]).
+#[derive(Clone, Debug)]
+pub struct Grid<P> {
+    levels: Vec<Level>,
+    offsets: Vec<u32>,
+    children: Vec<u32>,
+    refs: Vec<u32>,
+    prims: Vec<P>,
+    params: GridParams,
+}
+
+impl<P: Primitive> Grid<P> {
+    /// Builds over `prims` (copied). Empty input gives an empty grid.
+    pub fn build(prims: &[P], params: GridParams) -> Result<Self, BuildError> {
+        params.validate()?;
+        check_primitives(prims, u32::MAX as usize - 1)?;
+        let mut flat = build::Flat::default();
+        if !prims.is_empty() {
+            let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
+            let ids: Vec<u32> = (0..prims.len() as u32).collect();
+            let ctx = build::Ctx {
+                prims,
+                params: &params,
+            };
+            let budget = (params.max_refs_per_prim as f64 * prims.len() as f64) as u64;
+            let root = build::build_level(&ctx, &ids, bounds, 0, budget.max(prims.len() as u64));
+            build::flatten(&root, &mut flat);
+        }
+        Ok(Self {
+            levels: flat.levels,
+            offsets: flat.offsets,
+            children: flat.children,
+            refs: flat.refs,
+            prims: prims.to_vec(),
+            params,
+        })
+    }
+
+    /// The levels; level 0 is the root grid (layout in [`level`]).
+    pub fn levels(&self) -> &[Level] {
+        &self.levels
+    }
+
+    pub fn offsets(&self) -> &[u32] {
+        &self.offsets
+    }
+
+    pub fn refs(&self) -> &[u32] {
+        &self.refs
+    }
+
+    pub fn params(&self) -> &GridParams {
+        &self.params
+    }
+
+    /// Calls `f(level, depth)` for every level below `l`, parents first.
+    fn walk_levels(&self, l: usize, depth: usize, f: &mut impl FnMut(usize, usize)) {
+        f(l, depth);
+        let lv = &self.levels[l];
+        if lv.first_child == NO_CHILD {
+            return;
+        }
+        for c in 0..lv.cell_count() {
+            let child = self.children[lv.first_child as usize + c];
+            if child != NO_CHILD && (child as usize) < self.levels.len() && child as usize > l {
+                self.walk_levels(child as usize, depth + 1, f);
+            }
+        }
+    }
+
+    fn cell_refs(&self, lv: &Level, c: usize) -> &[u32] {
+        let first = lv.first as usize + c;
+        &self.refs[self.offsets[first] as usize..self.offsets[first + 1] as usize]
+    }
+}
+
+impl<P: Primitive> Accel for Grid<P> {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.traverse::<false>(ray)
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        self.traverse::<true>(ray).is_some()
+    }
+
+    /// Nodes are cells (of every level), leaves the non-empty cells without a sub-grid, depth
+    /// the number of levels below the root.
+    fn stats(&self) -> AccelStats {
+        let mut s = AccelStats {
+            primitives: self.prims.len(),
+            references: self.refs.len(),
+            bytes: std::mem::size_of_val(self.levels.as_slice())
+                + std::mem::size_of_val(self.offsets.as_slice())
+                + std::mem::size_of_val(self.children.as_slice())
+                + std::mem::size_of_val(self.refs.as_slice())
+                + std::mem::size_of_val(self.prims.as_slice()),
+            ..AccelStats::default()
+        };
+        if self.levels.is_empty() {
+            return s;
+        }
+        self.walk_levels(0, 0, &mut |l, depth| {
+            let lv = &self.levels[l];
+            s.max_depth = s.max_depth.max(depth);
+            s.nodes += lv.cell_count();
+            s.leaves += (0..lv.cell_count())
+                .filter(|&c| !self.cell_refs(lv, c).is_empty())
+                .count();
+        });
+        s
+    }
+
+    /// Offsets ascending and in range; sub-grids cover exactly their cell; every reference
+    /// in range and overlapping its cell; every primitive referenced.
+    fn validate(&self) -> Result<(), String> {
+        if self.levels.is_empty() {
+            return if self.prims.is_empty() {
+                Ok(())
+            } else {
+                Err("no levels for a non-empty scene".into())
+            };
+        }
+        if self.offsets.windows(2).any(|w| w[0] > w[1])
+            || self
+                .offsets
+                .last()
+                .is_some_and(|&e| e as usize != self.refs.len())
+        {
+            return Err("cell offsets are not ascending up to the reference count".into());
+        }
+        let mut seen = vec![false; self.prims.len()];
+        let mut err = None;
+        let mut levels_seen = 0;
+        self.walk_levels(0, 0, &mut |l, _| {
+            levels_seen += 1;
+            let lv = &self.levels[l];
+            if lv.first as usize + lv.cell_count() >= self.offsets.len() {
+                err.get_or_insert(format!("level {l} has cells past the offsets"));
+                return;
+            }
+            for c in 0..lv.cell_count() {
+                let cell = lv.cell_box(lv.coords(c));
+                if lv.first_child != NO_CHILD {
+                    let child = self.children[lv.first_child as usize + c];
+                    if child != NO_CHILD && self.levels[child as usize].bounds != cell {
+                        err.get_or_insert(format!("sub-grid {child} does not cover its cell"));
+                    }
+                }
+                // Grown a little: clipping rounds outward, a touching primitive may be listed.
+                let pad = (cell.max - cell.min).max(cell.max.abs().max(cell.min.abs())) * 1e-6;
+                let grown = Aabb::new(cell.min - pad, cell.max + pad);
+                for &p in self.cell_refs(lv, c) {
+                    match self.prims.get(p as usize) {
+                        None => {
+                            err.get_or_insert(format!("reference {p} out of range"));
+                        }
+                        Some(prim) if prim.clipped_bounds(&grown).is_empty() => {
+                            err.get_or_insert(format!("primitive {p} listed in a cell it misses"));
+                        }
+                        Some(_) => seen[p as usize] = true,
+                    }
+                }
+            }
+        });
+        if levels_seen != self.levels.len() {
+            return Err(format!(
+                "{} levels, {levels_seen} reachable from the root",
+                self.levels.len()
+            ));
+        }
+        if let Some(e) = err {
+            return Err(e);
+        }
+        match seen.iter().position(|s| !s) {
+            Some(p) => Err(format!("primitive {p} is in no cell")),
+            None => Ok(()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    rt_testkit::conformance_per_params!(Grid::build {
+        uniform: GridParams::uniform(),
+        uniform_mailbox: GridParams::uniform().with_mailbox(true),
+        uniform_coarse: GridParams {
+            density: 0.05,
+            ..GridParams::uniform()
+        },
+        uniform_fine: GridParams {
+            density: 16.0,
+            ..GridParams::uniform()
+        },
+        two_level: GridParams::two_level(),
+        two_level_mailbox: GridParams::two_level().with_mailbox(true),
+        adaptive: GridParams::adaptive(),
+        adaptive_deep: GridParams {
+            kind: GridKind::Adaptive {
+                max_cell_prims: 1,
+                max_levels: 8
+            },
+            ..GridParams::adaptive()
+        },
+    });
+}

@@ -1,0 +1,131 @@
+//! Build parameters with presets.
+
+use rt_geom::BuildError;
+
+/// Which grid [`Grid::build`](crate::Grid::build) makes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum GridKind {
+    /// One level: about `density * N` cells.
+    Uniform,
+    /// Two levels (Kalojanov, Billeter & Slusallek 2011): a coarse top grid of
+    /// `top_density * N` cells; every non-empty top cell gets its own grid of
+    /// `density * n_cell` cells.
+    TwoLevel { top_density: f32 },
+    /// Adaptive (Jevans & Wyvill 1989, Klimaszewski & Sederberg 1997): a cell holding more
+    /// than `max_cell_prims` primitives is subdivided into a grid of `density * n_cell`
+    /// cells, recursively, to at most `max_levels` levels.
+    Adaptive {
+        max_cell_prims: u32,
+        max_levels: u32,
+    },
+}
+
+/// Parameters of [`Grid::build`](crate::Grid::build).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridParams {
+    pub kind: GridKind,
+    /// Cells per primitive (λ): a grid over `n` primitives gets about `density * n` cells,
+    /// shaped like the box it covers. Cleary & Wyvill's and Wald's rule of thumb is 1 to 5.
+    pub density: f32,
+    /// At most this many cells per level (4 bytes each).
+    pub max_cells: u32,
+    /// The whole grid (all levels) holds at most `max_refs_per_prim * N` references: a level
+    /// whose cells would hold more (large triangles in fine cells) is made coarser, and
+    /// sub-grids share what their parent leaves. With `max_cells`, the memory bound.
+    pub max_refs_per_prim: f32,
+    /// Skip a primitive already tested by this ray (a small per-ray cache of the last ids),
+    /// instead of testing it again in every cell it spans.
+    pub mailbox: bool,
+}
+
+impl GridParams {
+    /// A uniform grid of 2 cells per primitive, no mailboxes.
+    pub const fn uniform() -> Self {
+        Self {
+            kind: GridKind::Uniform,
+            density: 2.0,
+            max_cells: 1 << 25,
+            max_refs_per_prim: 32.0,
+            mailbox: false,
+        }
+    }
+
+    /// Two levels: a top grid of one cell per 8 primitives, cells refined at 2 per primitive.
+    pub const fn two_level() -> Self {
+        Self {
+            kind: GridKind::TwoLevel { top_density: 0.125 },
+            ..Self::uniform()
+        }
+    }
+
+    /// Adaptive: a uniform grid of one cell per primitive; cells of more than 8 primitives
+    /// refined at 2 per primitive, to at most 4 levels.
+    pub const fn adaptive() -> Self {
+        Self {
+            kind: GridKind::Adaptive {
+                max_cell_prims: 8,
+                max_levels: 4,
+            },
+            density: 1.0,
+            ..Self::uniform()
+        }
+    }
+
+    pub const fn with_mailbox(mut self, mailbox: bool) -> Self {
+        self.mailbox = mailbox;
+        self
+    }
+
+    /// Checks every field; the error names the first one out of range. Densities must be
+    /// positive and finite, at most 64 cells per primitive (a huge λ would ask for more cells
+    /// than the memory cap anyway).
+    pub fn validate(&self) -> Result<(), BuildError> {
+        let bad = |name, value: String, expected| {
+            Err(BuildError::InvalidParameter {
+                name,
+                value,
+                expected,
+            })
+        };
+        let density_ok = |d: f32| d.is_finite() && d > 0.0 && d <= 64.0;
+        if !density_ok(self.density) {
+            return bad("density", self.density.to_string(), "0 < density <= 64");
+        }
+        match self.kind {
+            GridKind::Uniform => {}
+            GridKind::TwoLevel { top_density } => {
+                if !density_ok(top_density) {
+                    return bad("top_density", top_density.to_string(), "0 < density <= 64");
+                }
+            }
+            GridKind::Adaptive {
+                max_cell_prims,
+                max_levels,
+            } => {
+                if max_cell_prims == 0 {
+                    return bad("max_cell_prims", "0".into(), ">= 1");
+                }
+                if !(1..=8).contains(&max_levels) {
+                    return bad("max_levels", max_levels.to_string(), "1..=8");
+                }
+            }
+        }
+        if !(1..=1 << 28).contains(&self.max_cells) {
+            return bad("max_cells", self.max_cells.to_string(), "1..=2^28");
+        }
+        if !(self.max_refs_per_prim.is_finite() && self.max_refs_per_prim >= 1.0) {
+            return bad(
+                "max_refs_per_prim",
+                self.max_refs_per_prim.to_string(),
+                ">= 1, finite",
+            );
+        }
+        Ok(())
+    }
+}
+
+impl Default for GridParams {
+    fn default() -> Self {
+        Self::uniform()
+    }
+}

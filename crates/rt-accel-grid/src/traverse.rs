@@ -1,0 +1,168 @@
+//! The 3D-DDA of Amanatides & Woo (1987), level by level: from the cell the ray enters,
+//! step to the neighbour across whichever cell wall the ray leaves through first. A refined
+//! cell hands the ray's interval in it to its sub-grid.
+//!
+//! Exactness with brute force rests on three rules:
+//! - the cell walls are the level's planes ([`Level::plane`]) and each exit distance is
+//!   computed afresh from them (no accumulated `t += delta`);
+//! - the entry cell is found from the entry point and, if that point lies within rounding of
+//!   the wall behind it, the walk starts one cell earlier (an extra cell costs a few tests; a
+//!   cell skipped would lose hits);
+//! - a hit ends the walk only once it lies before the current cell's exit, padded like the box
+//!   test: a hit near a wall waits until the cells beyond the wall have been tested too;
+//! - the walk ends when the next wall lies beyond the (padded) end of the interval, not at the
+//!   grid's outer walls, so a ray grazing the grid's box still visits every cell it touches.
+//!
+//! With `mailbox`, each ray remembers the last primitives it tested and skips them in later
+//! cells (Amanatides & Woo's mailboxes, kept per ray so that threads share nothing).
+
+use crate::Grid;
+use crate::level::NO_CHILD;
+use rt_geom::aabb::{pad_down, pad_up};
+use rt_geom::{Hit, Primitive, Ray};
+
+/// Mailbox slots per ray.
+const MAILBOX: usize = 8;
+
+struct Walk<'a, P> {
+    grid: &'a Grid<P>,
+    origin: [f32; 3],
+    dir: [f32; 3],
+    inv: [f32; 3],
+    ray: Ray,
+    best: Option<Hit>,
+    mailbox: [u32; MAILBOX],
+    slot: usize,
+}
+
+impl<P: Primitive> Walk<'_, P> {
+    /// Tests primitives `ids`; true when `ANY_HIT` and something was hit.
+    #[inline(always)]
+    fn test<const ANY_HIT: bool, const MAILBOXES: bool>(&mut self, ids: &[u32]) -> bool {
+        for &p in ids {
+            if MAILBOXES {
+                if self.mailbox.contains(&p) {
+                    continue;
+                }
+                self.mailbox[self.slot] = p;
+                self.slot = (self.slot + 1) % MAILBOX;
+            }
+            if let Some(h) = self.grid.prims[p as usize].intersect(&self.ray) {
+                self.best = Some(Hit::new(h, p));
+                if ANY_HIT {
+                    return true;
+                }
+                self.ray.tmax = h.t;
+            }
+        }
+        false
+    }
+
+    /// Walks level `l` over `[t0, t1]`; true when `ANY_HIT` found a hit.
+    fn level<const ANY_HIT: bool, const MAILBOXES: bool>(
+        &mut self,
+        l: usize,
+        t0: f32,
+        t1: f32,
+    ) -> bool {
+        let grid = self.grid;
+        let lv = &grid.levels[l];
+        let mut idx = [0u32; 3];
+        for (a, slot) in idx.iter_mut().enumerate() {
+            let x = self.origin[a] + t0 * self.dir[a];
+            let mut i = lv.index_of(a, x);
+            let tol = 1e-6 * (self.origin[a].abs() + (t0 * self.dir[a]).abs());
+            if self.dir[a] > 0.0 && i > 0 && x - lv.plane(a, i) <= tol {
+                i -= 1;
+            } else if self.dir[a] < 0.0 && i + 1 < lv.res[a] && lv.plane(a, i + 1) - x <= tol {
+                i += 1;
+            }
+            *slot = i;
+        }
+        let mut entry = t0;
+        loop {
+            // The wall the ray leaves through first.
+            let mut exit = f32::INFINITY;
+            let mut axis = 3;
+            #[allow(clippy::needless_range_loop)] // `a` indexes five arrays
+            for a in 0..3 {
+                // Walls of the level's own box are not walls to step across: the interval
+                // [t0, t1] (padded) already ends there, and a ray that grazes the box (or a
+                // flat level) may still cross inner walls along the other axes before t1.
+                let wall = if self.dir[a] > 0.0 && idx[a] + 1 < lv.res[a] {
+                    lv.plane(a, idx[a] + 1)
+                } else if self.dir[a] < 0.0 && idx[a] > 0 {
+                    lv.plane(a, idx[a])
+                } else {
+                    continue;
+                };
+                // NaN (a wall through the origin, infinite 1/dir) counts as leaving at once.
+                let t = ((wall - self.origin[a]) * self.inv[a]).max(f32::NEG_INFINITY);
+                if t < exit {
+                    exit = t;
+                    axis = a;
+                }
+            }
+            let c = lv.linear(idx);
+            let child = if lv.first_child == NO_CHILD {
+                NO_CHILD
+            } else {
+                grid.children[lv.first_child as usize + c]
+            };
+            if child != NO_CHILD {
+                let sub_exit = pad_up(exit).min(t1);
+                if self.level::<ANY_HIT, MAILBOXES>(child as usize, entry.max(t0), sub_exit) {
+                    return true;
+                }
+            } else {
+                let first = lv.first as usize + c;
+                let (s, e) = (
+                    grid.offsets[first] as usize,
+                    grid.offsets[first + 1] as usize,
+                );
+                if self.test::<ANY_HIT, MAILBOXES>(&grid.refs[s..e]) {
+                    return true;
+                }
+            }
+            if let Some(h) = self.best {
+                if h.t < pad_down(exit) {
+                    return false;
+                }
+            }
+            if axis == 3 || exit > t1 {
+                return false;
+            }
+            if self.dir[axis] > 0.0 {
+                idx[axis] += 1;
+            } else {
+                idx[axis] -= 1;
+            }
+            entry = pad_down(exit);
+        }
+    }
+}
+
+impl<P: Primitive> Grid<P> {
+    pub(crate) fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
+        if self.levels.is_empty() || !ray.is_valid() {
+            return None;
+        }
+        let (t0, t1) = self.levels[0].bounds.clip_ray(ray)?;
+        let mut walk = Walk {
+            grid: self,
+            origin: ray.origin().to_array(),
+            dir: ray.dir().to_array(),
+            inv: ray.inv_dir().to_array(),
+            ray: *ray,
+            best: None,
+            mailbox: [u32::MAX; MAILBOX],
+            slot: 0,
+        };
+        if self.params.mailbox {
+            walk.level::<ANY_HIT, true>(0, t0, t1);
+        } else {
+            walk.level::<ANY_HIT, false>(0, t0, t1);
+        }
+        walk.best
+    }
+}
