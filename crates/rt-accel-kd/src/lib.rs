@@ -188,37 +188,15 @@ mod tests {
         s
     }
 
-    /// Answers on `tris` agree with brute force for rays through the scene.
-    fn assert_agrees(tris: &[Triangle], kd: &KdTree<Triangle>) {
-        let brute = rt_geom::BruteForce::build(tris).unwrap();
-        let mut rng = rt_testkit::Rng::new(5);
-        let b = kd.bounds();
-        for _ in 0..2000 {
-            let o = b.center() + (rng.unit_vector() * 3.0 * b.extent().length().max(1.0));
-            let target = rng.point_in(b.min, b.max);
-            let ray = Ray::new(o, target - o);
-            assert_eq!(
-                kd.intersect(&ray).map(|h| h.t),
-                brute.intersect(&ray).map(|h| h.t),
-                "{ray:?}"
-            );
-            assert_eq!(kd.occluded(&ray), brute.occluded(&ray));
-        }
-    }
-
     #[test]
     fn memory_is_bounded_when_everything_overlaps_one_point() {
-        let mut rng = rt_testkit::Rng::new(1);
-        let p = Vec3::splat(0.5);
-        let tris: Vec<Triangle> = (0..3000)
-            .map(|_| Triangle::new(p, p + rng.unit_vector(), p + rng.unit_vector()))
-            .collect();
+        // (The conformance suite checks the answers on the same scenes.)
+        let tris = rt_testkit::scenes::overlapping_fan(3000, 1);
         for params in [KdParams::sah(), KdParams::midpoint(), KdParams::centroid()] {
-            let kd = KdTree::build(&tris, params).unwrap();
-            assert_bounded(&kd);
-            assert_agrees(&tris, &kd);
+            assert_bounded(&KdTree::build(&tris, params).unwrap());
         }
         // Zero-area triangles at one point: nothing to split.
+        let p = Vec3::splat(0.5);
         let dots = vec![Triangle::new(p, p, p); 1000];
         let kd = KdTree::build(&dots, KdParams::sah()).unwrap();
         let s = assert_bounded(&kd);
@@ -227,30 +205,15 @@ mod tests {
 
     #[test]
     fn memory_is_bounded_on_long_slivers() {
-        // Slivers crossing the whole scene along x, y and z: every plane cuts a third of them.
-        let mut rng = rt_testkit::Rng::new(2);
-        let tris: Vec<Triangle> = (0..3000)
-            .map(|i| {
-                let axis = Vec3::AXES[i % 3];
-                let a = rng.point_in(Vec3::ZERO, Vec3::splat(10.0));
-                let a = a - axis * a.dot(axis);
-                Triangle::new(
-                    a,
-                    a + axis * 10.0,
-                    a + axis * 10.0 + rng.unit_vector() * 1e-3,
-                )
-            })
-            .collect();
+        let tris = rt_testkit::scenes::long_slivers(3000, 2);
         for budget in [1.0, 2.0, 8.0] {
             let params = KdParams {
                 reference_budget: budget,
                 ..KdParams::sah()
             };
-            let kd = KdTree::build(&tris, params).unwrap();
-            let s = assert_bounded(&kd);
+            let s = assert_bounded(&KdTree::build(&tris, params).unwrap());
             // With a budget of 1 no split may duplicate, and every useful plane here does.
             assert!(budget == 1.0 || s.leaves > 1, "{s}");
-            assert_agrees(&tris, &kd);
         }
     }
 
@@ -271,7 +234,10 @@ mod tests {
             )
             .unwrap();
             assert!(kd.stats().max_depth <= d as usize);
-            assert_agrees(&tris, &kd);
+            rt_testkit::conformance::assert_conforms(
+                &rt_testkit::Scene::new("soup", tris.clone()),
+                |_: &[Triangle]| Ok::<_, BuildError>(kd.clone()),
+            );
         }
     }
 

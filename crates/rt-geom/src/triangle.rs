@@ -129,22 +129,45 @@ impl Triangle {
     }
 
     /// Distance of a hit that the edge tests accepted, in `f64` from the `f32` inputs, with
-    /// the barycentrics `(u, v) = (V, W) / (U + V + W)` of those tests: `None` when the ray is
-    /// parallel to the triangle's plane or `t` is outside `[tmin, tmax]`. SIMD kernels call
-    /// this on their candidate hits to report bit-identical answers.
+    /// the barycentrics `(u, v) = (V, W) / (U + V + W)` of those tests: `None` when the hit
+    /// degenerates or `t` is outside `[tmin, tmax]`. SIMD kernels call this on their candidate
+    /// hits to report bit-identical answers.
     ///
-    /// `t = n . (v0 - o) / n . d` with `n = (v1 - v0) x (v2 - v0)`: in `f64` the edges and
-    /// `v0 - o` are exact and each component of `n` is rounded once, so `t` is the distance to
-    /// the triangle's plane, correct to a few ulps of `f64` unless the ray grazes the plane.
+    /// `t` is the depth of the point of the triangle that the ray meets, computed so that the
+    /// point lies *in the triangle* (to `f64` rounding), which is what lets every structure
+    /// find the hit in the cells and boxes that hold the triangle:
+    /// - the edge functions are recomputed in `f64` in the ray's exact shear (the inputs are
+    ///   `f32`: vertex minus origin is exact, each product rounded once); when all three agree
+    ///   the ray pierces the triangle, and `t = (U za + V zb + W zc) / (U + V + W)` with
+    ///   `z = (p - o)[kz] / d[kz]` (the depth interpolation of Woop et al., exact here where in
+    ///   `f32` it loses most digits on thin slivers);
+    /// - when they do not (the `f32` test accepted a ray that passes a rounding error outside
+    ///   an edge or vertex, typically grazing the plane, where the plane equation would put the
+    ///   hit far along the ray, outside the triangle's box), `t` is the ray parameter of the
+    ///   point of the ray closest to the triangle's boundary.
     #[inline]
     pub fn refine(&self, ray: &Ray, (u, v, w): (f32, f32, f32)) -> Option<PrimHit> {
-        let v0 = self.v[0].as_dvec3();
-        let n = (self.v[1].as_dvec3() - v0).cross(self.v[2].as_dvec3() - v0);
-        let den = n.dot(ray.dir().as_dvec3());
-        if den == 0.0 {
-            return None;
-        }
-        let t = (n.dot(v0 - ray.origin().as_dvec3()) / den) as f32;
+        let [kx, ky, kz] = ray.watertight_axes();
+        let d = ray.dir().as_dvec3();
+        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        let o = ray.origin().as_dvec3();
+        let shear = |p: Vec3| {
+            let p = p.as_dvec3() - o;
+            (p[kx] - sx * p[kz], p[ky] - sy * p[kz], p[kz] * sz)
+        };
+        let (ax, ay, az) = shear(self.v[0]);
+        let (bx, by, bz) = shear(self.v[1]);
+        let (cx, cy, cz) = shear(self.v[2]);
+        let orient = if u + v + w < 0.0 { -1.0 } else { 1.0 };
+        let e0 = (cx * by - cy * bx) * orient;
+        let e1 = (ax * cy - ay * cx) * orient;
+        let e2 = (bx * ay - by * ax) * orient;
+        let sum = e0 + e1 + e2;
+        let t = if e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0 && sum > 0.0 {
+            ((e0 * az + e1 * bz + e2 * cz) / sum) as f32
+        } else {
+            self.closest_on_boundary(o, d)? as f32
+        };
         if !ray.in_range(t) {
             return None;
         }
@@ -154,6 +177,34 @@ impl Triangle {
             u: v * rcp,
             v: w * rcp,
         })
+    }
+
+    /// The parameter `s` of the point of the line `o + s d` closest to the triangle's edges.
+    fn closest_on_boundary(&self, o: DVec3, d: DVec3) -> Option<f64> {
+        let a = d.dot(d);
+        if !(a > 0.0) {
+            return None;
+        }
+        let mut best: Option<(f64, f64)> = None;
+        for i in 0..3 {
+            let p = self.v[i].as_dvec3();
+            let e = self.v[(i + 1) % 3].as_dvec3() - p;
+            let w0 = o - p;
+            let (b, c, dd, ee) = (d.dot(e), e.dot(e), d.dot(w0), e.dot(w0));
+            let den = a * c - b * b;
+            let tau = if den > 0.0 {
+                ((a * ee - b * dd) / den).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let q = p + e * tau;
+            let s = (q - o).dot(d) / a;
+            let dist = (o + d * s - q).length_squared();
+            if best.is_none_or(|(bd, _)| dist < bd) {
+                best = Some((dist, s));
+            }
+        }
+        best.map(|(_, s)| s)
     }
 
     /// Möller & Trumbore 1997 (no epsilon: only an exactly zero determinant is rejected).
@@ -426,6 +477,66 @@ mod tests {
         assert_eq!(
             t.clipped_bounds(&Aabb::new(Vec3::splat(-9.0), Vec3::splat(9.0))),
             t.bounds()
+        );
+    }
+
+    #[test]
+    fn grazing_hits_lie_in_the_triangle() {
+        // Triangles through one vertex, rays aimed at it almost in their planes: the hit the
+        // watertight test accepts must be reported at a point of the triangle (its box), not
+        // where the ray meets the nearly parallel plane.
+        let p = Vec3::splat(0.5);
+        let mut state = 7u32;
+        let mut rnd = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state as f32 / u32::MAX as f32 * 2.0 - 1.0
+        };
+        let mut hits = 0;
+        for _ in 0..20_000 {
+            let b = p + Vec3::new(rnd(), rnd(), rnd());
+            let c = p + Vec3::new(rnd(), rnd(), rnd());
+            let tri = Triangle::new(p, b, c);
+            let n = tri.normal();
+            // A direction in the plane, tilted by a hair.
+            let along = (b - p).normalize() + (c - p).normalize() * rnd();
+            let dir = along + n * (1e-4 * rnd());
+            let origin = p - dir * 2.0;
+            let ray = Ray::new(origin, p - origin);
+            if let Some(h) = tri.intersect_watertight(&ray) {
+                hits += 1;
+                let x = ray.at(h.t);
+                let bb = tri.bounds();
+                let pad = Vec3::splat(1e-5);
+                assert!(
+                    Aabb::new(bb.min - pad, bb.max + pad).contains_point(x),
+                    "{tri:?} {ray:?} t={} at {x:?}",
+                    h.t
+                );
+            }
+        }
+        assert!(hits > 1000, "{hits}");
+        // A case from the conformance scene `overlapping_fan`: the ray is aimed at the shared
+        // vertex and grazes the plane (n . d = 2e-4); the plane equation put the hit at
+        // t = 0.99994, 7e-5 outside the triangle's box, and structures disagreed with brute
+        // force on it.
+        let tri = Triangle::new(
+            Vec3::splat(0.5),
+            Vec3::new(-0.21281451, 0.36131966, -0.18750513),
+            Vec3::new(0.7021762, -0.47747344, 0.43941617),
+        );
+        let ray = Ray::new(
+            Vec3::new(-1.4116699, 1.6713568, -0.956732),
+            Vec3::new(1.9116699, -1.1713568, 1.456732),
+        );
+        let h = tri.intersect_watertight(&ray).expect("hits the vertex");
+        let bb = tri.bounds();
+        let pad = Vec3::splat(1e-6);
+        assert!(
+            Aabb::new(bb.min - pad, bb.max + pad).contains_point(ray.at(h.t)),
+            "t = {}",
+            h.t
         );
     }
 }

@@ -331,7 +331,8 @@ macro_rules! conformance_tests {
     (tolerance: $tol:expr, triangles: $tri:expr $(,)?) => {
         $crate::conformance_tests!(@tri $tol, $tri;
             soup, sphere_mesh, torus, planar_grid, coplanar, axis_slivers, duplicates,
-            teapot_in_stadium, huge_coords, tiny_coords, one_triangle, empty);
+            teapot_in_stadium, overlapping_fan, long_slivers, huge_coords, tiny_coords,
+            one_triangle, empty);
         #[test]
         fn rejects_non_finite_triangles() {
             let valid = $crate::scenes::random_soup(10, 1);

@@ -121,6 +121,32 @@ pub fn coplanar(n: usize, seed: u64) -> Vec<Triangle> {
         .collect()
 }
 
+/// `n` triangles that all share one vertex, the others a unit away in random directions:
+/// every triangle overlaps the same point, so no plane separates them (the pathological
+/// input for duplicating structures: kd-trees, grids, octrees).
+pub fn overlapping_fan(n: usize, seed: u64) -> Vec<Triangle> {
+    let mut rng = Rng::new(seed);
+    let p = Vec3::splat(0.5);
+    (0..n)
+        .map(|_| Triangle::new(p, p + rng.unit_vector(), p + rng.unit_vector()))
+        .collect()
+}
+
+/// Slivers crossing the whole scene along x, y or z, a thousandth wide: every plane or cell
+/// wall cuts a third of them.
+pub fn long_slivers(n: usize, seed: u64) -> Vec<Triangle> {
+    let mut rng = Rng::new(seed);
+    (0..n)
+        .map(|i| {
+            let axis = Vec3::AXES[i % 3];
+            let a = rng.point_in(Vec3::ZERO, Vec3::splat(10.0));
+            let a = a - axis * a.dot(axis);
+            let b = a + axis * 10.0;
+            Triangle::new(a, b, b + rng.unit_vector() * 1e-3)
+        })
+        .collect()
+}
+
 /// Long, thin triangles aligned with the axes (boxes that are flat in one or two dimensions).
 pub fn axis_slivers(n: usize, seed: u64) -> Vec<Triangle> {
     let mut rng = Rng::new(seed);
@@ -227,6 +253,8 @@ pub fn conformance_triangle_scenes() -> Vec<Scene<Triangle>> {
         Scene::new("axis_slivers", axis_slivers(1000, 3)),
         Scene::new("duplicates", duplicates(1500, 4)),
         Scene::new("teapot_in_stadium", teapot_in_stadium(2000)),
+        Scene::new("overlapping_fan", overlapping_fan(1500, 5)),
+        Scene::new("long_slivers", long_slivers(1500, 6)),
         Scene::new(
             "huge_coords",
             transformed(&soup[..1000], 1.0e3, Vec3::splat(1.0e6)),
