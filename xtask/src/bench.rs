@@ -42,7 +42,7 @@ pub struct Record {
 /// The scenes `bench` knows: the shared meshes and procedural ones.
 pub fn scene_names() -> Vec<&'static str> {
     let mut v: Vec<&str> = models::MODEL_NAMES.to_vec();
-    v.extend(["soup-100k", "sphere-200k"]);
+    v.extend(["soup-100k", "sphere-200k", "stadium-100k"]);
     v
 }
 
@@ -51,6 +51,8 @@ fn load_scene(name: &str) -> Result<Option<Vec<Triangle>>, String> {
         "soup-100k" => scenes::random_soup(100_000, 11),
         "soup-20k" => scenes::random_soup(20_000, 11),
         "sphere-200k" => scenes::tessellated_sphere(200_000, Vec3::ZERO, 1.0),
+        // A dense teapot in a large sparse stadium: the case uniform grids are known to lose.
+        "stadium-100k" => scenes::teapot_in_stadium(100_000),
         _ if models::MODEL_NAMES.contains(&name) => {
             match models::load_model(name).map_err(|e| e.to_string())? {
                 Some(m) => m.triangles(),

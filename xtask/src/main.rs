@@ -36,7 +36,8 @@ enum Command {
         /// Comma-separated structure names (default: all).
         #[arg(long)]
         accels: Option<String>,
-        /// Comma-separated scenes: teapot, bunny, sponza, dragon, soup-100k, sphere-200k.
+        /// Comma-separated scenes: teapot, bunny, sponza, dragon, soup-100k, sphere-200k,
+        /// stadium-100k.
         #[arg(long)]
         scenes: Option<String>,
         /// Write the records as a JSON array.
