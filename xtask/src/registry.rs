@@ -7,6 +7,7 @@ use rt_accel_bvh::{
 };
 use rt_accel_grid::{Grid, GridParams};
 use rt_accel_kd::{BspParams, BspTree, KdParams, KdTraversal, KdTree};
+use rt_accel_octree::{Octree, OctreeParams, OctreeTraversal};
 use rt_geom::{Aabb, Accel, BoundingSphere, BruteForce, BuildError, Kdop7, Triangle};
 use rt_testkit::Tolerance;
 
@@ -239,6 +240,21 @@ pub static REGISTRY: &[AccelEntry] = &[
         "grid-adaptive",
         "rt adaptive grid (Jevans & Wyvill): cells of more than 8 primitives refined recursively, up to 4 levels",
         |p| boxed(Grid::build(p, GridParams::adaptive())),
+    ),
+    own(
+        "octree",
+        "rt octree, split at the centre above 10 primitives (depth <= 16), parametric walk (Revelles et al. 2000)",
+        |p| boxed(Octree::build(p, OctreeParams::standard())),
+    ),
+    own(
+        "octree-recursive",
+        "the same octree, walked by the seeds' recursive nearest-first descent",
+        |p| {
+            boxed(Octree::build(
+                p,
+                OctreeParams::standard().with_traversal(OctreeTraversal::Recursive),
+            ))
+        },
     ),
     AccelEntry {
         name: "obvhs",

@@ -1,0 +1,108 @@
+//! Top-down: a node holding more than `max_prims` primitives is split at its centre into
+//! eight octants; each primitive goes to every octant it really overlaps (clipped to the
+//! octant, not just boxed), empty octants are not stored.
+
+use crate::node::{OctNode, octant};
+use crate::params::OctreeParams;
+use rayon::prelude::*;
+use rt_geom::{Aabb, Primitive};
+
+pub(crate) enum BuildNode {
+    Leaf(Vec<u32>),
+    /// The eight octants; `None` for an empty one.
+    Inner(Box<[Option<BuildNode>; 8]>),
+}
+
+pub(crate) struct Ctx<'a, P> {
+    pub prims: &'a [P],
+    pub params: &'a OctreeParams,
+}
+
+/// The primitives of each octant of `bounds`.
+fn distribute<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], bounds: &Aabb) -> [Vec<u32>; 8] {
+    let c = bounds.center();
+    let boxes: [Aabb; 8] = std::array::from_fn(|i| octant(bounds, i));
+    let mut out: [Vec<u32>; 8] = Default::default();
+    for &id in ids {
+        let p = &ctx.prims[id as usize];
+        let b = p.clipped_bounds(bounds);
+        // The octants its (clipped) box reaches; more than one: clip to each.
+        let sides = |a: usize| -> [bool; 2] { [b.min[a] <= c[a], b.max[a] >= c[a]] };
+        let (sx, sy, sz) = (sides(0), sides(1), sides(2));
+        let reach = (0..8).filter(|&i| sx[i & 1] && sy[i >> 1 & 1] && sz[i >> 2 & 1]);
+        let single = reach.clone().count() == 1;
+        for i in reach {
+            if single || !p.clipped_bounds(&boxes[i]).is_empty() {
+                out[i].push(id);
+            }
+        }
+    }
+    out
+}
+
+/// Builds the subtree of `ids` in `bounds`; `budget` bounds its references (see
+/// [`OctreeParams::reference_budget`]).
+pub(crate) fn build<P: Primitive>(
+    ctx: &Ctx<P>,
+    ids: Vec<u32>,
+    bounds: Aabb,
+    depth: u32,
+    budget: usize,
+) -> BuildNode {
+    let n = ids.len();
+    let splittable = bounds.extent().max_element() > 0.0;
+    if n <= ctx.params.max_prims as usize || depth >= ctx.params.max_depth || !splittable {
+        return BuildNode::Leaf(ids);
+    }
+    let lists = distribute(ctx, &ids, &bounds);
+    let total: usize = lists.iter().map(Vec::len).sum();
+    // Over budget, or no progress (every non-empty octant holds everything): a leaf.
+    if total > budget || lists.iter().all(|l| l.is_empty() || l.len() == n) {
+        return BuildNode::Leaf(ids);
+    }
+    drop(ids);
+    // Each octant's share of the budget: at least its count, the shares adding up to it.
+    let mut shares = [0usize; 8];
+    let mut given = 0usize;
+    for (i, l) in lists.iter().enumerate() {
+        shares[i] = (budget as u128 * l.len() as u128 / total as u128) as usize;
+        given += shares[i];
+    }
+    if let Some(i) = (0..8).rev().find(|&i| !lists[i].is_empty()) {
+        shares[i] += budget - given;
+    }
+    let make = |(i, l): (usize, Vec<u32>)| {
+        (!l.is_empty()).then(|| build(ctx, l, octant(&bounds, i), depth + 1, shares[i]))
+    };
+    let children: Vec<Option<BuildNode>> = if n > ctx.params.parallel_threshold {
+        lists.into_par_iter().enumerate().map(make).collect()
+    } else {
+        lists.into_iter().enumerate().map(make).collect()
+    };
+    let children: [Option<BuildNode>; 8] = children.try_into().unwrap_or_else(|_| unreachable!());
+    BuildNode::Inner(Box::new(children))
+}
+
+/// Writes `node` into `nodes[slot]`, its octants contiguously after the current end.
+pub(crate) fn flatten(
+    node: &BuildNode,
+    slot: usize,
+    nodes: &mut Vec<OctNode>,
+    indices: &mut Vec<u32>,
+) {
+    match node {
+        BuildNode::Leaf(ids) => {
+            nodes[slot] = OctNode::leaf(indices.len() as u32, ids.len() as u32);
+            indices.extend_from_slice(ids);
+        }
+        BuildNode::Inner(children) => {
+            let first = nodes.len();
+            let mask = (0..8).fold(0u8, |m, i| m | ((children[i].is_some() as u8) << i));
+            nodes.resize(first + mask.count_ones() as usize, OctNode::leaf(0, 0));
+            nodes[slot] = OctNode::inner(first as u32, mask);
+            for (k, child) in children.iter().flatten().enumerate() {
+                flatten(child, first + k, nodes, indices);
+            }
+        }
+    }
+}

@@ -1,0 +1,327 @@
+//! # rt-accel-octree: octrees
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`node`] | [`OctNode`], 8 bytes: child mask + first child, or a leaf's range (layout there) |
+//! | [`params`] | [`OctreeParams`], [`OctreeTraversal`] |
+//! | `build` | split at the centre while a node holds more than `max_prims`; primitives clipped to each octant |
+//! | `traverse` | the seeds' recursive nearest-first walk, and the parametric walk of Revelles et al. |
+//!
+//! ```
+//! use rt_accel_octree::{Octree, OctreeParams};
+//! use rt_geom::{Accel, Ray, Triangle, Vec3};
+//!
+//! let tris = [
+//!     Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y),
+//!     Triangle::new(Vec3::new(0.0, 0.0, -1.0), Vec3::new(1.0, 0.0, -1.0), Vec3::new(0.0, 1.0, -1.0)),
+//! ];
+//! let tree = Octree::build(&tris, OctreeParams::standard()).expect("finite input");
+//! let hit = tree.intersect(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z)).unwrap();
+//! assert_eq!((hit.t, hit.prim), (1.0, 0));
+//! tree.validate().unwrap();
+//! ```
+
+mod build;
+pub mod node;
+pub mod params;
+mod traverse;
+
+pub use node::OctNode;
+pub use params::{MAX_DEPTH, OctreeParams, OctreeTraversal};
+
+use node::octant;
+use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, Primitive, Ray, Vec3, check_primitives};
+
+/// An octree over primitives `P`.
+#[derive(Clone, Debug)]
+pub struct Octree<P> {
+    nodes: Vec<OctNode>,
+    indices: Vec<u32>,
+    prims: Vec<P>,
+    /// The root cube.
+    bounds: Aabb,
+    params: OctreeParams,
+}
+
+impl<P: Primitive> Octree<P> {
+    /// Builds over `prims` (copied) inside the cube around them. Empty input gives an empty
+    /// tree.
+    pub fn build(prims: &[P], params: OctreeParams) -> Result<Self, BuildError> {
+        params.validate()?;
+        check_primitives(prims, u32::MAX as usize - 1)?;
+        let (mut nodes, mut indices) = (Vec::new(), Vec::new());
+        let mut bounds = Aabb::EMPTY;
+        if !prims.is_empty() {
+            let b = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
+            // A cube, so that octants stay cubes (no flat octants duplicating everything).
+            let half = Vec3::splat(0.5 * b.extent().max_element());
+            let c = b.center();
+            bounds = Aabb::new((c - half).min(b.min), (c + half).max(b.max));
+            let ctx = build::Ctx {
+                prims,
+                params: &params,
+            };
+            let n = prims.len();
+            let budget = ((params.reference_budget as f64 * n as f64) as usize).max(n);
+            let root = build::build(&ctx, (0..n as u32).collect(), bounds, 0, budget);
+            nodes.push(OctNode::leaf(0, 0));
+            build::flatten(&root, 0, &mut nodes, &mut indices);
+        }
+        Ok(Self {
+            nodes,
+            indices,
+            prims: prims.to_vec(),
+            bounds,
+            params,
+        })
+    }
+
+    pub fn nodes(&self) -> &[OctNode] {
+        &self.nodes
+    }
+
+    pub fn indices(&self) -> &[u32] {
+        &self.indices
+    }
+
+    /// The root cube.
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    pub fn params(&self) -> &OctreeParams {
+        &self.params
+    }
+
+    /// The same tree, walked the other way.
+    pub fn with_traversal(mut self, traversal: OctreeTraversal) -> Self {
+        self.params.traversal = traversal;
+        self
+    }
+
+    /// Calls `f(node, box, depth)` for every node, parents first.
+    fn walk(&self, f: &mut impl FnMut(usize, &Aabb, usize)) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut stack = vec![(0usize, self.bounds, 0usize)];
+        while let Some((i, b, d)) = stack.pop() {
+            f(i, &b, d);
+            let n = self.nodes[i];
+            if !n.is_leaf() && d <= MAX_DEPTH as usize {
+                for o in 0..8 {
+                    if let Some(c) = n.child(o) {
+                        if c > i && c < self.nodes.len() {
+                            stack.push((c, octant(&b, o), d + 1));
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl<P: Primitive> Accel for Octree<P> {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.traverse::<false>(ray)
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        self.traverse::<true>(ray).is_some()
+    }
+
+    fn stats(&self) -> AccelStats {
+        let mut s = AccelStats {
+            primitives: self.prims.len(),
+            nodes: self.nodes.len(),
+            references: self.indices.len(),
+            bytes: std::mem::size_of_val(self.nodes.as_slice())
+                + std::mem::size_of_val(self.indices.as_slice())
+                + std::mem::size_of_val(self.prims.as_slice()),
+            ..AccelStats::default()
+        };
+        if self.nodes.is_empty() {
+            return s;
+        }
+        // SAH cost in the common units: 1 per inner node, 1 per primitive, by area.
+        let root = self.bounds.half_area() as f64;
+        let mut sah = 0.0;
+        self.walk(&mut |i, b, d| {
+            let n = self.nodes[i];
+            s.max_depth = s.max_depth.max(d);
+            let area = b.half_area() as f64;
+            if n.is_leaf() {
+                if !n.prims().is_empty() {
+                    s.leaves += 1;
+                }
+                sah += area * n.prims().len() as f64;
+            } else {
+                sah += area;
+            }
+        });
+        s.sah_cost = Some(if root > 0.0 { (sah / root) as f32 } else { 0.0 });
+        s
+    }
+
+    /// Children after their parent and in range; every leaf within the index array; every
+    /// referenced primitive overlapping its leaf's box; every primitive referenced.
+    fn validate(&self) -> Result<(), String> {
+        if self.nodes.is_empty() {
+            return if self.prims.is_empty() {
+                Ok(())
+            } else {
+                Err("no nodes for a non-empty scene".into())
+            };
+        }
+        let mut seen = vec![false; self.prims.len()];
+        let mut err = None;
+        let mut reached = 0;
+        self.walk(&mut |i, b, d| {
+            reached += 1;
+            let n = self.nodes[i];
+            if d > self.params.max_depth as usize {
+                err.get_or_insert(format!("node {i} at depth {d}"));
+            }
+            if !n.is_leaf() {
+                let last = n.first_child() + n.mask().count_ones() as usize;
+                if n.first_child() <= i || last > self.nodes.len() || n.mask() == 0 {
+                    err.get_or_insert(format!("inner node {i} has children out of range"));
+                }
+                return;
+            }
+            if n.prims().end > self.indices.len() {
+                err.get_or_insert(format!("leaf {i} points past the index array"));
+                return;
+            }
+            let pad = (b.max - b.min).max(b.max.abs().max(b.min.abs())) * 1e-6;
+            let grown = Aabb::new(b.min - pad, b.max + pad);
+            for &p in &self.indices[n.prims()] {
+                match self.prims.get(p as usize) {
+                    None => {
+                        err.get_or_insert(format!("leaf {i} holds primitive {p}, out of range"));
+                    }
+                    Some(prim) if prim.clipped_bounds(&grown).is_empty() => {
+                        err.get_or_insert(format!(
+                            "primitive {p} is in leaf {i} but not in its box"
+                        ));
+                    }
+                    Some(_) => seen[p as usize] = true,
+                }
+            }
+        });
+        if reached != self.nodes.len() {
+            return Err(format!("{} nodes, {reached} reachable", self.nodes.len()));
+        }
+        if let Some(e) = err {
+            return Err(e);
+        }
+        match seen.iter().position(|s| !s) {
+            Some(p) => Err(format!("primitive {p} is in no leaf")),
+            None => Ok(()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rt_geom::Triangle;
+    use rt_testkit::scenes;
+
+    rt_testkit::conformance_per_params!(Octree::build {
+        parametric: OctreeParams::standard(),
+        recursive: OctreeParams::standard().with_traversal(OctreeTraversal::Recursive),
+        parametric_leaf1: OctreeParams {
+            max_prims: 1,
+            ..OctreeParams::standard()
+        },
+        recursive_leaf1: OctreeParams {
+            max_prims: 1,
+            traversal: OctreeTraversal::Recursive,
+            ..OctreeParams::standard()
+        },
+        parametric_serial: OctreeParams {
+            parallel_threshold: usize::MAX,
+            ..OctreeParams::standard()
+        },
+        shallow: OctreeParams {
+            max_depth: 2,
+            ..OctreeParams::standard()
+        },
+    });
+
+    #[test]
+    fn memory_is_bounded_on_pathological_input() {
+        for tris in [
+            scenes::overlapping_fan(3000, 1),
+            scenes::long_slivers(3000, 2),
+            scenes::teapot_in_stadium(3000),
+        ] {
+            for params in [
+                OctreeParams::standard(),
+                OctreeParams {
+                    max_prims: 1,
+                    max_depth: MAX_DEPTH,
+                    reference_budget: 4.0,
+                    ..OctreeParams::standard()
+                },
+            ] {
+                let t = Octree::build(&tris, params).unwrap();
+                t.validate().unwrap();
+                let s = t.stats();
+                assert!(
+                    s.references as f32 <= params.reference_budget * tris.len() as f32,
+                    "{s}"
+                );
+                assert!(s.max_depth <= params.max_depth as usize, "{s}");
+                // Every inner node has a non-empty octant holding fewer than all of its
+                // primitives, so nodes are bounded by references times depth.
+                assert!(s.nodes <= 8 * (params.max_depth as usize + 1) * s.references.max(1));
+            }
+        }
+    }
+
+    #[test]
+    fn empty_octants_are_not_stored() {
+        // Two clusters in opposite corners: the root stores two octants, not eight.
+        let mut tris = scenes::random_soup(50, 1);
+        for t in tris.iter_mut().skip(25) {
+            t.v = t.v.map(|p| p * 0.1 + Vec3::splat(0.9));
+        }
+        for t in tris.iter_mut().take(25) {
+            t.v = t.v.map(|p| p * 0.1);
+        }
+        let t = Octree::build(&tris, OctreeParams::standard()).unwrap();
+        let root = t.nodes()[0];
+        assert!(!root.is_leaf());
+        assert_eq!(root.mask().count_ones(), 2, "{:08b}", root.mask());
+    }
+
+    #[test]
+    fn bad_parameters_are_rejected() {
+        let tris: Vec<Triangle> = scenes::random_soup(10, 1);
+        let s = OctreeParams::standard();
+        for params in [
+            OctreeParams { max_prims: 0, ..s },
+            OctreeParams { max_depth: 25, ..s },
+            OctreeParams {
+                reference_budget: 0.5,
+                ..s
+            },
+            OctreeParams {
+                reference_budget: f32::NAN,
+                ..s
+            },
+        ] {
+            assert!(matches!(
+                Octree::build(&tris, params),
+                Err(BuildError::InvalidParameter { .. })
+            ));
+        }
+        let too_many = vec![rt_testkit::NoGeometry; u32::MAX as usize];
+        assert!(matches!(
+            Octree::build(&too_many, s),
+            Err(BuildError::TooManyPrimitives { .. })
+        ));
+    }
+}

@@ -1,0 +1,82 @@
+//! Build parameters.
+
+use rt_geom::BuildError;
+
+/// Which walk [`Octree::intersect`](rt_geom::Accel::intersect) runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OctreeTraversal {
+    /// The seeds' recursive walk: the octants the ray's box test enters, nearest first.
+    Recursive,
+    /// Revelles, Ureña & Lastra (WSCG 2000): entry and exit parameters per axis, the first
+    /// octant from the entry plane, the next from the exit plane, negative directions by an
+    /// XOR mask on octant indices.
+    Parametric,
+}
+
+/// Parameters of [`Octree::build`](crate::Octree::build).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OctreeParams {
+    /// A node holding more primitives than this is split into eight (the seeds: about 10).
+    pub max_prims: u32,
+    /// No leaf deeper than this (at most [`MAX_DEPTH`]).
+    pub max_depth: u32,
+    /// At most `reference_budget * N` references in all: a split that would exceed its
+    /// node's share (shared down in proportion to the children's counts) is not made. With
+    /// the depth cap, the memory bound on pathological input.
+    pub reference_budget: f32,
+    /// Nodes with more primitives than this build their octants in parallel.
+    pub parallel_threshold: usize,
+    pub traversal: OctreeTraversal,
+}
+
+/// Depth limit (a box halves 24 times before `f32` runs out of room for its centre).
+pub const MAX_DEPTH: u32 = 24;
+
+impl OctreeParams {
+    /// Leaves of up to 10 primitives, depth up to 16, parametric traversal.
+    pub const fn standard() -> Self {
+        Self {
+            max_prims: 10,
+            max_depth: 16,
+            reference_budget: 8.0,
+            parallel_threshold: 4096,
+            traversal: OctreeTraversal::Parametric,
+        }
+    }
+
+    pub const fn with_traversal(mut self, traversal: OctreeTraversal) -> Self {
+        self.traversal = traversal;
+        self
+    }
+
+    /// Checks every field; the error names the first one out of range.
+    pub fn validate(&self) -> Result<(), BuildError> {
+        let bad = |name, value: String, expected| {
+            Err(BuildError::InvalidParameter {
+                name,
+                value,
+                expected,
+            })
+        };
+        if self.max_prims == 0 {
+            return bad("max_prims", "0".into(), ">= 1");
+        }
+        if self.max_depth > MAX_DEPTH {
+            return bad("max_depth", self.max_depth.to_string(), "0..=24");
+        }
+        if !(1.0..=64.0).contains(&self.reference_budget) {
+            return bad(
+                "reference_budget",
+                self.reference_budget.to_string(),
+                "1..=64",
+            );
+        }
+        Ok(())
+    }
+}
+
+impl Default for OctreeParams {
+    fn default() -> Self {
+        Self::standard()
+    }
+}
