@@ -119,12 +119,12 @@ impl<P: Primitive> Walk<'_, P> {
             .max_by(|&a, &b| p[a][0].total_cmp(&p[b][0]))
             .unwrap_or(0);
         let t_enter = p[entry][0];
-        let mut j = 0usize;
-        for a in 0..3 {
-            if a != entry && p[a][1] < t_enter {
-                j |= 1 << a;
-            }
-        }
+        let j0 = p
+            .iter()
+            .enumerate()
+            .filter(|&(a, pa)| a != entry && pa[1] < t_enter)
+            .fold(0usize, |j, (a, _)| j | 1 << a);
+        let mut j = j0;
         loop {
             // This octant's interval along each axis: [near, mid] or [mid, far].
             let lower = |a: usize| if j >> a & 1 == 1 { p[a][1] } else { p[a][0] };
