@@ -90,43 +90,42 @@ impl BvhParams {
 
     /// Checks every field; the error names the first one out of range.
     pub fn validate(&self) -> Result<(), BuildError> {
-        let bad = |name, value: String, expected| {
-            Err(BuildError::InvalidParameter {
-                name,
-                value,
-                expected,
-            })
-        };
         if let BvhBuilder::BinnedSah { bins } = self.builder {
-            if !(2..=256).contains(&bins) {
-                return bad("bins", bins.to_string(), "2..=256");
-            }
+            BuildError::require((2..=256).contains(&bins), "bins", bins, "2..=256")?;
         }
-        if !(1..=255).contains(&self.max_leaf_size) {
-            return bad("max_leaf_size", self.max_leaf_size.to_string(), "1..=255");
-        }
-        if !(self.traversal_cost.is_finite() && self.traversal_cost >= 0.0) {
-            return bad(
-                "traversal_cost",
-                self.traversal_cost.to_string(),
-                "finite, >= 0",
-            );
-        }
-        if !(self.intersection_cost.is_finite() && self.intersection_cost > 0.0) {
-            return bad(
-                "intersection_cost",
-                self.intersection_cost.to_string(),
-                "finite, > 0",
-            );
-        }
+        let (leaf, kt, ki) = (
+            self.max_leaf_size,
+            self.traversal_cost,
+            self.intersection_cost,
+        );
+        BuildError::require((1..=255).contains(&leaf), "max_leaf_size", leaf, "1..=255")?;
+        BuildError::require(
+            kt.is_finite() && kt >= 0.0,
+            "traversal_cost",
+            kt,
+            "finite, >= 0",
+        )?;
+        BuildError::require(
+            ki.is_finite() && ki > 0.0,
+            "intersection_cost",
+            ki,
+            "finite, > 0",
+        )?;
         if let Some(alpha) = self.spatial_alpha {
-            if !(0.0..=1.0).contains(&alpha) {
-                return bad("spatial_alpha", alpha.to_string(), "0..=1");
-            }
+            BuildError::require(
+                (0.0..=1.0).contains(&alpha),
+                "spatial_alpha",
+                alpha,
+                "0..=1",
+            )?;
         }
-        if !(0.0..=16.0).contains(&self.spatial_budget) {
-            return bad("spatial_budget", self.spatial_budget.to_string(), "0..=16");
-        }
+        let budget = self.spatial_budget;
+        BuildError::require(
+            (0.0..=16.0).contains(&budget),
+            "spatial_budget",
+            budget,
+            "0..=16",
+        )?;
         Ok(())
     }
 }

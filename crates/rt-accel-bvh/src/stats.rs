@@ -2,15 +2,7 @@
 
 use crate::Bvh;
 use crate::params::MAX_DEPTH;
-use rt_geom::{Aabb, AccelStats, Primitive};
-
-/// Every primitive was found in some leaf.
-pub(crate) fn all_referenced(seen: &[bool]) -> Result<(), String> {
-    match seen.iter().position(|s| !s) {
-        Some(p) => Err(format!("primitive {p} is in no leaf")),
-        None => Ok(()),
-    }
-}
+use rt_geom::{Aabb, AccelStats, Primitive, all_referenced};
 
 /// The leaf invariants every tree of this crate checks: the leaf's box contains the primitive
 /// (with spatial splits: the primitive's part inside the box is not empty, and a primitive

@@ -7,9 +7,10 @@
 //! end. A leaf `(first, count)` covers indices `first .. first + count`; lanes past `count`
 //! belong to the next leaf and are masked off.
 
-use crate::stats::{all_referenced, check_leaf_primitive};
+use crate::stats::check_leaf_primitive;
 use crate::wide::WideTree;
 use crate::{Bvh, BvhParams};
+use rt_geom::all_referenced;
 use rt_geom::{
     Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Ray, Triangle, Vec3, watertight_edges,
 };

@@ -17,9 +17,10 @@
 
 use crate::node::BvhNode;
 use crate::params::MAX_DEPTH;
-use crate::stats::{all_referenced, check_leaf_primitive};
+use crate::stats::check_leaf_primitive;
 use crate::{Bvh, BvhParams};
 use rt_geom::aabb::{pad_down, pad_up};
+use rt_geom::all_referenced;
 use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray};
 
 /// A node of a `N`-wide BVH.

@@ -180,15 +180,12 @@ impl<P: Primitive> Accel for Grid<P> {
                         err.get_or_insert(format!("sub-grid {child} does not cover its cell"));
                     }
                 }
-                // Grown a little: clipping rounds outward, a touching primitive may be listed.
-                let pad = (cell.max - cell.min).max(cell.max.abs().max(cell.min.abs())) * 1e-6;
-                let grown = Aabb::new(cell.min - pad, cell.max + pad);
                 for &p in self.cell_refs(lv, c) {
                     match self.prims.get(p as usize) {
                         None => {
                             err.get_or_insert(format!("reference {p} out of range"));
                         }
-                        Some(prim) if prim.clipped_bounds(&grown).is_empty() => {
+                        Some(prim) if !rt_geom::touches_cell(prim, &cell) => {
                             err.get_or_insert(format!("primitive {p} listed in a cell it misses"));
                         }
                         Some(_) => seen[p as usize] = true,

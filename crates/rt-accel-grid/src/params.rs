@@ -80,46 +80,42 @@ impl GridParams {
     /// positive and finite, at most 64 cells per primitive (a huge λ would ask for more cells
     /// than the memory cap anyway).
     pub fn validate(&self) -> Result<(), BuildError> {
-        let bad = |name, value: String, expected| {
-            Err(BuildError::InvalidParameter {
-                name,
-                value,
-                expected,
-            })
-        };
         let density_ok = |d: f32| d.is_finite() && d > 0.0 && d <= 64.0;
-        if !density_ok(self.density) {
-            return bad("density", self.density.to_string(), "0 < density <= 64");
-        }
+        let d = self.density;
+        BuildError::require(density_ok(d), "density", d, "0 < density <= 64")?;
         match self.kind {
             GridKind::Uniform => {}
-            GridKind::TwoLevel { top_density } => {
-                if !density_ok(top_density) {
-                    return bad("top_density", top_density.to_string(), "0 < density <= 64");
-                }
+            GridKind::TwoLevel { top_density: t } => {
+                BuildError::require(density_ok(t), "top_density", t, "0 < density <= 64")?;
             }
             GridKind::Adaptive {
                 max_cell_prims,
                 max_levels,
             } => {
-                if max_cell_prims == 0 {
-                    return bad("max_cell_prims", "0".into(), ">= 1");
-                }
-                if !(1..=8).contains(&max_levels) {
-                    return bad("max_levels", max_levels.to_string(), "1..=8");
-                }
+                BuildError::require(
+                    max_cell_prims >= 1,
+                    "max_cell_prims",
+                    max_cell_prims,
+                    ">= 1",
+                )?;
+                let levels_ok = (1..=8).contains(&max_levels);
+                BuildError::require(levels_ok, "max_levels", max_levels, "1..=8")?;
             }
         }
-        if !(1..=1 << 28).contains(&self.max_cells) {
-            return bad("max_cells", self.max_cells.to_string(), "1..=2^28");
-        }
-        if !(self.max_refs_per_prim.is_finite() && self.max_refs_per_prim >= 1.0) {
-            return bad(
-                "max_refs_per_prim",
-                self.max_refs_per_prim.to_string(),
-                ">= 1, finite",
-            );
-        }
+        let cells = self.max_cells;
+        BuildError::require(
+            (1..=1 << 28).contains(&cells),
+            "max_cells",
+            cells,
+            "1..=2^28",
+        )?;
+        let refs = self.max_refs_per_prim;
+        BuildError::require(
+            refs.is_finite() && refs >= 1.0,
+            "max_refs_per_prim",
+            refs,
+            ">= 1, finite",
+        )?;
         Ok(())
     }
 }

@@ -101,49 +101,46 @@ impl KdParams {
 
     /// Checks every field; the error names the first one out of range.
     pub fn validate(&self) -> Result<(), BuildError> {
-        let bad = |name, value: String, expected| {
-            Err(BuildError::InvalidParameter {
-                name,
-                value,
-                expected,
-            })
-        };
-        if !(self.traversal_cost.is_finite() && self.traversal_cost >= 0.0) {
-            return bad(
-                "traversal_cost",
-                self.traversal_cost.to_string(),
-                "finite, >= 0",
-            );
-        }
-        if !(self.intersection_cost.is_finite() && self.intersection_cost > 0.0) {
-            return bad(
-                "intersection_cost",
-                self.intersection_cost.to_string(),
-                "finite, > 0",
-            );
-        }
-        if !(0.0..1.0).contains(&self.empty_bonus) {
-            return bad("empty_bonus", self.empty_bonus.to_string(), "0 <= b < 1");
-        }
+        let (kt, ki, bonus) = (
+            self.traversal_cost,
+            self.intersection_cost,
+            self.empty_bonus,
+        );
+        BuildError::require(
+            kt.is_finite() && kt >= 0.0,
+            "traversal_cost",
+            kt,
+            "finite, >= 0",
+        )?;
+        BuildError::require(
+            ki.is_finite() && ki > 0.0,
+            "intersection_cost",
+            ki,
+            "finite, > 0",
+        )?;
+        BuildError::require(
+            (0.0..1.0).contains(&bonus),
+            "empty_bonus",
+            bonus,
+            "0 <= b < 1",
+        )?;
         if let Some(d) = self.max_depth {
-            if d > MAX_DEPTH {
-                return bad("max_depth", d.to_string(), "0..=64");
-            }
+            BuildError::require(d <= MAX_DEPTH, "max_depth", d, "0..=64")?;
         }
-        if !(1..=1 << 20).contains(&self.max_leaf_size) {
-            return bad(
-                "max_leaf_size",
-                self.max_leaf_size.to_string(),
-                "1..=1048576",
-            );
-        }
-        if !(1.0..=64.0).contains(&self.reference_budget) {
-            return bad(
-                "reference_budget",
-                self.reference_budget.to_string(),
-                "1..=64",
-            );
-        }
+        let leaf = self.max_leaf_size;
+        BuildError::require(
+            (1..=1 << 20).contains(&leaf),
+            "max_leaf_size",
+            leaf,
+            "1..=1048576",
+        )?;
+        let budget = self.reference_budget;
+        BuildError::require(
+            (1.0..=64.0).contains(&budget),
+            "reference_budget",
+            budget,
+            "1..=64",
+        )?;
         Ok(())
     }
 }

@@ -116,15 +116,12 @@ impl<P: Primitive> KdTree<P> {
             if n.count() > 1 && n.data() as usize + n.count() > self.indices.len() {
                 return fail(format!("leaf {i} points past the index array"));
             }
-            // A referenced primitive really overlaps the cell (grown by a relative margin for
-            // the rounding of clipped bounds).
-            let pad = (cell.max - cell.min).max(cell.max.abs().max(cell.min.abs())) * 1e-6;
-            let grown = Aabb::new(cell.min - pad, cell.max + pad);
+            // A referenced primitive really touches the cell.
             for &p in n.leaf_prims(&self.indices) {
                 let Some(prim) = self.prims.get(p as usize) else {
                     return fail(format!("leaf {i} holds primitive {p}, out of range"));
                 };
-                if prim.clipped_bounds(&grown).is_empty() {
+                if !rt_geom::touches_cell(prim, cell) {
                     return fail(format!("primitive {p} is in leaf {i} but not in its cell"));
                 }
                 seen[p as usize] = true;
@@ -133,9 +130,6 @@ impl<P: Primitive> KdTree<P> {
         if let Some(e) = err {
             return Err(e);
         }
-        match seen.iter().position(|s| !s) {
-            Some(p) => Err(format!("primitive {p} is in no leaf")),
-            None => Ok(()),
-        }
+        rt_geom::all_referenced(&seen)
     }
 }

@@ -18,7 +18,10 @@ fn main() {
         }
     };
     for max_prims in [2, 4, 10, 20] {
-        let params = OctreeParams { max_prims, ..OctreeParams::standard() };
+        let params = OctreeParams {
+            max_prims,
+            ..OctreeParams::standard()
+        };
         let start = Instant::now();
         match Octree::build(&tris, params) {
             Ok(t) => println!(

@@ -193,14 +193,12 @@ impl<P: Primitive> Accel for Octree<P> {
                 err.get_or_insert(format!("leaf {i} points past the index array"));
                 return;
             }
-            let pad = (b.max - b.min).max(b.max.abs().max(b.min.abs())) * 1e-6;
-            let grown = Aabb::new(b.min - pad, b.max + pad);
             for &p in &self.indices[n.prims()] {
                 match self.prims.get(p as usize) {
                     None => {
                         err.get_or_insert(format!("leaf {i} holds primitive {p}, out of range"));
                     }
-                    Some(prim) if prim.clipped_bounds(&grown).is_empty() => {
+                    Some(prim) if !rt_geom::touches_cell(prim, b) => {
                         err.get_or_insert(format!(
                             "primitive {p} is in leaf {i} but not in its box"
                         ));
@@ -215,10 +213,7 @@ impl<P: Primitive> Accel for Octree<P> {
         if let Some(e) = err {
             return Err(e);
         }
-        match seen.iter().position(|s| !s) {
-            Some(p) => Err(format!("primitive {p} is in no leaf")),
-            None => Ok(()),
-        }
+        rt_geom::all_referenced(&seen)
     }
 }
 

@@ -51,26 +51,16 @@ impl OctreeParams {
 
     /// Checks every field; the error names the first one out of range.
     pub fn validate(&self) -> Result<(), BuildError> {
-        let bad = |name, value: String, expected| {
-            Err(BuildError::InvalidParameter {
-                name,
-                value,
-                expected,
-            })
-        };
-        if self.max_prims == 0 {
-            return bad("max_prims", "0".into(), ">= 1");
-        }
-        if self.max_depth > MAX_DEPTH {
-            return bad("max_depth", self.max_depth.to_string(), "0..=24");
-        }
-        if !(1.0..=64.0).contains(&self.reference_budget) {
-            return bad(
-                "reference_budget",
-                self.reference_budget.to_string(),
-                "1..=64",
-            );
-        }
+        BuildError::require(self.max_prims >= 1, "max_prims", self.max_prims, ">= 1")?;
+        let depth = self.max_depth;
+        BuildError::require(depth <= MAX_DEPTH, "max_depth", depth, "0..=24")?;
+        let budget = self.reference_budget;
+        BuildError::require(
+            (1.0..=64.0).contains(&budget),
+            "reference_budget",
+            budget,
+            "1..=64",
+        )?;
         Ok(())
     }
 }

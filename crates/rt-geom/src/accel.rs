@@ -1,7 +1,7 @@
 //! The one query interface every acceleration structure implements, its statistics, and the
 //! errors builders return.
 
-use crate::{Hit, Primitive, Ray};
+use crate::{Aabb, Hit, Primitive, Ray};
 use std::fmt;
 
 /// An acceleration structure: the two questions every renderer asks about a ray.
@@ -153,6 +153,45 @@ impl fmt::Display for BuildError {
 }
 
 impl std::error::Error for BuildError {}
+
+impl BuildError {
+    /// The one-line parameter check: `Ok` if `ok`, else `InvalidParameter` naming the field,
+    /// its value and what was expected.
+    pub fn require(
+        ok: bool,
+        name: &'static str,
+        value: impl fmt::Display,
+        expected: &'static str,
+    ) -> Result<(), BuildError> {
+        if ok {
+            Ok(())
+        } else {
+            Err(BuildError::InvalidParameter {
+                name,
+                value: value.to_string(),
+                expected,
+            })
+        }
+    }
+}
+
+/// For `validate()` of structures that cut primitives (kd-trees, grids, octrees, spatial
+/// splits): `prim` touches `cell` grown by a relative 1e-6. Clipped bounds round outward, so
+/// a builder may list a primitive that only touches a cell within rounding.
+pub fn touches_cell<P: Primitive>(prim: &P, cell: &Aabb) -> bool {
+    let pad = (cell.max - cell.min).max(cell.max.abs().max(cell.min.abs())) * 1e-6;
+    !prim
+        .clipped_bounds(&Aabb::new(cell.min - pad, cell.max + pad))
+        .is_empty()
+}
+
+/// For `validate()`: `Err` naming the first primitive no leaf or cell holds.
+pub fn all_referenced(seen: &[bool]) -> Result<(), String> {
+    match seen.iter().position(|s| !s) {
+        Some(p) => Err(format!("primitive {p} is in no leaf")),
+        None => Ok(()),
+    }
+}
 
 /// The input checks every builder starts with: all primitives finite and at most `max_count`.
 pub fn check_primitives<P: Primitive>(prims: &[P], max_count: usize) -> Result<(), BuildError> {

@@ -87,13 +87,9 @@ impl BspParams {
             ..KdParams::sah()
         }
         .validate()?;
-        if self.candidates > 1024 || (self.candidates == 0 && !self.axis_planes) {
-            return Err(BuildError::InvalidParameter {
-                name: "candidates",
-                value: self.candidates.to_string(),
-                expected: "0..=1024, and > 0 without axis planes",
-            });
-        }
+        let c = self.candidates;
+        let ok = c <= 1024 && (c > 0 || self.axis_planes);
+        BuildError::require(ok, "candidates", c, "0..=1024, and > 0 without axis planes")?;
         Ok(())
     }
 }
@@ -364,10 +360,7 @@ impl<P: Primitive> Accel for BspTree<P> {
         if let Some(e) = err {
             return Err(e);
         }
-        match seen.iter().position(|s| !s) {
-            Some(p) => Err(format!("primitive {p} is in no leaf")),
-            None => Ok(()),
-        }
+        rt_geom::all_referenced(&seen)
     }
 }
 
