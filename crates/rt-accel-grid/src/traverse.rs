@@ -19,7 +19,7 @@
 use crate::Grid;
 use crate::level::NO_CHILD;
 use rt_geom::aabb::{pad_down, pad_up};
-use rt_geom::{Hit, Primitive, Ray};
+use rt_geom::{Hit, Mailbox, Primitive, Ray};
 
 /// Mailbox slots per ray.
 const MAILBOX: usize = 8;
@@ -31,8 +31,7 @@ struct Walk<'a, P> {
     inv: [f32; 3],
     ray: Ray,
     best: Option<Hit>,
-    mailbox: [u32; MAILBOX],
-    slot: usize,
+    mailbox: Mailbox<MAILBOX>,
 }
 
 impl<P: Primitive> Walk<'_, P> {
@@ -40,12 +39,8 @@ impl<P: Primitive> Walk<'_, P> {
     #[inline(always)]
     fn test<const ANY_HIT: bool, const MAILBOXES: bool>(&mut self, ids: &[u32]) -> bool {
         for &p in ids {
-            if MAILBOXES {
-                if self.mailbox.contains(&p) {
-                    continue;
-                }
-                self.mailbox[self.slot] = p;
-                self.slot = (self.slot + 1) % MAILBOX;
+            if MAILBOXES && self.mailbox.seen(p) {
+                continue;
             }
             if let Some(h) = self.grid.prims[p as usize].intersect(&self.ray) {
                 self.best = Some(Hit::new(h, p));
@@ -155,8 +150,7 @@ impl<P: Primitive> Grid<P> {
             inv: ray.inv_dir().to_array(),
             ray: *ray,
             best: None,
-            mailbox: [u32::MAX; MAILBOX],
-            slot: 0,
+            mailbox: Mailbox::default(),
         };
         if self.params.mailbox {
             walk.level::<ANY_HIT, true>(0, t0, t1);

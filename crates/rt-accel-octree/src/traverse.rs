@@ -13,11 +13,14 @@
 //!   from the parent's), NaN (a ray lying in a plane) counts as "inside the slab", and each
 //!   octant's interval is padded like the box test before it is compared with the closest
 //!   hit.
+//!
+//! Both walks keep a per-ray mailbox of the last 8 primitives tested: a primitive listed in
+//! several leaves along the ray is tested once.
 
 use crate::Octree;
 use crate::node::octant;
 use rt_geom::aabb::{pad_down, pad_up};
-use rt_geom::{Aabb, Hit, Primitive, Ray};
+use rt_geom::{Aabb, Hit, Mailbox, Primitive, Ray};
 
 struct Walk<'a, P> {
     tree: &'a Octree<P>,
@@ -27,6 +30,8 @@ struct Walk<'a, P> {
     mirror: usize,
     ray: Ray,
     best: Option<Hit>,
+    /// Primitives listed in several leaves are tested once per ray.
+    mailbox: Mailbox<8>,
 }
 
 impl<P: Primitive> Walk<'_, P> {
@@ -34,6 +39,9 @@ impl<P: Primitive> Walk<'_, P> {
     fn leaf<const ANY_HIT: bool>(&mut self, i: usize) -> bool {
         let tree = self.tree;
         for &p in &tree.indices[tree.nodes[i].prims()] {
+            if self.mailbox.seen(p) {
+                continue;
+            }
             if let Some(h) = tree.prims[p as usize].intersect(&self.ray) {
                 self.best = Some(Hit::new(h, p));
                 if ANY_HIT {
@@ -168,6 +176,7 @@ impl<P: Primitive> Octree<P> {
             mirror: (0..3).fold(0, |m, a| m | ((dir[a].is_sign_negative() as usize) << a)),
             ray: *ray,
             best: None,
+            mailbox: Mailbox::default(),
         };
         match self.params.traversal {
             crate::OctreeTraversal::Recursive => walk.recursive::<ANY_HIT>(0, &self.bounds),

@@ -175,6 +175,37 @@ impl BuildError {
     }
 }
 
+/// A per-ray mailbox (Amanatides & Woo 1987): the last `N` primitives a ray tested, so that a
+/// structure listing a primitive in several cells tests it once per ray. Kept per ray (on the
+/// stack), so threads share nothing.
+#[derive(Clone, Copy, Debug)]
+pub struct Mailbox<const N: usize> {
+    ids: [u32; N],
+    next: usize,
+}
+
+impl<const N: usize> Default for Mailbox<N> {
+    fn default() -> Self {
+        Self {
+            ids: [u32::MAX; N],
+            next: 0,
+        }
+    }
+}
+
+impl<const N: usize> Mailbox<N> {
+    /// True if `id` was tested already; otherwise records it and returns false.
+    #[inline]
+    pub fn seen(&mut self, id: u32) -> bool {
+        if self.ids.contains(&id) {
+            return true;
+        }
+        self.ids[self.next] = id;
+        self.next = (self.next + 1) % N;
+        false
+    }
+}
+
 /// For `validate()` of structures that cut primitives (kd-trees, grids, octrees, spatial
 /// splits): `prim` touches `cell` grown by a relative 1e-6. Clipped bounds round outward, so
 /// a builder may list a primitive that only touches a cell within rounding.

@@ -38,7 +38,9 @@ pub mod triangle;
 pub mod volume;
 
 pub use aabb::Aabb;
-pub use accel::{Accel, AccelStats, BuildError, all_referenced, check_primitives, touches_cell};
+pub use accel::{
+    Accel, AccelStats, BuildError, Mailbox, all_referenced, check_primitives, touches_cell,
+};
 pub use brute::BruteForce;
 pub use glam::{self, Vec3};
 pub use mesh::{Mesh, MeshError, MeshGroup, load_obj, parse_obj};
