@@ -99,18 +99,7 @@ impl BvhParams {
             self.intersection_cost,
         );
         BuildError::require((1..=255).contains(&leaf), "max_leaf_size", leaf, "1..=255")?;
-        BuildError::require(
-            kt.is_finite() && kt >= 0.0,
-            "traversal_cost",
-            kt,
-            "finite, >= 0",
-        )?;
-        BuildError::require(
-            ki.is_finite() && ki > 0.0,
-            "intersection_cost",
-            ki,
-            "finite, > 0",
-        )?;
+        rt_geom::check_sah_costs(kt, ki)?;
         if let Some(alpha) = self.spatial_alpha {
             BuildError::require(
                 (0.0..=1.0).contains(&alpha),

@@ -106,18 +106,7 @@ impl KdParams {
             self.intersection_cost,
             self.empty_bonus,
         );
-        BuildError::require(
-            kt.is_finite() && kt >= 0.0,
-            "traversal_cost",
-            kt,
-            "finite, >= 0",
-        )?;
-        BuildError::require(
-            ki.is_finite() && ki > 0.0,
-            "intersection_cost",
-            ki,
-            "finite, > 0",
-        )?;
+        rt_geom::check_sah_costs(kt, ki)?;
         BuildError::require(
             (0.0..1.0).contains(&bonus),
             "empty_bonus",

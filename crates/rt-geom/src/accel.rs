@@ -175,6 +175,15 @@ impl BuildError {
     }
 }
 
+/// The SAH constants every builder takes: a traversal cost that is finite and `>= 0`, an
+/// intersection cost that is finite and `> 0`.
+pub fn check_sah_costs(traversal: f32, intersection: f32) -> Result<(), BuildError> {
+    let t_ok = traversal.is_finite() && traversal >= 0.0;
+    BuildError::require(t_ok, "traversal_cost", traversal, "finite, >= 0")?;
+    let i_ok = intersection.is_finite() && intersection > 0.0;
+    BuildError::require(i_ok, "intersection_cost", intersection, "finite, > 0")
+}
+
 /// A per-ray mailbox (Amanatides & Woo 1987): the last `N` primitives a ray tested, so that a
 /// structure listing a primitive in several cells tests it once per ray. Kept per ray (on the
 /// stack), so threads share nothing.
