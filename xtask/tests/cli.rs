@@ -255,3 +255,13 @@ fn bad_input_gets_clear_errors() {
     let o = xtask(&["bench", "--quick", "--threads", "0"]);
     fails_cleanly(&o, "--threads");
 }
+
+#[test]
+fn sweep_options_are_checked() {
+    let o = xtask(&["bench", "--sweep", "--scenes", "bunny"]);
+    fails_cleanly(&o, "cannot be used with");
+    let o = xtask(&["bench", "--sweep", "--accels", "no-such-tree"]);
+    fails_cleanly(&o, "unknown accel 'no-such-tree'");
+    let o = xtask(&["bench", "--sweep", "--threads", "0"]);
+    fails_cleanly(&o, "--threads");
+}
