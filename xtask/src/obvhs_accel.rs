@@ -186,10 +186,7 @@ impl<T: ObvhsTree> Accel for Obvhs<T> {
                 .get_mut(p as usize)
                 .ok_or_else(|| format!("primitive index {p} out of range"))? = true;
         }
-        match seen.iter().position(|s| !s) {
-            Some(p) => Err(format!("primitive {p} is in no leaf")),
-            None => Ok(()),
-        }
+        rt_geom::all_referenced(&seen)
     }
 }
 

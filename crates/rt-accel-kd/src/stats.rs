@@ -5,50 +5,6 @@ use crate::build::child_bounds;
 use crate::params::MAX_DEPTH;
 use rt_geom::{Aabb, AccelStats, Primitive};
 
-/// Sums what a walk over a kd- or BSP tree sees into its [`AccelStats`]: depth, leaves,
-/// references, and the SAH cost in the units every rt structure reports (1 per inner node, 1
-/// per primitive test, each weighted by its cell's area over the root's), so that the `sah`
-/// column of `bench` compares across structures.
-pub(crate) struct StatsSum {
-    stats: AccelStats,
-    root_area: f64,
-    sah: f64,
-}
-
-impl StatsSum {
-    pub fn new(stats: AccelStats, root: &Aabb) -> Self {
-        Self {
-            stats,
-            root_area: root.half_area() as f64,
-            sah: 0.0,
-        }
-    }
-
-    pub fn add(&mut self, node: &crate::KdNode, cell: &Aabb, depth: usize) {
-        let s = &mut self.stats;
-        s.max_depth = s.max_depth.max(depth);
-        let area = cell.half_area() as f64;
-        if node.is_leaf() {
-            if node.count() > 0 {
-                s.leaves += 1;
-                s.references += node.count();
-            }
-            self.sah += area * node.count() as f64;
-        } else {
-            self.sah += area;
-        }
-    }
-
-    pub fn finish(mut self) -> AccelStats {
-        self.stats.sah_cost = Some(if self.root_area > 0.0 {
-            (self.sah / self.root_area) as f32
-        } else {
-            0.0
-        });
-        self.stats
-    }
-}
-
 impl<P: Primitive> KdTree<P> {
     /// Calls `f(node index, cell, depth)` for every node, parents before children.
     pub(crate) fn walk(&self, mut f: impl FnMut(usize, &Aabb, usize)) {
@@ -79,8 +35,8 @@ impl<P: Primitive> KdTree<P> {
         if self.nodes.is_empty() {
             return s;
         }
-        let mut acc = StatsSum::new(s, &self.bounds);
-        self.walk(|i, cell, d| acc.add(&self.nodes[i], cell, d));
+        let mut acc = rt_geom::StatsSum::new(s, &self.bounds);
+        self.walk(|i, cell, d| acc.add(cell, d, self.nodes[i].is_leaf(), self.nodes[i].count()));
         acc.finish()
     }
 

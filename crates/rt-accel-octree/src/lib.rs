@@ -131,10 +131,9 @@ impl<P: Primitive> Accel for Octree<P> {
     }
 
     fn stats(&self) -> AccelStats {
-        let mut s = AccelStats {
+        let s = AccelStats {
             primitives: self.prims.len(),
             nodes: self.nodes.len(),
-            references: self.indices.len(),
             bytes: std::mem::size_of_val(self.nodes.as_slice())
                 + std::mem::size_of_val(self.indices.as_slice())
                 + std::mem::size_of_val(self.prims.as_slice()),
@@ -143,24 +142,12 @@ impl<P: Primitive> Accel for Octree<P> {
         if self.nodes.is_empty() {
             return s;
         }
-        // SAH cost in the common units: 1 per inner node, 1 per primitive, by area.
-        let root = self.bounds.half_area() as f64;
-        let mut sah = 0.0;
+        let mut acc = rt_geom::StatsSum::new(s, &self.bounds);
         self.walk(&mut |i, b, d| {
             let n = self.nodes[i];
-            s.max_depth = s.max_depth.max(d);
-            let area = b.half_area() as f64;
-            if n.is_leaf() {
-                if !n.prims().is_empty() {
-                    s.leaves += 1;
-                }
-                sah += area * n.prims().len() as f64;
-            } else {
-                sah += area;
-            }
+            acc.add(b, d, n.is_leaf(), n.prims().len())
         });
-        s.sah_cost = Some(if root > 0.0 { (sah / root) as f32 } else { 0.0 });
-        s
+        acc.finish()
     }
 
     /// Children after their parent and in range; every leaf within the index array; every

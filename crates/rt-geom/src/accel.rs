@@ -175,6 +175,51 @@ impl BuildError {
     }
 }
 
+/// Sums what a walk over a tree of cells sees into its [`AccelStats`]: depth, non-empty
+/// leaves, references, and the SAH cost in the units every rt structure reports (1 per inner
+/// node, 1 per primitive test, each weighted by its cell's area over the root's), so that the
+/// `sah` column of `bench` compares across structures.
+pub struct StatsSum {
+    stats: AccelStats,
+    root_area: f64,
+    sah: f64,
+}
+
+impl StatsSum {
+    pub fn new(stats: AccelStats, root: &Aabb) -> Self {
+        Self {
+            stats,
+            root_area: root.half_area() as f64,
+            sah: 0.0,
+        }
+    }
+
+    /// One node: its cell, depth, and whether it is a leaf of `count` primitives.
+    pub fn add(&mut self, cell: &Aabb, depth: usize, leaf: bool, count: usize) {
+        let s = &mut self.stats;
+        s.max_depth = s.max_depth.max(depth);
+        let area = cell.half_area() as f64;
+        if leaf {
+            if count > 0 {
+                s.leaves += 1;
+                s.references += count;
+            }
+            self.sah += area * count as f64;
+        } else {
+            self.sah += area;
+        }
+    }
+
+    pub fn finish(mut self) -> AccelStats {
+        self.stats.sah_cost = Some(if self.root_area > 0.0 {
+            (self.sah / self.root_area) as f32
+        } else {
+            0.0
+        });
+        self.stats
+    }
+}
+
 /// The SAH constants every builder takes: a traversal cost that is finite and `>= 0`, an
 /// intersection cost that is finite and `> 0`.
 pub fn check_sah_costs(traversal: f32, intersection: f32) -> Result<(), BuildError> {

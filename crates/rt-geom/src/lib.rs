@@ -39,8 +39,8 @@ pub mod volume;
 
 pub use aabb::Aabb;
 pub use accel::{
-    Accel, AccelStats, BuildError, Mailbox, all_referenced, check_primitives, check_sah_costs,
-    touches_cell,
+    Accel, AccelStats, BuildError, Mailbox, StatsSum, all_referenced, check_primitives,
+    check_sah_costs, touches_cell,
 };
 pub use brute::BruteForce;
 pub use glam::{self, Vec3};

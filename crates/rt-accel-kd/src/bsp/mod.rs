@@ -11,7 +11,6 @@ mod build;
 
 use crate::build::{BuildNode, MAX_LOCAL, flatten, root_budget};
 use crate::params::{KdTraversal, MAX_DEPTH};
-use crate::stats::StatsSum;
 use crate::traverse::{self, SplitPlanes, Step, ordered_children};
 use crate::{KdNode, KdParams};
 use build::{Side, classify, clip_cell};
@@ -298,8 +297,11 @@ impl<P: Primitive> Accel for BspTree<P> {
         if self.nodes.is_empty() {
             return s;
         }
-        let mut acc = StatsSum::new(s, &self.bounds);
-        self.walk(|i, cell, path| acc.add(&self.nodes[i], cell, path.len()));
+        let mut acc = rt_geom::StatsSum::new(s, &self.bounds);
+        self.walk(|i, cell, path| {
+            let n = &self.nodes[i];
+            acc.add(cell, path.len(), n.is_leaf(), n.count())
+        });
         acc.finish()
     }
 
