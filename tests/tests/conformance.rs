@@ -29,6 +29,7 @@ mod brute {
     rt_testkit::conformance_tests!(
         triangles: |p: &[Triangle]| BruteForce::build(p),
         spheres: |p: &[Sphere]| BruteForce::build(p),
+        shapes: |p: &[rt_geom::Shape]| BruteForce::build(p),
     );
 }
 

@@ -330,6 +330,7 @@ mod tests {
                 rt_testkit::conformance_tests!(
                     triangles: |p: &[Triangle]| BvList::<_, $v>::build(p, $params),
                     spheres: |p: &[Sphere]| BvList::<_, $v>::build(p, $params),
+                    shapes: |p: &[rt_geom::Shape]| BvList::<_, $v>::build(p, $params),
                 );
             }
         )*};

@@ -451,6 +451,7 @@ mod tests {
         rt_testkit::conformance_tests!(
             triangles: |p: &[Triangle]| Bvh4::build(p, BvhParams::balanced()),
             spheres: |p: &[Sphere]| Bvh4::build(p, BvhParams::balanced()),
+            shapes: |p: &[rt_geom::Shape]| Bvh4::build(p, BvhParams::balanced()),
         );
     }
 
@@ -459,6 +460,7 @@ mod tests {
         rt_testkit::conformance_tests!(
             triangles: |p: &[Triangle]| Bvh8::build(p, BvhParams::balanced()),
             spheres: |p: &[Sphere]| Bvh8::build(p, BvhParams::balanced()),
+            shapes: |p: &[rt_geom::Shape]| Bvh8::build(p, BvhParams::balanced()),
         );
     }
 

@@ -10,6 +10,8 @@
 //! | [`aabb`] | [`Aabb`] and its robust slab test ([`Aabb::clip_ray`], Ize 2013) |
 //! | [`triangle`] | [`Triangle`]: watertight test (Woop, Benthin & Wald 2013), Möller–Trumbore, clipping |
 //! | [`sphere`] | [`Sphere`], solved in the stable form of Ray Tracing Gems ch. 7 |
+//! | [`cone`] | [`Cone`]: open cones and cylinders (NFF's `c`), solved in `f64` |
+//! | [`shape`] | [`Shape`]: a triangle, sphere or cone, for scenes that mix them |
 //! | [`volume`] | [`BoundingVolume`]: [`BoundingSphere`], [`Aabb`], [`Kdop7`] (Kay & Kajiya 1986) |
 //! | [`primitive`] | [`Primitive`]: what structures need of their elements |
 //! | [`accel`] | [`Accel`], [`AccelStats`], [`BuildError`] |
@@ -30,9 +32,11 @@
 pub mod aabb;
 pub mod accel;
 pub mod brute;
+pub mod cone;
 pub mod mesh;
 pub mod primitive;
 pub mod ray;
+pub mod shape;
 pub mod sphere;
 pub mod triangle;
 pub mod volume;
@@ -43,10 +47,12 @@ pub use accel::{
     check_sah_costs, touches_cell,
 };
 pub use brute::BruteForce;
+pub use cone::Cone;
 pub use glam::{self, Vec3};
 pub use mesh::{Mesh, MeshError, MeshGroup, load_obj, parse_obj};
 pub use primitive::Primitive;
 pub use ray::{Hit, PrimHit, Ray};
+pub use shape::Shape;
 pub use sphere::Sphere;
 pub use triangle::{Triangle, TriangleKernel, watertight_edges};
 pub use volume::{BoundingSphere, BoundingVolume, KDOP7_NORMALS, Kdop7};

@@ -350,6 +350,34 @@ macro_rules! conformance_tests {
             $crate::conformance::assert_rejects_non_finite(&valid, |s| s.radius = f32::NAN, $sph);
         }
     };
+    (tolerance: $tol:expr, triangles: $tri:expr, spheres: $sph:expr, shapes: $shp:expr $(,)?) => {
+        $crate::conformance_tests!(tolerance: $tol, triangles: $tri, spheres: $sph);
+        $crate::conformance_tests!(@shp $tol, $shp; shapes, cones, posts);
+        #[test]
+        fn rejects_non_finite_shapes() {
+            let valid = $crate::scenes::mixed_shapes(12, 1);
+            $crate::conformance::assert_rejects_non_finite(&valid, |s| {
+                if let $crate::rt_geom::Shape::Cone(c) = s { c.apex.z = f32::NAN }
+                else { *s = $crate::rt_geom::Cone::new(
+                    $crate::rt_geom::Vec3::ZERO, f32::INFINITY, $crate::rt_geom::Vec3::Z, 1.0).into() }
+            }, $shp);
+        }
+    };
+    (triangles: $tri:expr, spheres: $sph:expr, shapes: $shp:expr $(,)?) => {
+        $crate::conformance_tests!(
+            tolerance: $crate::conformance::Tolerance::EXACT, triangles: $tri, spheres: $sph,
+            shapes: $shp
+        );
+    };
+    (@shp $tol:expr, $build:expr; $($scene:ident),*) => {
+        $(
+            #[test]
+            fn $scene() {
+                $crate::conformance::assert_conforms_within(
+                    &$crate::scenes::shape_scene(stringify!($scene)), $build, $tol);
+            }
+        )*
+    };
     (@tri $tol:expr, $build:expr; $($scene:ident),*) => {
         $(
             #[test]
@@ -371,7 +399,7 @@ macro_rules! conformance_tests {
 }
 
 /// One module of [`conformance_tests!`] per named parameter set of a builder that takes
-/// `(prims, params)`, over triangles and spheres:
+/// `(prims, params)`, over triangles, spheres and mixed shapes:
 ///
 /// ```ignore
 /// rt_testkit::conformance_per_params!(KdTree::build {
@@ -387,6 +415,7 @@ macro_rules! conformance_per_params {
             $crate::conformance_tests!(
                 triangles: |p: &[$crate::rt_geom::Triangle]| $ty::$build(p, $params),
                 spheres: |p: &[$crate::rt_geom::Sphere]| $ty::$build(p, $params),
+                shapes: |p: &[$crate::rt_geom::Shape]| $ty::$build(p, $params),
             );
         }
     )*};
@@ -402,6 +431,7 @@ mod tests {
         crate::conformance_tests!(
             triangles: |p: &[Triangle]| BruteForce::build(p),
             spheres: |p: &[Sphere]| BruteForce::build(p),
+            shapes: |p: &[rt_geom::Shape]| BruteForce::build(p),
         );
     }
 

@@ -2,7 +2,7 @@
 //! and diffuse sets that `verify` and `bench` trace through the shared meshes.
 
 use crate::Rng;
-use rt_geom::{Aabb, Accel, Hit, Primitive, Ray, Sphere, Triangle, Vec3};
+use rt_geom::{Aabb, Accel, Cone, Hit, Primitive, Ray, Shape, Sphere, Triangle, Vec3};
 
 /// Points on a primitive that rays are aimed at.
 pub trait SamplePoints: Primitive {
@@ -43,6 +43,40 @@ impl SamplePoints for Sphere {
 
     fn feature_point(&self, rng: &mut Rng) -> Vec3 {
         self.sample(rng.f32(), rng.f32())
+    }
+}
+
+impl SamplePoints for Cone {
+    fn sample(&self, u: f32, v: f32) -> Vec3 {
+        let axis = self.apex - self.base;
+        let (e1, e2) = axis.normalize_or(Vec3::Z).any_orthonormal_pair();
+        let r = self.base_radius + (self.apex_radius - self.base_radius) * v;
+        let phi = std::f32::consts::TAU * u;
+        self.base + axis * v + r.max(0.0) * (e1 * phi.cos() + e2 * phi.sin())
+    }
+
+    /// Points on the rims, where rays graze the open ends.
+    fn feature_point(&self, rng: &mut Rng) -> Vec3 {
+        let rim = if rng.chance(0.5) { 0.0 } else { 1.0 };
+        self.sample(rng.f32(), rim)
+    }
+}
+
+impl SamplePoints for Shape {
+    fn sample(&self, u: f32, v: f32) -> Vec3 {
+        match self {
+            Shape::Triangle(t) => t.sample(u, v),
+            Shape::Sphere(s) => s.sample(u, v),
+            Shape::Cone(c) => c.sample(u, v),
+        }
+    }
+
+    fn feature_point(&self, rng: &mut Rng) -> Vec3 {
+        match self {
+            Shape::Triangle(t) => t.feature_point(rng),
+            Shape::Sphere(s) => s.feature_point(rng),
+            Shape::Cone(c) => c.feature_point(rng),
+        }
     }
 }
 

@@ -1,7 +1,7 @@
 //! Procedural and adversarial scenes. None needs a file; every one is fixed by its parameters.
 
 use crate::Rng;
-use rt_geom::{Aabb, Primitive, Sphere, Triangle, Vec3};
+use rt_geom::{Aabb, Cone, Primitive, Shape, Sphere, Triangle, Vec3};
 use std::f32::consts::{PI, TAU};
 
 /// A named list of primitives.
@@ -238,6 +238,53 @@ pub fn random_spheres(n: usize, seed: u64) -> Vec<Sphere> {
         .collect()
 }
 
+/// Open cones and cylinders of random sizes and directions in the unit cube; a few point-like,
+/// a few axis-aligned (rays run along their walls), a few degenerate (never hit).
+pub fn random_cones(n: usize, seed: u64) -> Vec<Cone> {
+    let mut rng = Rng::new(seed);
+    (0..n)
+        .map(|_| {
+            let base = rng.point_in(Vec3::ZERO, Vec3::ONE);
+            let len = 0.02 + 0.2 * rng.f32().powi(2);
+            let dir = match rng.below(10) {
+                0 => Vec3::AXES[rng.below(3)],
+                _ => rng.unit_vector(),
+            };
+            let rb = 0.002 + 0.04 * rng.f32();
+            let ra = match rng.below(4) {
+                0 => rb,
+                1 => 0.0,
+                _ => 0.002 + 0.04 * rng.f32(),
+            };
+            match rng.below(40) {
+                0 => Cone::new(base, 0.0, base + dir * len, 0.0),
+                1 => Cone::cylinder(base, base, rb),
+                _ => Cone::new(base, rb, base + dir * len, ra),
+            }
+        })
+        .collect()
+}
+
+/// Triangles, spheres and cones mixed in one scene (what NFF files hold).
+pub fn mixed_shapes(n: usize, seed: u64) -> Vec<Shape> {
+    let third = n / 3;
+    let mut out: Vec<Shape> = Vec::with_capacity(n);
+    let tris = random_soup(third, seed);
+    let spheres = random_spheres(third, seed + 1);
+    let cones = random_cones(n - 2 * third, seed + 2);
+    // Interleaved, so that primitive ids of each kind are spread over the scene.
+    for i in 0..n - 2 * third {
+        if let Some(t) = tris.get(i) {
+            out.push((*t).into());
+        }
+        if let Some(s) = spheres.get(i) {
+            out.push((*s).into());
+        }
+        out.push(cones[i].into());
+    }
+    out
+}
+
 /// The triangle scenes every structure must agree with brute force on.
 pub fn conformance_triangle_scenes() -> Vec<Scene<Triangle>> {
     let soup = random_soup(2000, 1);
@@ -278,6 +325,37 @@ pub fn conformance_sphere_scenes() -> Vec<Scene<Sphere>> {
         Scene::new("one_sphere", vec![Sphere::new(Vec3::splat(0.5), 0.25)]),
         Scene::new("empty_spheres", vec![]),
     ]
+}
+
+/// The mixed-shape scenes (triangles, spheres, cones) every structure generic over
+/// `Primitive` must agree on.
+pub fn conformance_shape_scenes() -> Vec<Scene<Shape>> {
+    let ground = [
+        Triangle::new(Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 1.0)),
+        Triangle::new(Vec3::ZERO, Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 0.0, 1.0)),
+    ];
+    // Cylinders standing on the ground, touching it and each other (as in SPD's rings).
+    let mut posts: Vec<Shape> = ground.iter().map(|&t| t.into()).collect();
+    for i in 0..5 {
+        for j in 0..5 {
+            let c = Vec3::new(0.1 + 0.2 * i as f32, 0.0, 0.1 + 0.2 * j as f32);
+            posts.push(Cone::cylinder(c, c + Vec3::Y * 0.3, 0.1).into());
+            posts.push(Sphere::new(c + Vec3::Y * 0.3, 0.1).into());
+        }
+    }
+    vec![
+        Scene::new("shapes", mixed_shapes(1500, 7)),
+        Scene::new("cones", random_cones(1000, 8).into_iter().map(Shape::from).collect()),
+        Scene::new("posts", posts),
+    ]
+}
+
+/// A conformance scene by name (shapes).
+pub fn shape_scene(name: &str) -> Scene<Shape> {
+    conformance_shape_scenes()
+        .into_iter()
+        .find(|s| s.name == name)
+        .unwrap_or_else(|| panic!("no conformance scene named {name}"))
 }
 
 /// A conformance scene by name (triangles).
