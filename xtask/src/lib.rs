@@ -1,6 +1,6 @@
 //! # xtask: the command-line face of rt
 //!
-//! `cargo xtask accels | verify | bench | trace | rays`. Everything is a library function first
+//! `cargo xtask accels | verify | bench | render | trace | rays`. Everything is a library function first
 //! (so that tests call it directly) and a subcommand second (`main.rs`).
 //!
 //! | module | what it holds |
@@ -10,6 +10,7 @@
 //! | [`verify`] | every structure against brute force and obvhs |
 //! | [`bench`] | throughput, build time, memory, beside obvhs in the same run |
 //! | [`sweep`] | the scaling sweep: build time and time per ray against N (`bench --sweep`) |
+//! | [`render`] | Whitted renders of the chess, OBJ and NFF scenes with any structure (rt-shade) |
 //! | [`trace`] | ray files in, hit files out; standard ray sets out |
 //! | [`rayfile`] | the `.rays` / `.hits` formats |
 //! | [`run`] | timed parallel tracing, medians, progress bars |
@@ -20,6 +21,7 @@ pub mod native;
 pub mod obvhs_accel;
 pub mod rayfile;
 pub mod registry;
+pub mod render;
 pub mod run;
 pub mod sweep;
 pub mod trace;

@@ -8,7 +8,7 @@ use rt_accel_bvh::{
 use rt_accel_grid::{Grid, GridParams};
 use rt_accel_kd::{BspParams, BspTree, KdParams, KdTraversal, KdTree};
 use rt_accel_octree::{Octree, OctreeParams, OctreeTraversal};
-use rt_geom::{Aabb, Accel, BoundingSphere, BruteForce, BuildError, Kdop7, Triangle};
+use rt_geom::{Aabb, Accel, BoundingSphere, BruteForce, BuildError, Kdop7, Shape, Triangle};
 use rt_testkit::Tolerance;
 
 /// A structure that can be built from triangles.
@@ -18,6 +18,9 @@ pub struct AccelEntry {
     /// One line: what it is and how it is built.
     pub about: &'static str,
     pub build: fn(&[Triangle]) -> Result<Box<dyn Accel>, BuildError>,
+    /// The same structure over mixed shapes (triangles, spheres, cones: NFF scenes); `None`
+    /// for structures that hold triangles only.
+    pub build_shapes: Option<fn(&[Shape]) -> Result<Box<dyn Accel>, BuildError>>,
     /// How closely it must agree with brute force (rt's own structures: exactly).
     pub tolerance: Tolerance,
     /// A reference implementation from another crate (not rt's own work).
@@ -55,10 +58,19 @@ const fn own(
         name,
         about,
         build,
+        build_shapes: None,
         tolerance: Tolerance::EXACT,
         external: false,
         bench_max_prims: usize::MAX,
     }
+}
+
+/// An rt structure generic over `Primitive`: `generic!("name", "about", |p| build(p))` registers
+/// the same builder expression over triangles and over shapes.
+macro_rules! generic {
+    ($name:expr, $about:expr, |$p:ident| $body:expr $(,)?) => {
+        own($name, $about, |$p: &[Triangle]| $body).with_shapes(|$p: &[Shape]| $body)
+    };
 }
 
 impl AccelEntry {
@@ -66,6 +78,28 @@ impl AccelEntry {
     const fn bench_up_to(mut self, prims: usize) -> Self {
         self.bench_max_prims = prims;
         self
+    }
+
+    const fn with_shapes(mut self, build: fn(&[Shape]) -> Result<Box<dyn Accel>, BuildError>) -> Self {
+        self.build_shapes = Some(build);
+        self
+    }
+
+    /// Builds over a scene's shapes: with the shape builder, or with the triangle builder when
+    /// every shape is a triangle (same primitive ids).
+    pub fn build_any(&self, shapes: &[Shape]) -> Result<Box<dyn Accel>, String> {
+        if let Some(tris) = shapes.iter().map(|s| s.as_triangle().copied()).collect::<Option<Vec<_>>>() {
+            return (self.build)(&tris).map_err(|e| format!("{}: {e}", self.name));
+        }
+        match self.build_shapes {
+            Some(build) => build(shapes).map_err(|e| format!("{}: {e}", self.name)),
+            None => Err(format!(
+                "{} holds triangles only, and this scene has spheres or cones; structures that \
+                 take any shape: {}",
+                self.name,
+                REGISTRY.iter().filter(|e| e.build_shapes.is_some()).map(|e| e.name).collect::<Vec<_>>().join(", ")
+            )),
+        }
     }
 }
 
@@ -84,21 +118,22 @@ pub static REGISTRY: &[AccelEntry] = &[
         name: "brute",
         about: "brute force: every ray against every primitive (the reference on small scenes)",
         build: |p| boxed(BruteForce::build(p)),
+        build_shapes: Some(|p| boxed(BruteForce::build(p))),
         tolerance: Tolerance::EXACT,
         external: false,
         bench_max_prims: 10_000,
     },
-    own(
+    generic!(
         "bvh",
         "rt BVH2, binned SAH (16 bins), leaves of up to 4, parallel build (BvhParams::balanced)",
         |p| boxed(Bvh::build(p, BvhParams::balanced())),
     ),
-    own(
+    generic!(
         "bvh4",
         "rt BVH4 collapsed from the balanced BVH2 (largest child opened first), 4 boxes per test",
         |p| boxed(Bvh4::build(p, BvhParams::balanced())),
     ),
-    own(
+    generic!(
         "bvh8",
         "rt BVH8 collapsed from the balanced BVH2 (largest child opened first), 8 boxes per test",
         |p| boxed(Bvh8::build(p, BvhParams::balanced())),
@@ -118,27 +153,27 @@ pub static REGISTRY: &[AccelEntry] = &[
         "rt BVH8 over SoA triangles, binned SAH with 8 bins and leaves of up to 8 (two 4-lane tests)",
         |p| boxed(TriBvh8::build(p, BvhParams::fast())),
     ),
-    own(
+    generic!(
         "bvh-fast",
         "rt BVH2, binned SAH (8 bins), leaves of up to 8 (BvhParams::fast)",
         |p| boxed(Bvh::build(p, BvhParams::fast())),
     ),
-    own(
+    generic!(
         "bvh-sweep",
         "rt BVH2, full sweep SAH, leaves of up to 4 (BvhParams::quality)",
         |p| boxed(Bvh::build(p, BvhParams::quality())),
     ),
-    own(
+    generic!(
         "bvh-spatial",
         "rt BVH2, binned SAH with spatial splits (SBVH, alpha 1e-5, up to one extra reference per primitive)",
         |p| boxed(Bvh::build(p, BvhParams::spatial())),
     ),
-    own(
+    generic!(
         "bvh8-spatial",
         "rt BVH8 collapsed from the spatial-split BVH2",
         |p| boxed(Bvh8::build(p, BvhParams::spatial())),
     ),
-    own(
+    generic!(
         "bvh-midpoint",
         "rt BVH2, naive: largest centroid extent split at its middle, leaves of up to 4",
         |p| {
@@ -148,7 +183,7 @@ pub static REGISTRY: &[AccelEntry] = &[
             ))
         },
     ),
-    own(
+    generic!(
         "bvh-median",
         "rt BVH2, naive: object median along the largest centroid extent, leaves of up to 4",
         |p| {
@@ -158,7 +193,7 @@ pub static REGISTRY: &[AccelEntry] = &[
             ))
         },
     ),
-    own(
+    generic!(
         "bvlist-sphere",
         "flat list of bounding spheres, one per Morton cluster of 32 primitives, front to back",
         |p| {
@@ -169,29 +204,29 @@ pub static REGISTRY: &[AccelEntry] = &[
         },
     )
     .bench_up_to(BVLIST_BENCH_MAX),
-    own(
+    generic!(
         "bvlist-box",
         "flat list of bounding boxes, one per Morton cluster of 32 primitives, front to back",
         |p| boxed(BvList::<_, Aabb>::build(p, BvListParams::default())),
     )
     .bench_up_to(BVLIST_BENCH_MAX),
-    own(
+    generic!(
         "bvlist-kdop",
         "flat list of 7-slab k-DOPs (Kay & Kajiya), one per Morton cluster of 32 primitives",
         |p| boxed(BvList::<_, Kdop7>::build(p, BvListParams::default())),
     )
     .bench_up_to(BVLIST_BENCH_MAX),
-    own(
+    generic!(
         "bvlist-box-2level",
         "boxes of 32 primitives grouped under boxes of 32 boxes (volumes of volumes)",
         |p| boxed(BvList::<_, Aabb>::build(p, bvlist_two_level())),
     ),
-    own(
+    generic!(
         "kd",
         "rt kd-tree, SAH over all clipped-box planes in O(N log N) (Wald & Havran 2006), iterative traversal",
         |p| boxed(KdTree::build(p, KdParams::sah())),
     ),
-    own(
+    generic!(
         "kd-recursive",
         "the same SAH kd-tree, traversed by the seeds' recursive front-to-back descent",
         |p| {
@@ -201,52 +236,52 @@ pub static REGISTRY: &[AccelEntry] = &[
             ))
         },
     ),
-    own(
+    generic!(
         "kd-midpoint",
         "rt kd-tree, naive: largest extent split at its middle, leaves of up to 8",
         |p| boxed(KdTree::build(p, KdParams::midpoint())),
     ),
-    own(
+    generic!(
         "kd-centroid",
         "rt kd-tree, naive: largest extent split at the centre of gravity, leaves of up to 8",
         |p| boxed(KdTree::build(p, KdParams::centroid())),
     ),
-    own(
+    generic!(
         "bsp",
         "rt BSP tree, planes of any orientation: 16 of the node's triangle planes and 3 axis-aligned, SAH on cell boxes",
         |p| boxed(BspTree::build(p, BspParams::standard())),
     ),
-    own(
+    generic!(
         "bsp-auto",
         "rt BSP tree by autopartition: only the triangles' own planes (16 tried per node)",
         |p| boxed(BspTree::build(p, BspParams::autopartition())),
     ),
-    own(
+    generic!(
         "grid",
         "rt uniform grid, 2 cells per primitive, exact triangle/cell overlap, 3D-DDA (Amanatides & Woo)",
         |p| boxed(Grid::build(p, GridParams::uniform())),
     ),
-    own(
+    generic!(
         "grid-mailbox",
         "the same uniform grid, each ray skipping primitives it already tested (mailboxes)",
         |p| boxed(Grid::build(p, GridParams::uniform().with_mailbox(true))),
     ),
-    own(
+    generic!(
         "grid2",
         "rt two-level grid (Kalojanov et al. 2011): 1 top cell per 8 primitives, each refined at 2 per primitive",
         |p| boxed(Grid::build(p, GridParams::two_level())),
     ),
-    own(
+    generic!(
         "grid-adaptive",
         "rt adaptive grid (Jevans & Wyvill): cells of more than 8 primitives refined recursively, up to 4 levels",
         |p| boxed(Grid::build(p, GridParams::adaptive())),
     ),
-    own(
+    generic!(
         "octree",
         "rt octree, split at the centre above 10 primitives (depth <= 16), parametric walk (Revelles et al. 2000)",
         |p| boxed(Octree::build(p, OctreeParams::standard())),
     ),
-    own(
+    generic!(
         "octree-recursive",
         "the same octree, walked by the seeds' recursive nearest-first descent",
         |p| {
@@ -260,6 +295,7 @@ pub static REGISTRY: &[AccelEntry] = &[
         name: "obvhs",
         about: "obvhs 0.4 Bvh2, very_slow_build preset (PLOC + reinsertion + presplits): the correctness reference",
         build: |p| boxed(ObvhsBvh2::build(p)),
+        build_shapes: None,
         tolerance: OBVHS_TOLERANCE,
         external: true,
         bench_max_prims: usize::MAX,
@@ -268,6 +304,7 @@ pub static REGISTRY: &[AccelEntry] = &[
         name: "obvhs-cwbvh",
         about: "obvhs 0.4 CwBvh (8-wide compressed), very_slow_build preset: speed reference; drops hits below t = 1e-4",
         build: |p| boxed(ObvhsCwBvh::build(p)),
+        build_shapes: None,
         tolerance: Tolerance {
             near_t: CWBVH_NEAR_T,
             ..OBVHS_TOLERANCE

@@ -1,0 +1,274 @@
+//! The built-in scene: the seeds' chess board. An 8x8 reflective board in a wooden frame on a
+//! table, 32 lathed pieces of about 100 triangles each (smooth normals from the lathe), the
+//! white king, queen and bishops in glass, lit by two lights. Needs no files.
+
+use crate::{Camera, Material, PointLight, Scene};
+use glam::Vec3;
+use rt_geom::Triangle;
+
+/// Scale of the pieces (profiles are given for a king 1.1 squares tall).
+const PIECE_SCALE: f32 = 1.3;
+
+/// Segments around the axis of a lathed piece.
+const SEGMENTS: usize = 10;
+
+/// Lift of the pieces above the board: no face of a piece lies in the board's plane (coplanar
+/// faces would make the closest hit a tie between structures).
+const LIFT: f32 = 1e-3;
+
+/// Profiles `(radius, height)` from the bottom centre to the top, per piece.
+const PAWN: &[(f32, f32)] = &[
+    (0.0, 0.0), (0.28, 0.0), (0.28, 0.08), (0.12, 0.30), (0.19, 0.34), (0.15, 0.48),
+    (0.12, 0.60), (0.0, 0.64),
+];
+const ROOK: &[(f32, f32)] = &[
+    (0.0, 0.0), (0.32, 0.0), (0.32, 0.08), (0.20, 0.18), (0.18, 0.55), (0.25, 0.60),
+    (0.25, 0.75), (0.0, 0.75),
+];
+const KNIGHT: &[(f32, f32)] = &[
+    (0.0, 0.0), (0.32, 0.0), (0.32, 0.08), (0.20, 0.16), (0.15, 0.40), (0.20, 0.60),
+    (0.12, 0.78), (0.0, 0.82),
+];
+const BISHOP: &[(f32, f32)] = &[
+    (0.0, 0.0), (0.30, 0.0), (0.30, 0.08), (0.14, 0.22), (0.11, 0.60), (0.17, 0.70),
+    (0.13, 0.88), (0.0, 0.98),
+];
+const QUEEN: &[(f32, f32)] = &[
+    (0.0, 0.0), (0.34, 0.0), (0.34, 0.09), (0.15, 0.25), (0.11, 0.75), (0.23, 0.92),
+    (0.14, 1.00), (0.0, 1.10),
+];
+const KING: &[(f32, f32)] = &[
+    (0.0, 0.0), (0.34, 0.0), (0.34, 0.09), (0.15, 0.25), (0.12, 0.80), (0.22, 0.92),
+    (0.16, 1.05), (0.0, 1.08),
+];
+
+#[derive(Clone, Copy, PartialEq)]
+enum Piece {
+    Pawn,
+    Rook,
+    Knight,
+    Bishop,
+    Queen,
+    King,
+}
+
+/// The chess scene (4:3 view).
+pub fn chess() -> Scene {
+    let camera = Camera::perspective(
+        Vec3::new(-5.0, 7.5, -10.5),
+        Vec3::new(0.3, 0.3, 0.2),
+        Vec3::Y,
+        40.0,
+    );
+    let mut s = Scene::new("chess", camera);
+    s.resolution = Some((800, 600));
+    s.background = Vec3::new(0.05, 0.07, 0.12);
+    s.ambient = Vec3::splat(0.12);
+    s.lights = vec![
+        PointLight { position: Vec3::new(-6.0, 10.0, -7.0), colour: Vec3::splat(0.75) },
+        PointLight { position: Vec3::new(8.0, 7.0, -2.0), colour: Vec3::new(0.45, 0.42, 0.38) },
+    ];
+    let light_sq = s.add_material(
+        Material::matte(Vec3::new(0.85, 0.80, 0.68)).with_highlight(0.3, 60.0).with_reflection(0.25),
+    );
+    let dark_sq = s.add_material(
+        Material::matte(Vec3::new(0.28, 0.14, 0.07)).with_highlight(0.3, 60.0).with_reflection(0.25),
+    );
+    let frame = s.add_material(Material::matte(Vec3::new(0.35, 0.20, 0.10)).with_highlight(0.2, 20.0));
+    let table = s.add_material(Material::matte(Vec3::new(0.30, 0.32, 0.36)));
+    let ivory = s.add_material(
+        Material::matte(Vec3::new(0.90, 0.86, 0.76)).with_highlight(0.5, 40.0).with_reflection(0.08),
+    );
+    let ebony = s.add_material(
+        Material::matte(Vec3::new(0.07, 0.07, 0.09)).with_highlight(0.6, 80.0).with_reflection(0.3),
+    );
+    let glass = s.add_material(Material {
+        ambient: Vec3::ZERO,
+        ..Material::matte(Vec3::splat(0.02))
+            .with_highlight(0.8, 200.0)
+            .with_reflection(0.1)
+            .with_transmission(Vec3::new(0.85, 0.92, 0.88), 1.5)
+    });
+
+    // Board: 8x8 unit squares, top face at y = 0, a1 (dark) at x = -4, z = -4.
+    for rank in 0..8 {
+        for file in 0..8 {
+            let (x, z) = (file as f32 - 4.0, rank as f32 - 4.0);
+            let m = if (rank + file) % 2 == 0 { dark_sq } else { light_sq };
+            rect_y(&mut s, (x, z), (x + 1.0, z + 1.0), 0.0, m);
+        }
+    }
+    // Frame: a ring around the squares and its outer walls, down to the table.
+    let (inner, outer, bottom) = (4.0, 4.4, -0.25);
+    rect_y(&mut s, (-outer, -outer), (outer, -inner), 0.0, frame);
+    rect_y(&mut s, (-outer, inner), (outer, outer), 0.0, frame);
+    rect_y(&mut s, (-outer, -inner), (-inner, inner), 0.0, frame);
+    rect_y(&mut s, (inner, -inner), (outer, inner), 0.0, frame);
+    let c = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+    for (a, b, out) in [
+        (c(-outer, 0.0, -outer), c(outer, 0.0, -outer), -Vec3::Z),
+        (c(outer, 0.0, -outer), c(outer, 0.0, outer), Vec3::X),
+        (c(outer, 0.0, outer), c(-outer, 0.0, outer), Vec3::Z),
+        (c(-outer, 0.0, outer), c(-outer, 0.0, -outer), -Vec3::X),
+    ] {
+        let down = Vec3::Y * bottom;
+        quad(&mut s, [a + down, b + down, b, a], out, frame);
+    }
+    rect_y(&mut s, (-20.0, -20.0), (20.0, 20.0), bottom, table);
+
+    // Pieces.
+    use Piece::*;
+    let back = [Rook, Knight, Bishop, Queen, King, Bishop, Knight, Rook];
+    for (file, &kind) in back.iter().enumerate() {
+        for (white, rank, pawn_rank) in [(true, 0, 1), (false, 7, 6)] {
+            let glass_piece = white && matches!(kind, King | Queen | Bishop);
+            let m = if glass_piece { glass } else if white { ivory } else { ebony };
+            let facing = if white { 1.0 } else { -1.0 };
+            piece(&mut s, kind, square_centre(file, rank), facing, m);
+            piece(&mut s, Pawn, square_centre(file, pawn_rank), facing, if white { ivory } else { ebony });
+        }
+    }
+    s
+}
+
+fn square_centre(file: usize, rank: usize) -> Vec3 {
+    Vec3::new(file as f32 - 3.5, LIFT, rank as f32 - 3.5)
+}
+
+/// A horizontal rectangle facing +y.
+fn rect_y(s: &mut Scene, (x0, z0): (f32, f32), (x1, z1): (f32, f32), y: f32, m: u32) {
+    let p = |x, z| Vec3::new(x, y, z);
+    quad(s, [p(x0, z0), p(x1, z0), p(x1, z1), p(x0, z1)], Vec3::Y, m);
+}
+
+/// A planar quad as two triangles wound so that their normal points along `outward`.
+fn quad(s: &mut Scene, [a, b, c, d]: [Vec3; 4], outward: Vec3, m: u32) {
+    push_facing(s, Triangle::new(a, b, c), outward, m, None);
+    push_facing(s, Triangle::new(a, c, d), outward, m, None);
+}
+
+/// Adds a triangle, swapping its winding (and normals) when its normal opposes `outward`.
+fn push_facing(s: &mut Scene, t: Triangle, outward: Vec3, m: u32, normals: Option<[Vec3; 3]>) {
+    if t.is_degenerate() {
+        return;
+    }
+    if t.cross().dot(outward) >= 0.0 {
+        s.add(t, m, normals);
+    } else {
+        let [a, b, c] = t.v;
+        s.add(Triangle::new(a, c, b), m, normals.map(|[na, nb, nc]| [na, nc, nb]));
+    }
+}
+
+fn piece(s: &mut Scene, kind: Piece, at: Vec3, facing: f32, m: u32) {
+    let profile = match kind {
+        Piece::Pawn => PAWN,
+        Piece::Rook => ROOK,
+        Piece::Knight => KNIGHT,
+        Piece::Bishop => BISHOP,
+        Piece::Queen => QUEEN,
+        Piece::King => KING,
+    };
+    lathe(s, profile, at, m);
+    match kind {
+        // The knight's head: a block leaning towards the opponent.
+        Piece::Knight => cuboid(
+            s,
+            at + Vec3::new(0.0, 0.66, 0.1 * facing) * PIECE_SCALE,
+            Vec3::new(0.09, 0.08, 0.2) * PIECE_SCALE,
+            m,
+        ),
+        // The king's cross.
+        Piece::King => {
+            let (at, k) = (at, PIECE_SCALE);
+            cuboid(s, at + Vec3::new(0.0, 1.18, 0.0) * k, Vec3::new(0.035, 0.13, 0.035) * k, m);
+            cuboid(s, at + Vec3::new(0.0, 1.2, 0.0) * k, Vec3::new(0.1, 0.035, 0.035) * k, m);
+        }
+        _ => {}
+    }
+}
+
+/// A surface of revolution about the vertical axis through `at`, with vertex normals that are
+/// smooth across gentle profile bends and sharp at corners (over 50 degrees).
+fn lathe(s: &mut Scene, profile: &[(f32, f32)], at: Vec3, m: u32) {
+    let seg_normal = |i: usize| {
+        let (r0, y0) = profile[i];
+        let (r1, y1) = profile[i + 1];
+        glam::Vec2::new(y1 - y0, -(r1 - r0)).normalize()
+    };
+    let bands = profile.len() - 1;
+    let smooth_cos = 50f32.to_radians().cos();
+    // Normal of band `j` at its end on profile point `i` (i = j or j + 1).
+    let end_normal = |j: usize, i: usize| {
+        let n = seg_normal(j);
+        let other = if i == j { j.checked_sub(1) } else { (j + 1 < bands).then_some(j + 1) };
+        match other.map(seg_normal) {
+            Some(o) if o.dot(n) >= smooth_cos => (n + o).normalize(),
+            _ => n,
+        }
+    };
+    let angle = |k: usize| std::f32::consts::TAU * k as f32 / SEGMENTS as f32;
+    let point = |i: usize, k: usize| {
+        let (r, y) = profile[i];
+        at + Vec3::new(r * angle(k).cos(), y, r * angle(k).sin()) * PIECE_SCALE
+    };
+    let normal3 = |n: glam::Vec2, k: usize| Vec3::new(n.x * angle(k).cos(), n.y, n.x * angle(k).sin());
+    for j in 0..bands {
+        let (n0, n1) = (end_normal(j, j), end_normal(j, j + 1));
+        let mid = seg_normal(j);
+        for k in 0..SEGMENTS {
+            let k1 = k + 1;
+            let out = normal3(mid, k).lerp(normal3(mid, k1), 0.5);
+            let (a, b, c, d) = (point(j, k), point(j, k1), point(j + 1, k1), point(j + 1, k));
+            let (na, nb, nc, nd) = (normal3(n0, k), normal3(n0, k1), normal3(n1, k1), normal3(n1, k));
+            push_facing(s, Triangle::new(a, b, c), out, m, Some([na, nb, nc]));
+            push_facing(s, Triangle::new(a, c, d), out, m, Some([na, nc, nd]));
+        }
+    }
+}
+
+/// An axis-aligned box of half-size `half` around `centre`, flat-shaded.
+fn cuboid(s: &mut Scene, centre: Vec3, half: Vec3, m: u32) {
+    for axis in 0..3 {
+        for sign in [-1.0f32, 1.0] {
+            let n = Vec3::AXES[axis] * sign;
+            let (u, v) = (Vec3::AXES[(axis + 1) % 3], Vec3::AXES[(axis + 2) % 3]);
+            let c = centre + n * half[axis];
+            let (du, dv) = (u * half[(axis + 1) % 3], v * half[(axis + 2) % 3]);
+            quad(s, [c - du - dv, c + du - dv, c + du + dv, c - du + dv], n, m);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chess_has_the_seeds_shape() {
+        let s = chess();
+        s.check().unwrap();
+        assert_eq!(s.lights.len(), 2);
+        assert!(s.triangles().is_some(), "every shape is a triangle");
+        // 128 board triangles, 8 frame top + 8 walls, 2 table: 146; the rest are 32 pieces.
+        let pieces = s.shapes.len() - 146;
+        let per_piece = pieces as f32 / 32.0;
+        assert!((90.0..=140.0).contains(&per_piece), "{per_piece} triangles per piece");
+        // Some pieces are glass.
+        let glass = s.materials.iter().position(|m| m.is_transmissive()).unwrap() as u32;
+        let glass_tris = s.material_of.iter().filter(|&&m| m == glass).count();
+        assert!(glass_tris > 300 && glass_tris < pieces / 2, "{glass_tris}");
+    }
+
+    #[test]
+    fn pieces_are_closed_and_wound_outwards() {
+        let s = chess();
+        // Every lathed triangle's normal agrees with its vertex normals (outward winding).
+        for (t, n) in s.shapes.iter().zip(&s.vertex_normals) {
+            if let (Some(t), Some(n)) = (t.as_triangle(), n) {
+                let avg = n[0] + n[1] + n[2];
+                assert!(t.normal().dot(avg) > 0.0, "{t:?}");
+            }
+        }
+    }
+}

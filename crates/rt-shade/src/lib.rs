@@ -1,0 +1,64 @@
+//! # rt-shade: Whitted ray tracing with any rt structure
+//!
+//! A scene is shapes ([`rt_geom::Shape`]: triangles, spheres, cones) with materials, lights and
+//! a camera; the caller builds any [`Accel`](rt_geom::Accel) over [`Scene::shapes`] (or over
+//! [`Scene::triangles`] for triangle-only structures) and [`render`]s.
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`camera`] | [`Camera`]: perspective (thin lens optional) and orthographic |
+//! | [`material`] | [`Material`]: Lambert, Phong highlight, reflection, refraction, per channel |
+//! | [`scene`] | [`Scene`], [`PointLight`], [`SceneError`] |
+//! | [`whitted`] | the recursive integrator ([`Whitted`]), its ray rules, [`RayStats`] |
+//! | [`render`](mod@render) | parallel tiles, supersampling, [`Image`] and PNG output |
+//! | [`chess`](mod@chess) | the built-in scene: a reflective board and 32 lathed pieces, some glass |
+//! | [`nff`] | Haines' NFF (the SPD scenes) |
+//! | [`obj`] | OBJ with MTL materials |
+//! | [`triangulate`](mod@triangulate) | ear clipping of concave polygons |
+//!
+//! ```
+//! use rt_geom::BruteForce;
+//! use rt_shade::{RenderOptions, chess, render};
+//!
+//! let scene = chess();
+//! let tris = scene.triangles().expect("the chess scene is all triangles");
+//! let accel = BruteForce::build(&tris).expect("finite scene");
+//! let options = RenderOptions { width: 8, height: 6, ..RenderOptions::default() };
+//! let out = render(&scene, &accel, &options, &|_| {}).expect("valid scene and options");
+//! assert_eq!(out.stats.eye_rays, 48);
+//! assert_eq!(out.image.pixels.len(), 48);
+//! ```
+
+pub mod camera;
+pub mod chess;
+pub mod material;
+pub mod nff;
+pub mod obj;
+pub mod render;
+pub mod scene;
+pub mod triangulate;
+pub mod whitted;
+
+pub use camera::{Camera, CameraFrame, Projection, ThinLens};
+pub use chess::chess;
+pub use material::Material;
+pub use nff::{load_nff, parse_nff};
+pub use obj::{load_obj_scene, parse_mtl};
+pub use render::{Image, RenderOptions, Rendered, render};
+pub use scene::{PointLight, Scene, SceneError};
+pub use triangulate::triangulate;
+pub use whitted::{RayStats, ShadeOptions, Whitted};
+
+/// Loads a scene by name: `chess` (built in), or a path ending in `.obj` or `.nff`.
+pub fn load_scene(name: &str) -> Result<Scene, SceneError> {
+    let path = std::path::Path::new(name);
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    match (name, ext.as_deref()) {
+        ("chess", _) => Ok(chess()),
+        (_, Some("obj")) => load_obj_scene(path),
+        (_, Some("nff")) => load_nff(path),
+        _ => Err(SceneError::new(format!(
+            "unknown scene '{name}': use chess, a .obj file or a .nff file"
+        ))),
+    }
+}

@@ -1,0 +1,174 @@
+//! Rendering an image: tiles traced in parallel (rayon), supersampling on a regular grid,
+//! thin-lens samples from a hash of the pixel (so every render of a scene is the same, bit for
+//! bit, whatever the thread count), PNG output.
+
+use crate::{RayStats, Scene, SceneError, ShadeOptions, Whitted};
+use glam::Vec3;
+use rayon::prelude::*;
+use rt_geom::Accel;
+use std::path::Path;
+use std::time::Instant;
+
+/// Side of the square tiles the image is cut into.
+pub const TILE: u32 = 16;
+
+/// Largest image rendered (pixels), and largest supersampling grid side.
+pub const MAX_PIXELS: u64 = 1 << 28;
+pub const MAX_SAMPLES_PER_AXIS: u32 = 16;
+
+/// What to render.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderOptions {
+    pub width: u32,
+    pub height: u32,
+    /// Supersampling: `n x n` eye rays per pixel on a regular grid, averaged. Default 1.
+    pub samples_per_axis: u32,
+    pub shade: ShadeOptions,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        Self {
+            width: 640,
+            height: 480,
+            samples_per_axis: 1,
+            shade: ShadeOptions::default(),
+        }
+    }
+}
+
+impl RenderOptions {
+    pub fn check(&self) -> Result<(), String> {
+        if self.width == 0 || self.height == 0 {
+            return Err(format!("image size must be positive, got {}x{}", self.width, self.height));
+        }
+        if self.width as u64 * self.height as u64 > MAX_PIXELS {
+            return Err(format!(
+                "image of {}x{} pixels is larger than the limit of {MAX_PIXELS}",
+                self.width, self.height
+            ));
+        }
+        if !(1..=MAX_SAMPLES_PER_AXIS).contains(&self.samples_per_axis) {
+            return Err(format!(
+                "samples per axis must lie in 1..={MAX_SAMPLES_PER_AXIS}, got {}",
+                self.samples_per_axis
+            ));
+        }
+        self.shade.check()
+    }
+
+    /// Number of tiles (the units of progress).
+    pub fn tiles(&self) -> u64 {
+        self.width.div_ceil(TILE) as u64 * self.height.div_ceil(TILE) as u64
+    }
+}
+
+/// A linear RGB image, row-major from the top-left pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<Vec3>,
+}
+
+impl Image {
+    /// 8 bits per channel, clamped to [0, 1] (no gamma: the classic model's linear output).
+    pub fn to_rgb8(&self) -> image::RgbImage {
+        let mut out = image::RgbImage::new(self.width, self.height);
+        for (px, c) in out.pixels_mut().zip(&self.pixels) {
+            let q = |x: f32| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+            *px = image::Rgb([q(c.x), q(c.y), q(c.z)]);
+        }
+        out
+    }
+
+    pub fn save_png(&self, path: &Path) -> Result<(), String> {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        }
+        self.to_rgb8()
+            .save_with_format(path, image::ImageFormat::Png)
+            .map_err(|e| format!("{}: {e}", path.display()))
+    }
+}
+
+/// A finished render.
+#[derive(Clone, Debug)]
+pub struct Rendered {
+    pub image: Image,
+    pub stats: RayStats,
+    /// Wall-clock seconds of tracing (the structure's build not included).
+    pub seconds: f64,
+}
+
+/// Renders `scene` with `accel`, which must have been built over `scene.shapes` (or the same
+/// triangles in the same order). `progress` is called with 1 after each finished tile.
+pub fn render(
+    scene: &Scene,
+    accel: &dyn Accel,
+    options: &RenderOptions,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Rendered, SceneError> {
+    options.check().map_err(SceneError::new)?;
+    scene.check()?;
+    let start = Instant::now();
+    let (w, h) = (options.width, options.height);
+    let frame = scene.camera.frame(w, h);
+    let whitted = Whitted::new(scene, accel, options.shade);
+    let n = options.samples_per_axis;
+    let tiles: Vec<(u32, u32)> = (0..h.div_ceil(TILE))
+        .flat_map(|ty| (0..w.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
+        .collect();
+    let done: Vec<(Vec<Vec3>, RayStats)> = tiles
+        .par_iter()
+        .map(|&(x0, y0)| {
+            let mut stats = RayStats::default();
+            let mut out = Vec::with_capacity((TILE * TILE) as usize);
+            for y in y0..(y0 + TILE).min(h) {
+                for x in x0..(x0 + TILE).min(w) {
+                    let mut sum = Vec3::ZERO;
+                    for sy in 0..n {
+                        for sx in 0..n {
+                            let px = x as f32 + (sx as f32 + 0.5) / n as f32;
+                            let py = y as f32 + (sy as f32 + 0.5) / n as f32;
+                            let lens = lens_sample(x, y, sy * n + sx);
+                            sum += whitted.eye(&frame.ray(px, py, lens), &mut stats);
+                        }
+                    }
+                    out.push(sum / (n * n) as f32);
+                }
+            }
+            progress(1);
+            (out, stats)
+        })
+        .collect();
+    let mut pixels = vec![Vec3::ZERO; (w as usize) * (h as usize)];
+    let mut stats = RayStats::default();
+    for (&(x0, y0), (tile, s)) in tiles.iter().zip(done) {
+        stats += s;
+        let tw = (x0 + TILE).min(w) - x0;
+        for (row, chunk) in tile.chunks(tw as usize).enumerate() {
+            let at = (y0 as usize + row) * w as usize + x0 as usize;
+            pixels[at..at + chunk.len()].copy_from_slice(chunk);
+        }
+    }
+    Ok(Rendered {
+        image: Image {
+            width: w,
+            height: h,
+            pixels,
+        },
+        stats,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// A point of the unit square for the lens, from a hash of the pixel and sample (PCG-style).
+fn lens_sample(x: u32, y: u32, s: u32) -> (f32, f32) {
+    let mut h = (x as u64) << 40 ^ (y as u64) << 16 ^ s as u64;
+    let mut next = || {
+        h = h.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+        ((h >> 40) as u32) as f32 / (1u32 << 24) as f32
+    };
+    (next(), next())
+}

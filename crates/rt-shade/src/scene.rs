@@ -1,0 +1,181 @@
+//! A renderable scene: shapes with materials and optional vertex normals, lights, a camera.
+
+use crate::{Camera, Material};
+use glam::Vec3;
+use rt_geom::{Aabb, Primitive, Shape, Triangle};
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// A point light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PointLight {
+    pub position: Vec3,
+    /// Intensity per channel.
+    pub colour: Vec3,
+}
+
+/// Everything a render needs except the acceleration structure (which the caller builds over
+/// [`Scene::shapes`], so that any structure can render any scene).
+///
+/// Primitive ids are indices into `shapes`; `material_of` and `vertex_normals` are indexed by
+/// the same ids.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub name: String,
+    pub camera: Camera,
+    /// The image size the scene asks for (NFF's `resolution`), if any.
+    pub resolution: Option<(u32, u32)>,
+    /// Colour of rays that hit nothing.
+    pub background: Vec3,
+    /// Ambient light, multiplied by each material's ambient coefficient.
+    pub ambient: Vec3,
+    pub lights: Vec<PointLight>,
+    pub materials: Vec<Material>,
+    pub shapes: Vec<Shape>,
+    /// Material index of each shape.
+    pub material_of: Vec<u32>,
+    /// Per-vertex normals of triangles with smooth shading (OBJ `vn`, NFF `pp`, lathed pieces).
+    pub vertex_normals: Vec<Option<[Vec3; 3]>>,
+    /// Things the loader skipped or guessed, for the user (unknown MTL statements, ...).
+    pub warnings: Vec<String>,
+}
+
+/// Why a scene could not be loaded or used. Names the file and the 1-based line when there is one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneError {
+    pub path: Option<PathBuf>,
+    pub line: Option<usize>,
+    pub what: String,
+}
+
+impl SceneError {
+    pub fn new(what: impl Into<String>) -> Self {
+        Self {
+            path: None,
+            line: None,
+            what: what.into(),
+        }
+    }
+
+    pub fn at(path: &Path, line: usize, what: impl Into<String>) -> Self {
+        Self {
+            path: Some(path.to_owned()),
+            line: Some(line),
+            what: what.into(),
+        }
+    }
+
+    pub fn in_file(path: &Path, what: impl Into<String>) -> Self {
+        Self {
+            path: Some(path.to_owned()),
+            line: None,
+            what: what.into(),
+        }
+    }
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match (&self.path, self.line) {
+            (Some(p), Some(l)) => write!(f, "{}:{l}: {}", p.display(), self.what),
+            (Some(p), None) => write!(f, "{}: {}", p.display(), self.what),
+            _ => f.write_str(&self.what),
+        }
+    }
+}
+
+impl std::error::Error for SceneError {}
+
+impl Scene {
+    /// An empty scene with this camera: black background, no lights.
+    pub fn new(name: impl Into<String>, camera: Camera) -> Self {
+        Self {
+            name: name.into(),
+            camera,
+            resolution: None,
+            background: Vec3::ZERO,
+            ambient: Vec3::splat(0.1),
+            lights: Vec::new(),
+            materials: Vec::new(),
+            shapes: Vec::new(),
+            material_of: Vec::new(),
+            vertex_normals: Vec::new(),
+            warnings: Vec::new(),
+        }
+    }
+
+    /// Adds a material; returns its index.
+    pub fn add_material(&mut self, m: Material) -> u32 {
+        self.materials.push(m);
+        (self.materials.len() - 1) as u32
+    }
+
+    /// Adds a shape with a material and, for triangles, optional vertex normals.
+    pub fn add(&mut self, shape: impl Into<Shape>, material: u32, normals: Option<[Vec3; 3]>) {
+        self.shapes.push(shape.into());
+        self.material_of.push(material);
+        self.vertex_normals.push(normals);
+    }
+
+    /// The scene's shapes as triangles, when every shape is one (so that triangle-only
+    /// structures can render it with the same primitive ids).
+    pub fn triangles(&self) -> Option<Vec<Triangle>> {
+        self.shapes.iter().map(|s| s.as_triangle().copied()).collect()
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        self.shapes.iter().fold(Aabb::EMPTY, |b, s| b.union(s.bounds()))
+    }
+
+    /// How far secondary rays start from the surface they leave: relative to the scene's size
+    /// and to the magnitude of its coordinates (no absolute epsilon).
+    pub fn ray_offset(&self) -> f32 {
+        let b = self.bounds();
+        if b.is_empty() || !b.is_finite() {
+            return 0.0;
+        }
+        let size = b.extent().length();
+        let magnitude = b.min.abs().max(b.max.abs()).max_element();
+        1e-5 * size + 1e-6 * magnitude
+    }
+
+    /// The first problem that makes the scene unusable (bad camera, material index out of
+    /// range, NaN in a light or material), as a clear message.
+    pub fn check(&self) -> Result<(), SceneError> {
+        self.camera.check().map_err(SceneError::new)?;
+        let n = self.shapes.len();
+        if self.material_of.len() != n || self.vertex_normals.len() != n {
+            return Err(SceneError::new("material and normal lists must match the shapes"));
+        }
+        if let Some(&m) = self.material_of.iter().find(|&&m| m as usize >= self.materials.len()) {
+            return Err(SceneError::new(format!("material index {m} out of range")));
+        }
+        for (i, m) in self.materials.iter().enumerate() {
+            m.check().map_err(|e| SceneError::new(format!("material {i}: {e}")))?;
+        }
+        for l in &self.lights {
+            if !(l.position.is_finite() && l.colour.is_finite()) {
+                return Err(SceneError::new("light with a NaN or infinite value"));
+            }
+        }
+        if !(self.background.is_finite() && self.ambient.is_finite()) {
+            return Err(SceneError::new("background or ambient colour is not finite"));
+        }
+        if let Some(i) = self.shapes.iter().position(|s| !s.is_finite()) {
+            return Err(SceneError::new(format!("shape {i} has a NaN or infinite coordinate")));
+        }
+        Ok(())
+    }
+
+    /// Warnings a render of this scene deserves (no lights, no geometry) beside the loader's.
+    pub fn render_warnings(&self) -> Vec<String> {
+        let mut w = self.warnings.clone();
+        if self.shapes.is_empty() {
+            w.push(format!("scene '{}' has no geometry: the image is background only", self.name));
+        }
+        if self.lights.is_empty() {
+            w.push(format!("scene '{}' has no lights: only ambient light and reflections", self.name));
+        }
+        w
+    }
+}

@@ -1,0 +1,322 @@
+//! The recursive Whitted integrator: local shading with shadow rays, perfect reflection,
+//! refraction by Snell's law, total internal reflection, cut-offs by depth and by weight.
+//!
+//! Ray rules (what published Whitted statistics assume): the eye ray has depth 1; a shadow ray
+//! is cast only towards a light in front of the surface (on the side of the shading normal that
+//! faces the ray); a surface with reflected or transmitted light spawns a reflection ray; a
+//! transmitting surface spawns a refraction ray, except under total internal reflection, where
+//! its weight goes to the reflection ray; no ray is spawned beyond `max_depth`, nor when its
+//! weight is below `min_weight` in every channel.
+
+use crate::{Material, Scene};
+use glam::Vec3;
+use rt_geom::{Accel, Hit, Ray};
+use std::ops::AddAssign;
+
+/// Counts of the rays a render cast.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RayStats {
+    pub eye_rays: u64,
+    /// Eye rays that hit a surface.
+    pub eye_hits: u64,
+    pub reflected: u64,
+    pub refracted: u64,
+    pub shadow: u64,
+}
+
+impl RayStats {
+    /// Every ray cast.
+    pub fn total(&self) -> u64 {
+        self.eye_rays + self.reflected + self.refracted + self.shadow
+    }
+}
+
+impl AddAssign for RayStats {
+    fn add_assign(&mut self, o: Self) {
+        self.eye_rays += o.eye_rays;
+        self.eye_hits += o.eye_hits;
+        self.reflected += o.reflected;
+        self.refracted += o.refracted;
+        self.shadow += o.shadow;
+    }
+}
+
+/// The integrator's settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadeOptions {
+    /// Deepest ray (the eye ray is depth 1). Default 5.
+    pub max_depth: u32,
+    /// Secondary rays whose weight (the product of the coefficients along the path) is below
+    /// this in every channel are not cast. Default 0: every ray the rules ask for is cast.
+    pub min_weight: f32,
+    /// Weight reflection and refraction of transmitting surfaces by the dielectric Fresnel
+    /// equations (off: the material's coefficients as given, the classic model).
+    pub fresnel: bool,
+}
+
+impl Default for ShadeOptions {
+    fn default() -> Self {
+        Self {
+            max_depth: 5,
+            min_weight: 0.0,
+            fresnel: false,
+        }
+    }
+}
+
+impl ShadeOptions {
+    pub fn check(&self) -> Result<(), String> {
+        if self.max_depth == 0 {
+            return Err("maximum depth must be at least 1 (the eye ray)".into());
+        }
+        if !(self.min_weight >= 0.0 && self.min_weight.is_finite()) {
+            return Err(format!("minimum weight must be finite and >= 0, got {}", self.min_weight));
+        }
+        Ok(())
+    }
+}
+
+/// Traces rays through a scene with an acceleration structure built over its shapes.
+pub struct Whitted<'a> {
+    scene: &'a Scene,
+    accel: &'a dyn Accel,
+    options: ShadeOptions,
+    offset: f32,
+}
+
+/// The surface at a hit, oriented towards the incoming ray.
+struct Surface<'a> {
+    point: Vec3,
+    /// Geometric normal, on the side the ray came from.
+    geometric: Vec3,
+    /// Shading normal (interpolated where the scene has vertex normals), same side.
+    shading: Vec3,
+    /// Whether the ray hit the outside (the side the geometric normal points to).
+    entering: bool,
+    material: &'a Material,
+}
+
+impl<'a> Whitted<'a> {
+    pub fn new(scene: &'a Scene, accel: &'a dyn Accel, options: ShadeOptions) -> Self {
+        Self {
+            scene,
+            accel,
+            options,
+            offset: scene.ray_offset(),
+        }
+    }
+
+    /// The colour seen along an eye ray.
+    pub fn eye(&self, ray: &Ray, stats: &mut RayStats) -> Vec3 {
+        stats.eye_rays += 1;
+        self.trace(ray, 1, Vec3::ONE, stats, true)
+    }
+
+    /// The chain of refracted rays that follows `ray` through transmitting surfaces (each ray
+    /// as spawned: origin moved off the surface), up to `max` of them; it ends at a miss, an
+    /// opaque surface or total internal reflection. For tests and debugging.
+    pub fn refraction_chain(&self, ray: &Ray, max: usize) -> Vec<Ray> {
+        let mut out = Vec::new();
+        let mut ray = *ray;
+        while out.len() < max {
+            let Some(hit) = self.accel.intersect(&ray) else { break };
+            let d = ray.dir().normalize();
+            let s = self.surface(&ray, &hit, d);
+            if !s.material.is_transmissive() {
+                break;
+            }
+            let eta = if s.entering { 1.0 / s.material.ior } else { s.material.ior };
+            let Some(t) = refract(d, &s, eta) else { break };
+            ray = Ray::new(self.leave(&s, t), t);
+            out.push(ray);
+        }
+        out
+    }
+
+    fn trace(&self, ray: &Ray, depth: u32, weight: Vec3, stats: &mut RayStats, eye: bool) -> Vec3 {
+        let Some(hit) = self.accel.intersect(ray) else {
+            return self.scene.background;
+        };
+        if eye {
+            stats.eye_hits += 1;
+        }
+        let d = ray.dir().normalize();
+        let s = self.surface(ray, &hit, d);
+        let m = s.material;
+        let mut colour = m.ambient * self.scene.ambient;
+        let view = -d;
+        for light in &self.scene.lights {
+            let to_light = light.position - s.point;
+            let l = to_light.normalize_or_zero();
+            let cos = s.shading.dot(l);
+            if !(cos > 0.0) {
+                continue;
+            }
+            stats.shadow += 1;
+            let origin = self.leave(&s, to_light);
+            let shadow = Ray::segment(origin, light.position - origin, 0.0, 1.0f32.next_down());
+            if self.accel.occluded(&shadow) {
+                continue;
+            }
+            colour += m.diffuse * light.colour * cos;
+            if m.specular.max_element() > 0.0 {
+                let r = s.shading * (2.0 * cos) - l;
+                colour += m.specular * light.colour * r.dot(view).max(0.0).powf(m.shininess);
+            }
+        }
+        if depth >= self.options.max_depth {
+            return colour;
+        }
+        let mut kr = m.reflect;
+        let mut kt = m.transmit;
+        let mut refracted = None;
+        if m.is_transmissive() {
+            let eta = if s.entering { 1.0 / m.ior } else { m.ior };
+            match refract(d, &s, eta) {
+                None => {
+                    // Total internal reflection: the transmitted light is reflected.
+                    kr += kt;
+                    kt = Vec3::ZERO;
+                }
+                Some(t) => {
+                    if self.options.fresnel {
+                        let f = fresnel(s.shading.dot(view), t.dot(-s.shading), eta);
+                        kr += kt * f;
+                        kt *= 1.0 - f;
+                    }
+                    refracted = Some(t);
+                }
+            }
+        }
+        if m.spawns_reflection() {
+            let w = weight * kr;
+            if w.max_element() >= self.options.min_weight {
+                stats.reflected += 1;
+                let r = mirror(d, &s);
+                let ray = Ray::new(self.leave(&s, r), r);
+                colour += kr * self.trace(&ray, depth + 1, w, stats, false);
+            }
+        }
+        if let Some(t) = refracted {
+            let w = weight * kt;
+            if w.max_element() >= self.options.min_weight {
+                stats.refracted += 1;
+                let ray = Ray::new(self.leave(&s, t), t);
+                colour += kt * self.trace(&ray, depth + 1, w, stats, false);
+            }
+        }
+        colour
+    }
+
+    fn surface(&self, ray: &Ray, hit: &Hit, d: Vec3) -> Surface<'a> {
+        let i = hit.prim as usize;
+        let point = ray.at(hit.t);
+        let shape = &self.scene.shapes[i];
+        let mut geometric = shape.normal_at(point);
+        let mut shading = self.scene.vertex_normals[i]
+            .map(|[n0, n1, n2]| (n0 * (1.0 - hit.u - hit.v) + n1 * hit.u + n2 * hit.v).normalize_or_zero())
+            .filter(|n| *n != Vec3::ZERO)
+            .unwrap_or(geometric);
+        let entering = geometric.dot(d) < 0.0;
+        if !entering {
+            geometric = -geometric;
+            shading = -shading;
+        }
+        if shading.dot(geometric) <= 0.0 {
+            shading = geometric;
+        }
+        Surface {
+            point,
+            geometric,
+            shading,
+            entering,
+            material: &self.scene.materials[self.scene.material_of[i] as usize],
+        }
+    }
+
+    /// The origin of a ray leaving the surface in direction `dir`: the hit point moved off the
+    /// surface, to the side `dir` goes.
+    fn leave(&self, s: &Surface, dir: Vec3) -> Vec3 {
+        let side = if dir.dot(s.geometric) >= 0.0 { 1.0 } else { -1.0 };
+        let magnitude = s.point.abs().max_element();
+        s.point + s.geometric * (side * (self.offset + magnitude * 1e-6))
+    }
+}
+
+/// Mirror direction about the shading normal; about the geometric normal when the shading
+/// normal would send the ray into the surface.
+fn mirror(d: Vec3, s: &Surface) -> Vec3 {
+    let about = |n: Vec3| d - n * (2.0 * d.dot(n));
+    let r = about(s.shading);
+    if r.dot(s.geometric) > 0.0 { r } else { about(s.geometric) }
+}
+
+/// Snell's law: the refracted direction for relative index `eta` (incident over transmitted),
+/// or `None` under total internal reflection. Uses the shading normal, or the geometric one when
+/// the shading normal would keep the ray on the incoming side.
+fn refract(d: Vec3, s: &Surface, eta: f32) -> Option<Vec3> {
+    let through = |n: Vec3| {
+        let cos_i = -d.dot(n);
+        let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+        (k >= 0.0).then(|| (d * eta + n * (eta * cos_i - k.sqrt())).normalize())
+    };
+    let t = through(s.shading)?;
+    if t.dot(s.geometric) < 0.0 { Some(t) } else { through(s.geometric) }
+}
+
+/// Unpolarised dielectric Fresnel reflectance from the cosines of the incident and transmitted
+/// angles and the relative index `eta = n_i / n_t`.
+fn fresnel(cos_i: f32, cos_t: f32, eta: f32) -> f32 {
+    let (ci, ct) = (cos_i.abs(), cos_t.abs());
+    let rs = (eta * ci - ct) / (eta * ci + ct);
+    let rp = (ci - eta * ct) / (ci + eta * ct);
+    (0.5 * (rs * rs + rp * rp)).clamp(0.0, 1.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    fn flat(n: Vec3) -> Surface<'static> {
+        static M: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
+        Surface {
+            point: Vec3::ZERO,
+            geometric: n,
+            shading: n,
+            entering: true,
+            material: M.get_or_init(Material::default),
+        }
+    }
+
+    #[test]
+    fn snell_and_total_internal_reflection() {
+        let s = flat(Vec3::Y);
+        // 45 degrees into glass (1.5): sin t = sin 45 / 1.5.
+        let d = Vec3::new(1.0, -1.0, 0.0).normalize();
+        let t = refract(d, &s, 1.0 / 1.5).unwrap();
+        assert_relative_eq!(t.x, (0.5f32).sqrt() / 1.5, max_relative = 1e-6);
+        assert!(t.y < 0.0);
+        // Leaving glass at 45 degrees: beyond the critical angle asin(1/1.5) = 41.8 degrees.
+        assert!(refract(d, &s, 1.5).is_none());
+        // Just under the critical angle it still refracts, grazing.
+        let crit = (1.0f32 / 1.5).asin() - 0.001;
+        let d = Vec3::new(crit.sin(), -crit.cos(), 0.0);
+        assert!(refract(d, &s, 1.5).unwrap().x > 0.99);
+    }
+
+    #[test]
+    fn fresnel_limits() {
+        // Normal incidence on glass: ((1 - 1.5) / (1 + 1.5))^2 = 0.04.
+        assert_relative_eq!(fresnel(1.0, 1.0, 1.0 / 1.5), 0.04, max_relative = 1e-5);
+        // Grazing: everything is reflected.
+        assert!(fresnel(1e-4, 0.74, 1.0 / 1.5) > 0.99);
+    }
+
+    #[test]
+    fn mirror_reflects_about_the_normal() {
+        let s = flat(Vec3::Y);
+        let r = mirror(Vec3::new(1.0, -2.0, 0.5), &s);
+        assert_eq!(r, Vec3::new(1.0, 2.0, 0.5));
+    }
+}

@@ -1,0 +1,131 @@
+//! Every registered structure renders the same image, bit for bit: the chess scene (triangles,
+//! every structure) and an NFF scene of spheres, cones and polygons (every structure that takes
+//! any shape). Plus the command line's render path and its error messages.
+
+use rt_shade::{Image, RenderOptions, Scene, parse_nff, render};
+use std::path::Path;
+use xtask::registry::REGISTRY;
+
+fn image(scene: &Scene, accel: &dyn rt_geom::Accel, w: u32, h: u32) -> (Image, rt_shade::RayStats) {
+    let options = RenderOptions { width: w, height: h, ..RenderOptions::default() };
+    let out = render(scene, accel, &options, &|_| {}).expect("renders");
+    (out.image, out.stats)
+}
+
+/// Renders with every entry `include` accepts and checks each image against brute force's.
+fn same_image_everywhere(scene: &Scene, w: u32, h: u32, include: impl Fn(&xtask::registry::AccelEntry) -> bool) {
+    let reference = rt_geom::BruteForce::build(&scene.shapes).unwrap();
+    let (want, want_stats) = image(scene, &reference, w, h);
+    assert!(want_stats.eye_hits > 0 && want_stats.reflected > 0 && want_stats.refracted > 0);
+    let mut checked = 0;
+    for entry in REGISTRY.iter().filter(|e| include(e)) {
+        let accel = entry.build_any(&scene.shapes).unwrap_or_else(|e| panic!("{e}"));
+        let (got, stats) = image(scene, accel.as_ref(), w, h);
+        let differ = want.pixels.iter().zip(&got.pixels).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "{}: {differ} pixels differ from brute force on {}", entry.name, scene.name);
+        assert_eq!(stats, want_stats, "{}: ray counts differ", entry.name);
+        checked += 1;
+    }
+    assert!(checked >= 10, "only {checked} structures checked");
+}
+
+#[test]
+fn chess_is_the_same_with_every_structure() {
+    // Except obvhs's CWBVH, which drops hits closer than t = 1e-4 (secondary rays that start
+    // near a surface see different things; `registry::CWBVH_NEAR_T`).
+    same_image_everywhere(&rt_shade::chess(), 96, 72, |e| e.tolerance.near_t == 0.0);
+}
+
+/// An SPD-like scene: glass and mirror spheres, cylinders and cones, a concave star polygon,
+/// patches with normals, on a floor.
+const SHAPES_NFF: &str = "b 0.1 0.2 0.4
+v
+from 0 -6 3
+at 0 0 0.5
+up 0 0 1
+angle 40
+hither 1
+resolution 64 64
+l 4 -4 8
+l -5 -2 6
+f 0.8 0.8 0.7 0.8 0 100000 0 0
+p 4
+-4 -4 0
+4 -4 0
+4 4 0
+-4 4 0
+f 1 0.2 0.2 0.7 0.3 30 0 0
+s -1 0 0.8 0.8
+c 1.5 0 0 0.5 1.5 0 1.5 0.1
+c -2.5 1 0 0.3 -2.5 1 1.2 0.3
+f 0.9 0.9 1 0.1 0.2 100 0.8 1.5
+s 0.5 -1.5 0.5 0.5
+pp 3
+-1 1.5 0.01 0 0 1
+1 1.5 0.01 0 0 1
+0 2.5 1.5 0 -0.6 0.8
+f 0.2 0.9 0.2 0.8 0.1 10 0 0
+p 10
+2 2 0.02
+2.3 2.6 0.02
+2.9 2.6 0.02
+2.45 3.0 0.02
+2.7 3.6 0.02
+2 3.2 0.02
+1.3 3.6 0.02
+1.55 3.0 0.02
+1.1 2.6 0.02
+1.7 2.6 0.02
+";
+
+#[test]
+fn nff_shapes_are_the_same_with_every_generic_structure() {
+    let scene = parse_nff(SHAPES_NFF, Path::new("shapes.nff"), "shapes").unwrap();
+    assert!(scene.triangles().is_none(), "spheres and cones stay analytic");
+    same_image_everywhere(&scene, 64, 64, |e| e.build_shapes.is_some());
+}
+
+#[test]
+fn triangle_only_structures_explain_themselves() {
+    let scene = parse_nff(SHAPES_NFF, Path::new("shapes.nff"), "shapes").unwrap();
+    let tri_only = REGISTRY.iter().find(|e| e.build_shapes.is_none()).unwrap();
+    let err = tri_only.build_any(&scene.shapes).err().unwrap();
+    assert!(err.contains("triangles only") && err.contains("bvh"), "{err}");
+}
+
+#[test]
+fn render_command_writes_png_and_stats() {
+    let dir = std::env::temp_dir().join(format!("rt-render-{}", std::process::id()));
+    let args = xtask::render::RenderArgs {
+        size: Some((40, 30)),
+        out: Some(dir.join("chess.png")),
+        stats: Some(dir.join("stats.json")),
+        accel: "kd".into(),
+        quiet: true,
+        ..Default::default()
+    };
+    let s = xtask::render::render(&args).unwrap();
+    assert_eq!(s.stats.eye_rays, 1200);
+    let png = std::fs::read(dir.join("chess.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let json = std::fs::read_to_string(dir.join("stats.json")).unwrap();
+    for key in ["eye_rays", "eye_hits", "reflected", "refracted", "shadow", "seconds"] {
+        assert!(json.contains(&format!("\"{key}\"")), "{key} missing from {json}");
+    }
+    // Orthographic, thin lens and supersampling paths.
+    for (ortho, aperture, samples) in [(true, 0.0, 1), (false, 0.1, 2)] {
+        let a = xtask::render::RenderArgs { orthographic: ortho, aperture, samples, stats: None, ..args.clone() };
+        let s = xtask::render::render(&a).unwrap();
+        assert_eq!(s.stats.eye_rays, 1200 * (samples * samples) as u64);
+    }
+    // Bad input: clear errors.
+    let bad = |a: xtask::render::RenderArgs| xtask::render::render(&a).err().unwrap();
+    assert!(bad(xtask::render::RenderArgs { accel: "nope".into(), ..args.clone() }).contains("unknown accel"));
+    assert!(bad(xtask::render::RenderArgs { scene: "x.abc".into(), ..args.clone() }).contains("unknown scene"));
+    assert!(bad(xtask::render::RenderArgs { scene: "/no/such.nff".into(), ..args.clone() }).contains("/no/such.nff"));
+    assert!(bad(xtask::render::RenderArgs { depth: 0, ..args.clone() }).contains("depth"));
+    assert!(bad(xtask::render::RenderArgs { size: Some((0, 5)), ..args.clone() }).contains("size"));
+    assert_eq!(xtask::render::parse_size("64x48"), Ok((64, 48)));
+    assert!(xtask::render::parse_size("64").is_err());
+    std::fs::remove_dir_all(&dir).ok();
+}

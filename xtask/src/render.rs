@@ -1,0 +1,215 @@
+//! `cargo xtask render`: a scene (the built-in chess board, an OBJ or an NFF file) rendered by
+//! Whitted ray tracing with any registered structure, to a PNG, with ray statistics.
+
+use crate::registry;
+use crate::run::{bar, pool, spinner};
+use rt_shade::{Camera, Projection, RayStats, RenderOptions, Scene, ShadeOptions};
+use serde::Serialize;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// What `cargo xtask render` was asked for.
+#[derive(Clone, Debug)]
+pub struct RenderArgs {
+    /// `chess`, or a path to an `.obj` or `.nff` file.
+    pub scene: String,
+    /// Registered structure name.
+    pub accel: String,
+    /// Image size; default: the scene's own (NFF `resolution`, chess 800x600), else 640x480.
+    pub size: Option<(u32, u32)>,
+    pub depth: u32,
+    /// Supersampling: n x n eye rays per pixel.
+    pub samples: u32,
+    pub min_weight: f32,
+    pub fresnel: bool,
+    /// Orthographic instead of the scene's perspective camera (same view height at the
+    /// look-at point).
+    pub orthographic: bool,
+    /// Thin-lens aperture radius (focus on the look-at point); 0 = pinhole.
+    pub aperture: f32,
+    pub threads: usize,
+    /// Default: `target/render/<scene>.png`.
+    pub out: Option<PathBuf>,
+    pub stats: Option<PathBuf>,
+    /// No progress bars (tests).
+    pub quiet: bool,
+}
+
+impl Default for RenderArgs {
+    fn default() -> Self {
+        Self {
+            scene: "chess".into(),
+            accel: "bvh8".into(),
+            size: None,
+            depth: 5,
+            samples: 1,
+            min_weight: 0.0,
+            fresnel: false,
+            orthographic: false,
+            aperture: 0.0,
+            threads: 0,
+            out: None,
+            stats: None,
+            quiet: false,
+        }
+    }
+}
+
+/// The `--stats` file.
+#[derive(Clone, Debug, Serialize)]
+pub struct RenderStats {
+    pub eye_rays: u64,
+    pub eye_hits: u64,
+    pub reflected: u64,
+    pub refracted: u64,
+    pub shadow: u64,
+    /// Tracing time (build excluded).
+    pub seconds: f64,
+    pub scene: String,
+    pub accel: String,
+    pub width: u32,
+    pub height: u32,
+    pub primitives: usize,
+    pub build_seconds: f64,
+}
+
+/// A finished render: where the PNG went, and the statistics.
+pub struct RenderSummary {
+    pub out: PathBuf,
+    pub stats: RenderStats,
+    pub image: rt_shade::Image,
+    pub warnings: Vec<String>,
+}
+
+impl RenderSummary {
+    /// One line for the terminal.
+    pub fn line(&self) -> String {
+        let s = &self.stats;
+        let rays = s.eye_rays + s.reflected + s.refracted + s.shadow;
+        format!(
+            "{} {}x{} with {}: {} eye rays ({} hit), {} reflected, {} refracted, {} shadow; \
+             build {:.3} s, trace {:.3} s ({:.2} Mrays/s) -> {}",
+            s.scene,
+            s.width,
+            s.height,
+            s.accel,
+            s.eye_rays,
+            s.eye_hits,
+            s.reflected,
+            s.refracted,
+            s.shadow,
+            s.build_seconds,
+            s.seconds,
+            rays as f64 / s.seconds.max(1e-9) / 1e6,
+            self.out.display()
+        )
+    }
+}
+
+/// Parses `WxH`.
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("size '{s}' is not WIDTHxHEIGHT (e.g. 640x480)");
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    Ok((w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?))
+}
+
+/// Loads, builds, renders and writes the PNG (and the statistics file).
+pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
+    let entry = registry::find(&args.accel).ok_or_else(|| registry::unknown(&args.accel))?;
+    let load = (!args.quiet).then(|| spinner(format!("loading {}", args.scene)));
+    let mut scene = rt_shade::load_scene(&args.scene).map_err(|e| e.to_string())?;
+    if let Some(pb) = load {
+        pb.finish_and_clear();
+    }
+    adjust_camera(&mut scene, args)?;
+    let (width, height) = args.size.or(scene.resolution).unwrap_or((640, 480));
+    let options = RenderOptions {
+        width,
+        height,
+        samples_per_axis: args.samples,
+        shade: ShadeOptions {
+            max_depth: args.depth,
+            min_weight: args.min_weight,
+            fresnel: args.fresnel,
+        },
+    };
+    options.check()?;
+    let pool = pool(args.threads)?;
+
+    let building = (!args.quiet).then(|| {
+        spinner(format!("building {} over {} primitives", entry.name, scene.shapes.len()))
+    });
+    let start = Instant::now();
+    let accel = pool.install(|| entry.build_any(&scene.shapes))?;
+    let build_seconds = start.elapsed().as_secs_f64();
+    if let Some(pb) = building {
+        pb.finish_and_clear();
+    }
+
+    let progress = if args.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        bar(options.tiles(), format!("render {}", scene.name))
+    };
+    let rendered = pool
+        .install(|| rt_shade::render(&scene, accel.as_ref(), &options, &|n| progress.inc(n)))
+        .map_err(|e| e.to_string())?;
+    progress.finish_and_clear();
+
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("target/render").join(format!("{}.png", scene.name)));
+    rendered.image.save_png(&out)?;
+    let RayStats {
+        eye_rays,
+        eye_hits,
+        reflected,
+        refracted,
+        shadow,
+    } = rendered.stats;
+    let stats = RenderStats {
+        eye_rays,
+        eye_hits,
+        reflected,
+        refracted,
+        shadow,
+        seconds: rendered.seconds,
+        scene: scene.name.clone(),
+        accel: entry.name.to_string(),
+        width,
+        height,
+        primitives: scene.shapes.len(),
+        build_seconds,
+    };
+    if let Some(path) = &args.stats {
+        let json = serde_json::to_string_pretty(&stats).map_err(|e| e.to_string())?;
+        std::fs::write(path, json + "\n").map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok(RenderSummary {
+        out,
+        stats,
+        image: rendered.image,
+        warnings: scene.render_warnings(),
+    })
+}
+
+/// Applies `--orthographic` and `--aperture` to the scene's camera.
+fn adjust_camera(scene: &mut Scene, args: &RenderArgs) -> Result<(), String> {
+    let cam: Camera = scene.camera;
+    let distance = (cam.look_at - cam.eye).length();
+    if args.orthographic {
+        let Projection::Perspective { vfov_deg } = cam.projection else {
+            return Ok(());
+        };
+        let height = 2.0 * distance * (vfov_deg.to_radians() * 0.5).tan();
+        scene.camera = Camera::orthographic(cam.eye, cam.look_at, cam.up, height);
+    }
+    if args.aperture != 0.0 {
+        if args.orthographic {
+            return Err("--aperture needs the perspective camera".into());
+        }
+        scene.camera = cam.with_thin_lens(args.aperture, distance);
+    }
+    scene.camera.check()
+}
