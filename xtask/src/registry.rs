@@ -46,6 +46,7 @@ pub const OBVHS_TOLERANCE: Tolerance = Tolerance {
     rel_t: 1e-6,
     near_t: 0.0,
     boundary_misses: true,
+    lowest_on_ties: false,
 };
 
 /// An rt structure: exact agreement with brute force, benched on every scene.

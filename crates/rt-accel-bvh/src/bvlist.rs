@@ -6,8 +6,9 @@
 
 use rt_geom::{
     Aabb, Accel, AccelStats, BoundingVolume, BuildError, Hit, PrimHit, Primitive, Ray,
-    check_primitives,
+    check_primitives, replaces,
 };
+use rt_geom::aabb::pad_up;
 use std::cell::RefCell;
 use std::ops::Range;
 
@@ -177,16 +178,22 @@ impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
         best: &mut Option<(PrimHit, u32)>,
     ) -> bool {
         for &(t, v) in volumes {
-            if t > r.tmax {
+            // Padded like the box tests: a volume entered a few ulps past the closest hit may
+            // still hold a primitive hit at the same t (a tie that must go to the lower id).
+            if t > pad_up(r.tmax) {
                 break;
             }
             for i in self.ranges[v as usize].clone() {
                 if let Some(h) = self.prims[i as usize].intersect(r) {
-                    *best = Some((h, self.ids[i as usize]));
+                    let id = self.ids[i as usize];
                     if ANY_HIT {
+                        *best = Some((h, id));
                         return true;
                     }
-                    r.tmax = h.t;
+                    if replaces(h.t, id, best.map(|(b, id)| (b.t, id))) {
+                        *best = Some((h, id));
+                        r.tmax = h.t;
+                    }
                 }
             }
         }

@@ -4,7 +4,7 @@ use crate::Bvh;
 use crate::node::BvhNode;
 use crate::params::MAX_DEPTH;
 use rt_geom::aabb::{pad_down, pad_up};
-use rt_geom::{Hit, PrimHit, Primitive, Ray, Vec3};
+use rt_geom::{Hit, PrimHit, Primitive, Ray, Vec3, replaces};
 
 /// Per-ray constants of the slab test.
 struct RayBoxes {
@@ -77,8 +77,10 @@ impl<P: Primitive> Bvh<P> {
                         if ANY_HIT {
                             return Some(Hit::new(h, self.ids[i]));
                         }
-                        r.tmax = h.t;
-                        best = Some((h, self.ids[i]));
+                        if replaces(h.t, self.ids[i], best.map(|(b, id): (PrimHit, u32)| (b.t, id))) {
+                            r.tmax = h.t;
+                            best = Some((h, self.ids[i]));
+                        }
                     }
                 }
             } else {

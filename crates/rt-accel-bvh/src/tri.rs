@@ -12,7 +12,8 @@ use crate::wide::WideTree;
 use crate::{Bvh, BvhParams};
 use rt_geom::all_referenced;
 use rt_geom::{
-    Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Ray, Triangle, Vec3, watertight_edges,
+    Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Ray, Triangle, Vec3, replaces,
+    watertight_edges,
 };
 
 /// Triangles tested together in a leaf.
@@ -83,7 +84,8 @@ impl TriangleSoa {
         first: usize,
         count: usize,
         r: &mut Ray,
-        best: &mut Option<(PrimHit, usize)>,
+        ids: &[u32],
+        best: &mut Option<(PrimHit, u32)>,
     ) -> bool {
         let o = r.origin().to_array();
         let [mx, my, _] = r.watertight_rows();
@@ -121,11 +123,15 @@ impl TriangleSoa {
                 }
                 let edges = watertight_edges([ax[l], ay[l], bx[l], by[l], cx[l], cy[l]]);
                 if let Some(h) = self.get(i + l).finish_watertight(r, edges) {
-                    *best = Some((h, i + l));
+                    let id = ids[i + l];
                     if ANY_HIT {
+                        *best = Some((h, id));
                         return true;
                     }
-                    r.tmax = h.t;
+                    if replaces(h.t, id, best.map(|(b, id)| (b.t, id))) {
+                        *best = Some((h, id));
+                        r.tmax = h.t;
+                    }
                 }
             }
             i += LANES;
@@ -178,14 +184,8 @@ impl<const N: usize> TriBvh<N> {
     #[inline]
     fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
         self.tree.traverse::<ANY_HIT>(ray, |first, count, r, best| {
-            let mut found = None;
-            let stop =
-                self.tris
-                    .intersect_range::<ANY_HIT>(first as usize, count as usize, r, &mut found);
-            if let Some((h, i)) = found {
-                *best = Some((h, self.ids[i]));
-            }
-            stop
+            self.tris
+                .intersect_range::<ANY_HIT>(first as usize, count as usize, r, &self.ids, best)
         })
     }
 }

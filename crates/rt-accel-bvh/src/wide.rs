@@ -21,7 +21,7 @@ use crate::stats::check_leaf_primitive;
 use crate::{Bvh, BvhParams};
 use rt_geom::aabb::{pad_down, pad_up};
 use rt_geom::all_referenced;
-use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray};
+use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray, replaces};
 
 /// A node of a `N`-wide BVH.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -132,11 +132,14 @@ impl<P: Primitive, const N: usize> WideBvh<P, N> {
             let first = first as usize;
             for i in first..first + count as usize {
                 if let Some(h) = self.prims[i].intersect(r) {
-                    *best = Some((h, self.ids[i]));
                     if ANY_HIT {
+                        *best = Some((h, self.ids[i]));
                         return true;
                     }
-                    r.tmax = h.t;
+                    if replaces(h.t, self.ids[i], best.map(|(b, id)| (b.t, id))) {
+                        *best = Some((h, self.ids[i]));
+                        r.tmax = h.t;
+                    }
                 }
             }
             false

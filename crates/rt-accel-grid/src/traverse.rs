@@ -19,7 +19,7 @@
 use crate::Grid;
 use crate::level::NO_CHILD;
 use rt_geom::aabb::{pad_down, pad_up};
-use rt_geom::{Hit, Mailbox, Primitive, Ray};
+use rt_geom::{Hit, Mailbox, Primitive, Ray, replaces};
 
 /// Mailbox slots per ray.
 const MAILBOX: usize = 8;
@@ -43,11 +43,14 @@ impl<P: Primitive> Walk<'_, P> {
                 continue;
             }
             if let Some(h) = self.grid.prims[p as usize].intersect(&self.ray) {
-                self.best = Some(Hit::new(h, p));
                 if ANY_HIT {
+                    self.best = Some(Hit::new(h, p));
                     return true;
                 }
-                self.ray.tmax = h.t;
+                if replaces(h.t, p, self.best.as_ref().map(Hit::key)) {
+                    self.best = Some(Hit::new(h, p));
+                    self.ray.tmax = h.t;
+                }
             }
         }
         false

@@ -12,7 +12,7 @@
 use crate::params::{KdTraversal, MAX_DEPTH};
 use crate::{KdNode, KdTree};
 use rt_geom::aabb::PAD;
-use rt_geom::{Aabb, Hit, Primitive, Ray};
+use rt_geom::{Aabb, Hit, Primitive, Ray, replaces};
 
 /// Which children of an inner node the ray visits, first = on the side of the origin.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -93,11 +93,14 @@ fn test_leaf<P: Primitive, const ANY_HIT: bool>(
 ) -> bool {
     for &p in ids {
         if let Some(h) = prims[p as usize].intersect(r) {
-            *best = Some(Hit::new(h, p));
             if ANY_HIT {
+                *best = Some(Hit::new(h, p));
                 return true;
             }
-            r.tmax = h.t;
+            if replaces(h.t, p, best.as_ref().map(Hit::key)) {
+                *best = Some(Hit::new(h, p));
+                r.tmax = h.t;
+            }
         }
     }
     false

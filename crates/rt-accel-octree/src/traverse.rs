@@ -20,7 +20,7 @@
 use crate::Octree;
 use crate::node::octant;
 use rt_geom::aabb::{pad_down, pad_up};
-use rt_geom::{Aabb, Hit, Mailbox, Primitive, Ray};
+use rt_geom::{Aabb, Hit, Mailbox, Primitive, Ray, replaces};
 
 struct Walk<'a, P> {
     tree: &'a Octree<P>,
@@ -43,11 +43,14 @@ impl<P: Primitive> Walk<'_, P> {
                 continue;
             }
             if let Some(h) = tree.prims[p as usize].intersect(&self.ray) {
-                self.best = Some(Hit::new(h, p));
                 if ANY_HIT {
+                    self.best = Some(Hit::new(h, p));
                     return true;
                 }
-                self.ray.tmax = h.t;
+                if replaces(h.t, p, self.best.as_ref().map(Hit::key)) {
+                    self.best = Some(Hit::new(h, p));
+                    self.ray.tmax = h.t;
+                }
             }
         }
         false

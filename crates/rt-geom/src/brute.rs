@@ -1,7 +1,7 @@
 //! The O(n) baseline: test every primitive. The reference every structure is checked against.
 
 use crate::accel::check_primitives;
-use crate::{Accel, AccelStats, BuildError, Hit, Primitive, Ray};
+use crate::{Accel, AccelStats, BuildError, Hit, Primitive, Ray, replaces};
 
 /// Tests every primitive against every ray.
 #[derive(Clone, Debug)]
@@ -33,8 +33,8 @@ impl<P: Primitive> Accel for BruteForce<P> {
         let mut best = None;
         for (i, p) in self.prims.iter().enumerate() {
             if let Some(h) = p.intersect(&r) {
-                // Ties at equal t keep the lowest index (the first found).
-                if best.is_none() || h.t < r.tmax {
+                // In index order, `replaces` keeps the first of equal-t hits.
+                if replaces(h.t, i as u32, best.as_ref().map(Hit::key)) {
                     r.tmax = h.t;
                     best = Some(Hit::new(h, i as u32));
                 }

@@ -165,7 +165,25 @@ pub struct Hit {
     pub prim: u32,
 }
 
+/// rt's order of closest hits: a hit at `t` on primitive `prim` replaces the best hit so far
+/// (`(t, prim)`) when it is closer, or as close and on a lower primitive id. Every structure
+/// applies it, so that all of them report the same primitive even when two primitives are hit at
+/// the same `t` (duplicates, shared edges, touching spheres), and renders agree bit for bit.
+#[inline(always)]
+pub fn replaces(t: f32, prim: u32, best: Option<(f32, u32)>) -> bool {
+    match best {
+        None => true,
+        Some((bt, bp)) => t < bt || (t == bt && prim < bp),
+    }
+}
+
 impl Hit {
+    /// `(t, prim)`, the key of [`replaces`].
+    #[inline(always)]
+    pub fn key(&self) -> (f32, u32) {
+        (self.t, self.prim)
+    }
+
     #[inline]
     pub fn new(h: PrimHit, prim: u32) -> Self {
         Self {

@@ -37,6 +37,7 @@ impl Sphere {
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         let (t0, t1) = sphere_roots(self.center, self.radius, ray)?;
+        let (t0, t1) = (t0 as f32, t1 as f32);
         let t = if ray.in_range(t0) {
             t0
         } else if ray.in_range(t1) {
@@ -51,24 +52,25 @@ impl Sphere {
     }
 }
 
-/// Both roots `t0 <= t1` of the ray/sphere quadratic, unclipped, or `None` when the ray's line
-/// misses the sphere (or the ray is invalid, or the radius is not positive).
+/// Both roots `t0 <= t1` of the ray/sphere quadratic, unclipped, in `f64`, or `None` when the
+/// ray's line misses the sphere (or the ray is invalid, or the radius is not positive).
 ///
 /// The quadratic is solved in the numerically stable form of Haines et al. ("Precision
 /// Improvements for Ray/Sphere Intersection", Ray Tracing Gems, 2019): the discriminant is taken
 /// from the distance between the centre and the ray's line, and the second root comes from the
-/// first by Vieta's formula, so that neither cancels catastrophically.
+/// first by Vieta's formula, so that neither cancels catastrophically. `f64` keeps the
+/// discriminant of rays that graze the sphere (and so, bounding spheres conservative).
 #[inline]
-pub(crate) fn sphere_roots(center: Vec3, radius: f32, ray: &Ray) -> Option<(f32, f32)> {
+pub(crate) fn sphere_roots(center: Vec3, radius: f32, ray: &Ray) -> Option<(f64, f64)> {
     if !ray.is_valid() || !(radius > 0.0) {
         return None;
     }
-    let d = ray.dir();
-    let f = ray.origin() - center;
+    let d = ray.dir().as_dvec3();
+    let f = ray.origin().as_dvec3() - center.as_dvec3();
     let a = d.dot(d);
     let b = -f.dot(d);
     let l = f + d * (b / a);
-    let r2 = radius * radius;
+    let r2 = (radius as f64).powi(2);
     let disc = r2 - l.dot(l);
     if !(disc >= 0.0) {
         return None;

@@ -101,7 +101,10 @@ impl BoundingVolume for BoundingSphere {
             // A point: pad_radius keeps radius > 0 for anything but a point at the origin.
             return Aabb::new(self.center, self.center).hit_distance(ray);
         }
+        // Roots in f64 (for rays that graze the sphere an f32 discriminant loses so much that
+        // the padded radius would not cover it), rounded outwards.
         let (t0, t1) = sphere_roots(self.center, self.radius, ray)?;
+        let (t0, t1) = ((t0 as f32).next_down(), (t1 as f32).next_up());
         clip_interval(pad_down(t0), pad_up(t1), ray)
     }
 }

@@ -27,6 +27,9 @@ pub struct Tolerance {
     /// [`RayKind::Grazing`]) may miss a hit or report a farther one: for traversals whose box
     /// test is not watertight (no Ize padding, no care for rays lying in a box face).
     pub boundary_misses: bool,
+    /// Ties (two primitives hit at the same `t`) must go to the lower primitive id
+    /// ([`rt_geom::replaces`]): rt's own structures, so that renders agree bit for bit.
+    pub lowest_on_ties: bool,
 }
 
 impl Tolerance {
@@ -34,6 +37,7 @@ impl Tolerance {
         rel_t: 0.0,
         near_t: 0.0,
         boundary_misses: false,
+        lowest_on_ties: true,
     };
 
     fn excuses(&self, kind: RayKind) -> bool {
@@ -155,6 +159,9 @@ pub fn compare_with_expected<P: Primitive>(
                     bad = Some("intersect t");
                 } else if !prim_is_hit_at(prims, ray, &g, tolerance) {
                     bad = Some("intersect prim");
+                } else if tolerance.lowest_on_ties && e.t == g.t && g.prim > e.prim {
+                    // The reference hit `e.prim` at the same t: the lowest tied id is at most it.
+                    bad = Some("intersect tie (not the lowest primitive id)");
                 } else {
                     report.max_dt = report.max_dt.max((e.t - g.t).abs());
                 }
@@ -470,12 +477,60 @@ mod tests {
         );
     }
 
+    /// Reports the last of equal-t hits instead of the first.
+    struct HighestOnTies(Vec<Triangle>, BruteForce<Triangle>);
+
+    impl Accel for HighestOnTies {
+        fn intersect(&self, ray: &Ray) -> Option<Hit> {
+            let mut best: Option<Hit> = None;
+            for (i, t) in self.0.iter().enumerate() {
+                if let Some(h) = t.intersect_watertight(ray) {
+                    if best.is_none_or(|b| h.t <= b.t) {
+                        best = Some(Hit::new(h, i as u32));
+                    }
+                }
+            }
+            best
+        }
+        fn occluded(&self, ray: &Ray) -> bool {
+            self.intersect(ray).is_some()
+        }
+        fn stats(&self) -> AccelStats {
+            self.1.stats()
+        }
+        fn validate(&self) -> Result<(), String> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn ties_must_go_to_the_lowest_primitive_id() {
+        let scene = crate::scenes::triangle_scene("duplicates");
+        let report = check_scene(
+            &scene,
+            |p: &[Triangle]| BruteForce::build(p).map(|b| HighestOnTies(p.to_vec(), b)),
+            Tolerance::EXACT,
+        )
+        .unwrap();
+        assert!(report.mismatch_count > 10, "{}", report.mismatch_count);
+        assert!(report.mismatches[0].query.contains("tie"), "{}", report.mismatches[0]);
+        let lenient = Tolerance { lowest_on_ties: false, ..Tolerance::EXACT };
+        let report = check_scene(
+            &scene,
+            |p: &[Triangle]| BruteForce::build(p).map(|b| HighestOnTies(p.to_vec(), b)),
+            lenient,
+        )
+        .unwrap();
+        assert_eq!(report.mismatch_count, 0);
+    }
+
     #[test]
     fn loose_tolerance_lets_near_hits_drop() {
         let tol = Tolerance {
             rel_t: 1e-6,
             near_t: 1e-4,
             boundary_misses: true,
+            lowest_on_ties: false,
         };
         let ray = Ray::new(rt_geom::Vec3::ZERO, rt_geom::Vec3::X * 2.0);
         assert!(may_drop(2e-5, &ray, tol));

@@ -42,3 +42,18 @@ pub fn load_model(name: &str) -> Result<Option<Mesh>, MeshError> {
         }
     }
 }
+
+/// The standard SPD scenes of `../shared/scenes/spd` (NFF), at the SPD's benchmark sizes.
+pub const SPD_NAMES: [&str; 9] = [
+    "balls", "gears", "mount", "rings", "teapot", "tetra", "tree", "lattice", "shells",
+];
+
+/// Path of an SPD scene (`../shared/scenes/spd/NAME.nff`, or `$RT_SPD/NAME.nff`), if present.
+pub fn spd_path(name: &str) -> Option<PathBuf> {
+    let dir = match std::env::var_os("RT_SPD") {
+        Some(dir) => PathBuf::from(dir),
+        None => models_dir()?.join("../scenes/spd"),
+    };
+    let p = dir.join(format!("{name}.nff"));
+    p.is_file().then_some(p)
+}
