@@ -56,8 +56,11 @@ pub(crate) fn build<P: Primitive>(
     }
     let lists = distribute(ctx, &ids, &bounds);
     let total: usize = lists.iter().map(Vec::len).sum();
-    // Over budget, or no progress (every non-empty octant holds everything): a leaf.
-    if total > budget || lists.iter().all(|l| l.is_empty() || l.len() == n) {
+    // Over budget, or no progress: several non-empty octants, each holding everything (all
+    // the primitives cross the centre). One octant holding everything is progress: the other
+    // seven are empty space cut away (a scene in one corner of its cube), bounded by the depth.
+    let occupied = lists.iter().filter(|l| !l.is_empty()).count();
+    if total > budget || (occupied > 1 && lists.iter().all(|l| l.is_empty() || l.len() == n)) {
         return BuildNode::Leaf(ids);
     }
     drop(ids);
