@@ -7,22 +7,42 @@ use std::path::Path;
 use xtask::registry::REGISTRY;
 
 fn image(scene: &Scene, accel: &dyn rt_geom::Accel, w: u32, h: u32) -> (Image, rt_shade::RayStats) {
-    let options = RenderOptions { width: w, height: h, ..RenderOptions::default() };
+    let options = RenderOptions {
+        width: w,
+        height: h,
+        ..RenderOptions::default()
+    };
     let out = render(scene, accel, &options, &|_| {}).expect("renders");
     (out.image, out.stats)
 }
 
 /// Renders with every entry `include` accepts and checks each image against brute force's.
-fn same_image_everywhere(scene: &Scene, w: u32, h: u32, include: impl Fn(&xtask::registry::AccelEntry) -> bool) {
+fn same_image_everywhere(
+    scene: &Scene,
+    w: u32,
+    h: u32,
+    include: impl Fn(&xtask::registry::AccelEntry) -> bool,
+) {
     let reference = rt_geom::BruteForce::build(&scene.shapes).unwrap();
     let (want, want_stats) = image(scene, &reference, w, h);
     assert!(want_stats.eye_hits > 0 && want_stats.reflected > 0 && want_stats.refracted > 0);
     let mut checked = 0;
     for entry in REGISTRY.iter().filter(|e| include(e)) {
-        let accel = entry.build_any(&scene.shapes).unwrap_or_else(|e| panic!("{e}"));
+        let accel = entry
+            .build_any(&scene.shapes)
+            .unwrap_or_else(|e| panic!("{e}"));
         let (got, stats) = image(scene, accel.as_ref(), w, h);
-        let differ = want.pixels.iter().zip(&got.pixels).filter(|(a, b)| a != b).count();
-        assert_eq!(differ, 0, "{}: {differ} pixels differ from brute force on {}", entry.name, scene.name);
+        let differ = want
+            .pixels
+            .iter()
+            .zip(&got.pixels)
+            .filter(|(a, b)| a != b)
+            .count();
+        assert_eq!(
+            differ, 0,
+            "{}: {differ} pixels differ from brute force on {}",
+            entry.name, scene.name
+        );
         assert_eq!(stats, want_stats, "{}: ray counts differ", entry.name);
         checked += 1;
     }
@@ -81,7 +101,10 @@ p 10
 #[test]
 fn nff_shapes_are_the_same_with_every_generic_structure() {
     let scene = parse_nff(SHAPES_NFF, Path::new("shapes.nff"), "shapes").unwrap();
-    assert!(scene.triangles().is_none(), "spheres and cones stay analytic");
+    assert!(
+        scene.triangles().is_none(),
+        "spheres and cones stay analytic"
+    );
     same_image_everywhere(&scene, 64, 64, |e| e.build_shapes.is_some());
 }
 
@@ -90,7 +113,10 @@ fn triangle_only_structures_explain_themselves() {
     let scene = parse_nff(SHAPES_NFF, Path::new("shapes.nff"), "shapes").unwrap();
     let tri_only = REGISTRY.iter().find(|e| e.build_shapes.is_none()).unwrap();
     let err = tri_only.build_any(&scene.shapes).err().unwrap();
-    assert!(err.contains("triangles only") && err.contains("bvh"), "{err}");
+    assert!(
+        err.contains("triangles only") && err.contains("bvh"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -109,22 +135,68 @@ fn render_command_writes_png_and_stats() {
     let png = std::fs::read(dir.join("chess.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG");
     let json = std::fs::read_to_string(dir.join("stats.json")).unwrap();
-    for key in ["eye_rays", "eye_hits", "reflected", "refracted", "shadow", "seconds"] {
-        assert!(json.contains(&format!("\"{key}\"")), "{key} missing from {json}");
+    for key in [
+        "eye_rays",
+        "eye_hits",
+        "reflected",
+        "refracted",
+        "shadow",
+        "seconds",
+    ] {
+        assert!(
+            json.contains(&format!("\"{key}\"")),
+            "{key} missing from {json}"
+        );
     }
     // Orthographic, thin lens and supersampling paths.
     for (ortho, aperture, samples) in [(true, 0.0, 1), (false, 0.1, 2)] {
-        let a = xtask::render::RenderArgs { orthographic: ortho, aperture, samples, stats: None, ..args.clone() };
+        let a = xtask::render::RenderArgs {
+            orthographic: ortho,
+            aperture,
+            samples,
+            stats: None,
+            ..args.clone()
+        };
         let s = xtask::render::render(&a).unwrap();
         assert_eq!(s.stats.eye_rays, 1200 * (samples * samples) as u64);
     }
     // Bad input: clear errors.
     let bad = |a: xtask::render::RenderArgs| xtask::render::render(&a).err().unwrap();
-    assert!(bad(xtask::render::RenderArgs { accel: "nope".into(), ..args.clone() }).contains("unknown accel"));
-    assert!(bad(xtask::render::RenderArgs { scene: "x.abc".into(), ..args.clone() }).contains("unknown scene"));
-    assert!(bad(xtask::render::RenderArgs { scene: "/no/such.nff".into(), ..args.clone() }).contains("/no/such.nff"));
-    assert!(bad(xtask::render::RenderArgs { depth: 0, ..args.clone() }).contains("depth"));
-    assert!(bad(xtask::render::RenderArgs { size: Some((0, 5)), ..args.clone() }).contains("size"));
+    assert!(
+        bad(xtask::render::RenderArgs {
+            accel: "nope".into(),
+            ..args.clone()
+        })
+        .contains("unknown accel")
+    );
+    assert!(
+        bad(xtask::render::RenderArgs {
+            scene: "x.abc".into(),
+            ..args.clone()
+        })
+        .contains("unknown scene")
+    );
+    assert!(
+        bad(xtask::render::RenderArgs {
+            scene: "/no/such.nff".into(),
+            ..args.clone()
+        })
+        .contains("/no/such.nff")
+    );
+    assert!(
+        bad(xtask::render::RenderArgs {
+            depth: 0,
+            ..args.clone()
+        })
+        .contains("depth")
+    );
+    assert!(
+        bad(xtask::render::RenderArgs {
+            size: Some((0, 5)),
+            ..args.clone()
+        })
+        .contains("size")
+    );
     assert_eq!(xtask::render::parse_size("64x48"), Ok((64, 48)));
     assert!(xtask::render::parse_size("64").is_err());
     std::fs::remove_dir_all(&dir).ok();

@@ -53,44 +53,7 @@ enum Command {
         sweep: bool,
     },
     /// Whitted ray tracing of a scene to a PNG with any structure, with ray statistics.
-    Render {
-        /// `chess` (built in), or an .obj or .nff file.
-        #[arg(long, default_value = "chess")]
-        scene: String,
-        /// Structure name (`cargo xtask accels`).
-        #[arg(long, default_value = "bvh8")]
-        accel: String,
-        /// Image size WxH (default: the scene's own; chess 800x600, NFF 512x512).
-        #[arg(long, value_parser = render::parse_size)]
-        size: Option<(u32, u32)>,
-        /// Deepest ray; the eye ray is depth 1.
-        #[arg(long, default_value_t = 5)]
-        depth: u32,
-        /// Supersampling: N x N eye rays per pixel.
-        #[arg(long, default_value_t = 1)]
-        samples: u32,
-        /// Skip secondary rays whose weight is below this in every channel (0: cast all).
-        #[arg(long, default_value_t = 0.0)]
-        min_weight: f32,
-        /// Fresnel weighting of reflection and refraction on transmitting surfaces.
-        #[arg(long)]
-        fresnel: bool,
-        /// Orthographic camera instead of the scene's perspective one.
-        #[arg(long)]
-        orthographic: bool,
-        /// Thin-lens aperture radius for depth of field (focus on the look-at point).
-        #[arg(long, default_value_t = 0.0)]
-        aperture: f32,
-        /// Threads (0 = all cores).
-        #[arg(long, default_value_t = 0)]
-        threads: usize,
-        /// PNG to write (default target/render/<scene>.png).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Write ray statistics as JSON.
-        #[arg(long)]
-        stats: Option<PathBuf>,
-    },
+    Render(render::RenderArgs),
     /// Trace a ray file through a mesh; write a hit file; print one timing line.
     Trace {
         #[arg(long)]
@@ -187,35 +150,8 @@ fn run(command: Command) -> Result<ExitCode, String> {
                 threads,
             })?;
         }
-        Command::Render {
-            scene,
-            accel,
-            size,
-            depth,
-            samples,
-            min_weight,
-            fresnel,
-            orthographic,
-            aperture,
-            threads,
-            out,
-            stats,
-        } => {
-            let summary = render::render(&render::RenderArgs {
-                scene,
-                accel,
-                size,
-                depth,
-                samples,
-                min_weight,
-                fresnel,
-                orthographic,
-                aperture,
-                threads,
-                out,
-                stats,
-                quiet: false,
-            })?;
+        Command::Render(args) => {
+            let summary = render::render(&args)?;
             for w in &summary.warnings {
                 eprintln!("warning: {w}");
             }

@@ -81,7 +81,10 @@ impl AccelEntry {
         self
     }
 
-    const fn with_shapes(mut self, build: fn(&[Shape]) -> Result<Box<dyn Accel>, BuildError>) -> Self {
+    const fn with_shapes(
+        mut self,
+        build: fn(&[Shape]) -> Result<Box<dyn Accel>, BuildError>,
+    ) -> Self {
         self.build_shapes = Some(build);
         self
     }
@@ -89,7 +92,11 @@ impl AccelEntry {
     /// Builds over a scene's shapes: with the shape builder, or with the triangle builder when
     /// every shape is a triangle (same primitive ids).
     pub fn build_any(&self, shapes: &[Shape]) -> Result<Box<dyn Accel>, String> {
-        if let Some(tris) = shapes.iter().map(|s| s.as_triangle().copied()).collect::<Option<Vec<_>>>() {
+        if let Some(tris) = shapes
+            .iter()
+            .map(|s| s.as_triangle().copied())
+            .collect::<Option<Vec<_>>>()
+        {
             return (self.build)(&tris).map_err(|e| format!("{}: {e}", self.name));
         }
         match self.build_shapes {
@@ -98,7 +105,12 @@ impl AccelEntry {
                 "{} holds triangles only, and this scene has spheres or cones; structures that \
                  take any shape: {}",
                 self.name,
-                REGISTRY.iter().filter(|e| e.build_shapes.is_some()).map(|e| e.name).collect::<Vec<_>>().join(", ")
+                REGISTRY
+                    .iter()
+                    .filter(|e| e.build_shapes.is_some())
+                    .map(|e| e.name)
+                    .collect::<Vec<_>>()
+                    .join(", ")
             )),
         }
     }

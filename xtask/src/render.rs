@@ -8,50 +8,60 @@ use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
 
-/// What `cargo xtask render` was asked for.
-#[derive(Clone, Debug)]
+/// What `cargo xtask render` was asked for (its command-line options).
+#[derive(Clone, Debug, clap::Args)]
 pub struct RenderArgs {
-    /// `chess`, or a path to an `.obj` or `.nff` file.
+    /// `chess` (built in), or an .obj or .nff file.
+    #[arg(long, default_value = "chess")]
     pub scene: String,
-    /// Registered structure name.
+    /// Structure name (`cargo xtask accels`).
+    #[arg(long, default_value = "bvh8")]
     pub accel: String,
-    /// Image size; default: the scene's own (NFF `resolution`, chess 800x600), else 640x480.
+    /// Image size WxH (default: the scene's own; chess 800x600, NFF 512x512).
+    #[arg(long, value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
+    /// Deepest ray; the eye ray is depth 1.
+    #[arg(long, default_value_t = 5)]
     pub depth: u32,
-    /// Supersampling: n x n eye rays per pixel.
+    /// Supersampling: N x N eye rays per pixel.
+    #[arg(long, default_value_t = 1)]
     pub samples: u32,
+    /// Skip secondary rays whose weight is below this in every channel (0: cast all).
+    #[arg(long, default_value_t = 0.0)]
     pub min_weight: f32,
+    /// Fresnel weighting of reflection and refraction on transmitting surfaces.
+    #[arg(long)]
     pub fresnel: bool,
-    /// Orthographic instead of the scene's perspective camera (same view height at the
+    /// Orthographic camera instead of the scene's perspective one (same view height at the
     /// look-at point).
+    #[arg(long)]
     pub orthographic: bool,
-    /// Thin-lens aperture radius (focus on the look-at point); 0 = pinhole.
+    /// Thin-lens aperture radius for depth of field (focus on the look-at point); 0 = pinhole.
+    #[arg(long, default_value_t = 0.0)]
     pub aperture: f32,
+    /// Threads (0 = all cores).
+    #[arg(long, default_value_t = 0)]
     pub threads: usize,
-    /// Default: `target/render/<scene>.png`.
+    /// PNG to write (default target/render/<scene>.png).
+    #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Write ray statistics as JSON.
+    #[arg(long)]
     pub stats: Option<PathBuf>,
     /// No progress bars (tests).
+    #[arg(skip)]
     pub quiet: bool,
 }
 
 impl Default for RenderArgs {
+    /// The command line's defaults.
     fn default() -> Self {
-        Self {
-            scene: "chess".into(),
-            accel: "bvh8".into(),
-            size: None,
-            depth: 5,
-            samples: 1,
-            min_weight: 0.0,
-            fresnel: false,
-            orthographic: false,
-            aperture: 0.0,
-            threads: 0,
-            out: None,
-            stats: None,
-            quiet: false,
+        #[derive(clap::Parser)]
+        struct Defaults {
+            #[command(flatten)]
+            args: RenderArgs,
         }
+        <Defaults as clap::Parser>::parse_from(["render"]).args
     }
 }
 
@@ -110,7 +120,10 @@ impl RenderSummary {
 pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let bad = || format!("size '{s}' is not WIDTHxHEIGHT (e.g. 640x480)");
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
-    Ok((w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?))
+    Ok((
+        w.trim().parse().map_err(|_| bad())?,
+        h.trim().parse().map_err(|_| bad())?,
+    ))
 }
 
 /// Loads, builds, renders and writes the PNG (and the statistics file).
@@ -137,7 +150,11 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
     let pool = pool(args.threads)?;
 
     let building = (!args.quiet).then(|| {
-        spinner(format!("building {} over {} primitives", entry.name, scene.shapes.len()))
+        spinner(format!(
+            "building {} over {} primitives",
+            entry.name,
+            scene.shapes.len()
+        ))
     });
     let start = Instant::now();
     let accel = pool.install(|| entry.build_any(&scene.shapes))?;

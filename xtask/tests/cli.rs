@@ -265,3 +265,86 @@ fn sweep_options_are_checked() {
     let o = xtask(&["bench", "--sweep", "--threads", "0"]);
     fails_cleanly(&o, "--threads");
 }
+
+#[test]
+fn render_writes_png_stats_and_clear_errors() {
+    let dir = TempDir::new("render");
+    let png = dir.0.join("c.png");
+    let stats = dir.0.join("s.json");
+    let o = xtask(&[
+        "render",
+        "--size",
+        "32x24",
+        "--accel",
+        "grid2",
+        "--out",
+        png.to_str().unwrap(),
+        "--stats",
+        stats.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).starts_with("chess 32x24 with grid2: 768 eye rays"),
+        "{}",
+        stdout(&o)
+    );
+    assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
+    let json = std::fs::read_to_string(&stats).unwrap();
+    assert!(json.contains("\"eye_rays\": 768"), "{json}");
+
+    // A malformed NFF names its line; a scene with no lights renders, with a warning.
+    let nff = dir.0.join("bad.nff");
+    std::fs::write(
+        &nff,
+        "v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 40\nhither 1\nresolution 8 8\ns 0 0 oops 1\n",
+    )
+    .unwrap();
+    fails_cleanly(
+        &xtask(&["render", "--scene", nff.to_str().unwrap()]),
+        "bad.nff:8:",
+    );
+    std::fs::write(&nff, "v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 40\nhither 1\nresolution 8 8\nf 1 0 0 1 0 1 0 0\ns 0 0 0 1\n").unwrap();
+    let o = xtask(&[
+        "render",
+        "--scene",
+        nff.to_str().unwrap(),
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("no lights"), "{}", stderr(&o));
+    // Triangle-only structures cannot hold the sphere.
+    fails_cleanly(
+        &xtask(&[
+            "render",
+            "--scene",
+            nff.to_str().unwrap(),
+            "--accel",
+            "bvh8-tri",
+            "--out",
+            png.to_str().unwrap(),
+        ]),
+        "triangles only",
+    );
+    fails_cleanly(&xtask(&["render", "--size", "0x5"]), "size");
+    fails_cleanly(&xtask(&["render", "--size", "big"]), "WIDTHxHEIGHT");
+    fails_cleanly(
+        &xtask(&["render", "--depth", "0", "--size", "4x4"]),
+        "depth",
+    );
+    fails_cleanly(
+        &xtask(&["render", "--samples", "99", "--size", "4x4"]),
+        "samples",
+    );
+    fails_cleanly(
+        &xtask(&[
+            "render",
+            "--orthographic",
+            "--aperture",
+            "0.1",
+            "--size",
+            "4x4",
+        ]),
+        "aperture",
+    );
+}

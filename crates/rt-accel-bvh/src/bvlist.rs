@@ -4,11 +4,11 @@
 //! so far. With `two_level`, volumes are grouped under volumes of volumes (the seeds'
 //! "hierarchy of bounding boxes" baseline, two levels deep).
 
+use rt_geom::aabb::pad_up;
 use rt_geom::{
     Aabb, Accel, AccelStats, BoundingVolume, BuildError, Hit, PrimHit, Primitive, Ray,
     check_primitives, replaces,
 };
-use rt_geom::aabb::pad_up;
 use std::cell::RefCell;
 use std::ops::Range;
 

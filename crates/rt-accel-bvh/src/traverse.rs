@@ -77,7 +77,11 @@ impl<P: Primitive> Bvh<P> {
                         if ANY_HIT {
                             return Some(Hit::new(h, self.ids[i]));
                         }
-                        if replaces(h.t, self.ids[i], best.map(|(b, id): (PrimHit, u32)| (b.t, id))) {
+                        if replaces(
+                            h.t,
+                            self.ids[i],
+                            best.map(|(b, id): (PrimHit, u32)| (b.t, id)),
+                        ) {
                             r.tmax = h.t;
                             best = Some((h, self.ids[i]));
                         }

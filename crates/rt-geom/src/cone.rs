@@ -53,7 +53,8 @@ impl Cone {
 
     fn frame(&self) -> Option<Frame> {
         let (rb, ra) = (self.base_radius as f64, self.apex_radius as f64);
-        if !(rb >= 0.0 && ra >= 0.0) || rb + ra == 0.0 || !rb.is_finite() || !ra.is_finite() {
+        let usable = |r: f64| r >= 0.0 && r.is_finite();
+        if !usable(rb) || !usable(ra) || rb + ra == 0.0 {
             return None;
         }
         let base = self.base.as_dvec3();
@@ -253,7 +254,10 @@ mod tests {
             ))
             .unwrap();
         assert_relative_eq!(h.t, 1.0, max_relative = 1e-6);
-        assert!(c.normal_at(Vec3::new(1.0, 0.0, 2.0)).abs_diff_eq(Vec3::X, 1e-6));
+        assert!(
+            c.normal_at(Vec3::new(1.0, 0.0, 2.0))
+                .abs_diff_eq(Vec3::X, 1e-6)
+        );
     }
 
     #[test]
@@ -270,12 +274,20 @@ mod tests {
                 .is_none()
         );
         let n = c.normal_at(Vec3::new(0.5, 0.0, 0.5));
-        assert!(n.abs_diff_eq(Vec3::new(1.0, 0.0, 1.0).normalize(), 1e-6), "{n}");
+        assert!(
+            n.abs_diff_eq(Vec3::new(1.0, 0.0, 1.0).normalize(), 1e-6),
+            "{n}"
+        );
     }
 
     #[test]
     fn bounds_and_extents_contain_the_surface() {
-        let c = Cone::new(Vec3::new(1.0, 2.0, 3.0), 0.5, Vec3::new(2.0, -1.0, 4.0), 0.2);
+        let c = Cone::new(
+            Vec3::new(1.0, 2.0, 3.0),
+            0.5,
+            Vec3::new(2.0, -1.0, 4.0),
+            0.2,
+        );
         let b = c.bounds();
         let n = Vec3::new(0.3, -0.7, 0.2);
         let (lo, hi) = c.extent_along(n);

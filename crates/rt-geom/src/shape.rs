@@ -160,7 +160,10 @@ mod tests {
             assert_eq!(shape.bounds(), Primitive::bounds(&shape));
         }
         assert_eq!(Shape::from(tri).normal_at(Vec3::ZERO), Vec3::Z);
-        assert_eq!(Shape::from(sph).normal_at(Vec3::new(0.25, 0.25, 0.5)), -Vec3::Z);
+        assert_eq!(
+            Shape::from(sph).normal_at(Vec3::new(0.25, 0.25, 0.5)),
+            -Vec3::Z
+        );
         assert_eq!(Shape::from(cone).plane(), None);
         assert!(Shape::from(tri).plane().is_some());
     }

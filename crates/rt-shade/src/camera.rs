@@ -94,10 +94,14 @@ impl Camera {
         }
         match self.projection {
             Projection::Perspective { vfov_deg } if !(vfov_deg > 0.0 && vfov_deg < 180.0) => {
-                return Err(format!("field of view must lie in (0, 180) degrees, got {vfov_deg}"));
+                return Err(format!(
+                    "field of view must lie in (0, 180) degrees, got {vfov_deg}"
+                ));
             }
             Projection::Orthographic { height } if !(height > 0.0 && height.is_finite()) => {
-                return Err(format!("orthographic view height must be positive, got {height}"));
+                return Err(format!(
+                    "orthographic view height must be positive, got {height}"
+                ));
             }
             _ => {}
         }
@@ -105,9 +109,9 @@ impl Camera {
             if matches!(self.projection, Projection::Orthographic { .. }) {
                 return Err("a thin lens needs a perspective camera".into());
             }
-            if !(l.aperture >= 0.0 && l.aperture.is_finite())
-                || !(l.focus_distance > 0.0 && l.focus_distance.is_finite())
-            {
+            let aperture_ok = l.aperture >= 0.0 && l.aperture.is_finite();
+            let focus_ok = l.focus_distance > 0.0 && l.focus_distance.is_finite();
+            if !aperture_ok || !focus_ok {
                 return Err(format!(
                     "thin lens needs aperture >= 0 and focus distance > 0, got {} and {}",
                     l.aperture, l.focus_distance
@@ -159,8 +163,8 @@ impl CameraFrame {
                     Some(l) if l.aperture > 0.0 => {
                         let focus = self.eye + dir * l.focus_distance;
                         let (dx, dy) = concentric_disc(lens.0, lens.1);
-                        let origin = self.eye
-                            + (self.unit_right * dx + self.unit_up * dy) * l.aperture;
+                        let origin =
+                            self.eye + (self.unit_right * dx + self.unit_up * dy) * l.aperture;
                         Ray::new(origin, focus - origin)
                     }
                     _ => Ray::new(self.eye, dir),
@@ -179,7 +183,10 @@ fn concentric_disc(u: f32, v: f32) -> (f32, f32) {
     let (r, phi) = if a.abs() > b.abs() {
         (a, std::f32::consts::FRAC_PI_4 * (b / a))
     } else {
-        (b, std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (a / b))
+        (
+            b,
+            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (a / b),
+        )
     };
     (r * phi.cos(), r * phi.sin())
 }
@@ -232,9 +239,15 @@ mod tests {
     fn bad_cameras_are_explained() {
         let ok = Camera::perspective(Vec3::ZERO, -Vec3::Z, Vec3::Y, 60.0);
         let bad = [
-            Camera { look_at: Vec3::ZERO, ..ok },
+            Camera {
+                look_at: Vec3::ZERO,
+                ..ok
+            },
             Camera { up: Vec3::Z, ..ok },
-            Camera { eye: Vec3::NAN, ..ok },
+            Camera {
+                eye: Vec3::NAN,
+                ..ok
+            },
             Camera::perspective(Vec3::ZERO, -Vec3::Z, Vec3::Y, 180.0),
             Camera::orthographic(Vec3::ZERO, -Vec3::Z, Vec3::Y, 0.0),
             ok.with_thin_lens(-1.0, 1.0),

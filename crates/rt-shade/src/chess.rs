@@ -18,28 +18,64 @@ const LIFT: f32 = 1e-3;
 
 /// Profiles `(radius, height)` from the bottom centre to the top, per piece.
 const PAWN: &[(f32, f32)] = &[
-    (0.0, 0.0), (0.28, 0.0), (0.28, 0.08), (0.12, 0.30), (0.19, 0.34), (0.15, 0.48),
-    (0.12, 0.60), (0.0, 0.64),
+    (0.0, 0.0),
+    (0.28, 0.0),
+    (0.28, 0.08),
+    (0.12, 0.30),
+    (0.19, 0.34),
+    (0.15, 0.48),
+    (0.12, 0.60),
+    (0.0, 0.64),
 ];
 const ROOK: &[(f32, f32)] = &[
-    (0.0, 0.0), (0.32, 0.0), (0.32, 0.08), (0.20, 0.18), (0.18, 0.55), (0.25, 0.60),
-    (0.25, 0.75), (0.0, 0.75),
+    (0.0, 0.0),
+    (0.32, 0.0),
+    (0.32, 0.08),
+    (0.20, 0.18),
+    (0.18, 0.55),
+    (0.25, 0.60),
+    (0.25, 0.75),
+    (0.0, 0.75),
 ];
 const KNIGHT: &[(f32, f32)] = &[
-    (0.0, 0.0), (0.32, 0.0), (0.32, 0.08), (0.20, 0.16), (0.15, 0.40), (0.20, 0.60),
-    (0.12, 0.78), (0.0, 0.82),
+    (0.0, 0.0),
+    (0.32, 0.0),
+    (0.32, 0.08),
+    (0.20, 0.16),
+    (0.15, 0.40),
+    (0.20, 0.60),
+    (0.12, 0.78),
+    (0.0, 0.82),
 ];
 const BISHOP: &[(f32, f32)] = &[
-    (0.0, 0.0), (0.30, 0.0), (0.30, 0.08), (0.14, 0.22), (0.11, 0.60), (0.17, 0.70),
-    (0.13, 0.88), (0.0, 0.98),
+    (0.0, 0.0),
+    (0.30, 0.0),
+    (0.30, 0.08),
+    (0.14, 0.22),
+    (0.11, 0.60),
+    (0.17, 0.70),
+    (0.13, 0.88),
+    (0.0, 0.98),
 ];
 const QUEEN: &[(f32, f32)] = &[
-    (0.0, 0.0), (0.34, 0.0), (0.34, 0.09), (0.15, 0.25), (0.11, 0.75), (0.23, 0.92),
-    (0.14, 1.00), (0.0, 1.10),
+    (0.0, 0.0),
+    (0.34, 0.0),
+    (0.34, 0.09),
+    (0.15, 0.25),
+    (0.11, 0.75),
+    (0.23, 0.92),
+    (0.14, 1.00),
+    (0.0, 1.10),
 ];
 const KING: &[(f32, f32)] = &[
-    (0.0, 0.0), (0.34, 0.0), (0.34, 0.09), (0.15, 0.25), (0.12, 0.80), (0.22, 0.92),
-    (0.16, 1.05), (0.0, 1.08),
+    (0.0, 0.0),
+    (0.34, 0.0),
+    (0.34, 0.09),
+    (0.15, 0.25),
+    (0.12, 0.80),
+    (0.22, 0.92),
+    (0.16, 1.05),
+    (0.0, 1.08),
 ];
 
 #[derive(Clone, Copy, PartialEq)]
@@ -65,22 +101,37 @@ pub fn chess() -> Scene {
     s.background = Vec3::new(0.05, 0.07, 0.12);
     s.ambient = Vec3::splat(0.12);
     s.lights = vec![
-        PointLight { position: Vec3::new(-6.0, 10.0, -7.0), colour: Vec3::splat(0.75) },
-        PointLight { position: Vec3::new(8.0, 7.0, -2.0), colour: Vec3::new(0.45, 0.42, 0.38) },
+        PointLight {
+            position: Vec3::new(-6.0, 10.0, -7.0),
+            colour: Vec3::splat(0.75),
+        },
+        PointLight {
+            position: Vec3::new(8.0, 7.0, -2.0),
+            colour: Vec3::new(0.45, 0.42, 0.38),
+        },
     ];
     let light_sq = s.add_material(
-        Material::matte(Vec3::new(0.85, 0.80, 0.68)).with_highlight(0.3, 60.0).with_reflection(0.25),
+        Material::matte(Vec3::new(0.85, 0.80, 0.68))
+            .with_highlight(0.3, 60.0)
+            .with_reflection(0.25),
     );
     let dark_sq = s.add_material(
-        Material::matte(Vec3::new(0.28, 0.14, 0.07)).with_highlight(0.3, 60.0).with_reflection(0.25),
+        Material::matte(Vec3::new(0.28, 0.14, 0.07))
+            .with_highlight(0.3, 60.0)
+            .with_reflection(0.25),
     );
-    let frame = s.add_material(Material::matte(Vec3::new(0.35, 0.20, 0.10)).with_highlight(0.2, 20.0));
+    let frame =
+        s.add_material(Material::matte(Vec3::new(0.35, 0.20, 0.10)).with_highlight(0.2, 20.0));
     let table = s.add_material(Material::matte(Vec3::new(0.30, 0.32, 0.36)));
     let ivory = s.add_material(
-        Material::matte(Vec3::new(0.90, 0.86, 0.76)).with_highlight(0.5, 40.0).with_reflection(0.08),
+        Material::matte(Vec3::new(0.90, 0.86, 0.76))
+            .with_highlight(0.5, 40.0)
+            .with_reflection(0.08),
     );
     let ebony = s.add_material(
-        Material::matte(Vec3::new(0.07, 0.07, 0.09)).with_highlight(0.6, 80.0).with_reflection(0.3),
+        Material::matte(Vec3::new(0.07, 0.07, 0.09))
+            .with_highlight(0.6, 80.0)
+            .with_reflection(0.3),
     );
     let glass = s.add_material(Material {
         ambient: Vec3::ZERO,
@@ -94,7 +145,11 @@ pub fn chess() -> Scene {
     for rank in 0..8 {
         for file in 0..8 {
             let (x, z) = (file as f32 - 4.0, rank as f32 - 4.0);
-            let m = if (rank + file) % 2 == 0 { dark_sq } else { light_sq };
+            let m = if (rank + file) % 2 == 0 {
+                dark_sq
+            } else {
+                light_sq
+            };
             rect_y(&mut s, (x, z), (x + 1.0, z + 1.0), 0.0, m);
         }
     }
@@ -112,7 +167,7 @@ pub fn chess() -> Scene {
         (c(-outer, 0.0, outer), c(-outer, 0.0, -outer), -Vec3::X),
     ] {
         let down = Vec3::Y * bottom;
-        quad(&mut s, [a + down, b + down, b, a], out, frame);
+        s.add_quad([a + down, b + down, b, a], out, frame);
     }
     rect_y(&mut s, (-20.0, -20.0), (20.0, 20.0), bottom, table);
 
@@ -122,10 +177,22 @@ pub fn chess() -> Scene {
     for (file, &kind) in back.iter().enumerate() {
         for (white, rank, pawn_rank) in [(true, 0, 1), (false, 7, 6)] {
             let glass_piece = white && matches!(kind, King | Queen | Bishop);
-            let m = if glass_piece { glass } else if white { ivory } else { ebony };
+            let m = if glass_piece {
+                glass
+            } else if white {
+                ivory
+            } else {
+                ebony
+            };
             let facing = if white { 1.0 } else { -1.0 };
             piece(&mut s, kind, square_centre(file, rank), facing, m);
-            piece(&mut s, Pawn, square_centre(file, pawn_rank), facing, if white { ivory } else { ebony });
+            piece(
+                &mut s,
+                Pawn,
+                square_centre(file, pawn_rank),
+                facing,
+                if white { ivory } else { ebony },
+            );
         }
     }
     s
@@ -138,26 +205,7 @@ fn square_centre(file: usize, rank: usize) -> Vec3 {
 /// A horizontal rectangle facing +y.
 fn rect_y(s: &mut Scene, (x0, z0): (f32, f32), (x1, z1): (f32, f32), y: f32, m: u32) {
     let p = |x, z| Vec3::new(x, y, z);
-    quad(s, [p(x0, z0), p(x1, z0), p(x1, z1), p(x0, z1)], Vec3::Y, m);
-}
-
-/// A planar quad as two triangles wound so that their normal points along `outward`.
-fn quad(s: &mut Scene, [a, b, c, d]: [Vec3; 4], outward: Vec3, m: u32) {
-    push_facing(s, Triangle::new(a, b, c), outward, m, None);
-    push_facing(s, Triangle::new(a, c, d), outward, m, None);
-}
-
-/// Adds a triangle, swapping its winding (and normals) when its normal opposes `outward`.
-fn push_facing(s: &mut Scene, t: Triangle, outward: Vec3, m: u32, normals: Option<[Vec3; 3]>) {
-    if t.is_degenerate() {
-        return;
-    }
-    if t.cross().dot(outward) >= 0.0 {
-        s.add(t, m, normals);
-    } else {
-        let [a, b, c] = t.v;
-        s.add(Triangle::new(a, c, b), m, normals.map(|[na, nb, nc]| [na, nc, nb]));
-    }
+    s.add_quad([p(x0, z0), p(x1, z0), p(x1, z1), p(x0, z1)], Vec3::Y, m);
 }
 
 fn piece(s: &mut Scene, kind: Piece, at: Vec3, facing: f32, m: u32) {
@@ -174,18 +222,36 @@ fn piece(s: &mut Scene, kind: Piece, at: Vec3, facing: f32, m: u32) {
         // The knight's head: a block leaning towards the opponent.
         Piece::Knight => cuboid(
             s,
-            at + Vec3::new(0.0, 0.66, 0.1 * facing) * PIECE_SCALE,
-            Vec3::new(0.09, 0.08, 0.2) * PIECE_SCALE,
+            at,
+            Vec3::new(0.0, 0.66, 0.1 * facing),
+            Vec3::new(0.09, 0.08, 0.2),
             m,
         ),
         // The king's cross.
         Piece::King => {
-            let (at, k) = (at, PIECE_SCALE);
-            cuboid(s, at + Vec3::new(0.0, 1.18, 0.0) * k, Vec3::new(0.035, 0.13, 0.035) * k, m);
-            cuboid(s, at + Vec3::new(0.0, 1.2, 0.0) * k, Vec3::new(0.1, 0.035, 0.035) * k, m);
+            cuboid(
+                s,
+                at,
+                Vec3::new(0.0, 1.18, 0.0),
+                Vec3::new(0.035, 0.13, 0.035),
+                m,
+            );
+            cuboid(
+                s,
+                at,
+                Vec3::new(0.0, 1.2, 0.0),
+                Vec3::new(0.1, 0.035, 0.035),
+                m,
+            );
         }
         _ => {}
     }
+}
+
+/// A box on the piece standing at `at`: centre offset and half-size in unscaled piece units.
+fn cuboid(s: &mut Scene, at: Vec3, offset: Vec3, half: Vec3, m: u32) {
+    let centre = at + offset * PIECE_SCALE;
+    s.add_box(centre - half * PIECE_SCALE, centre + half * PIECE_SCALE, m);
 }
 
 /// A surface of revolution about the vertical axis through `at`, with vertex normals that are
@@ -201,7 +267,11 @@ fn lathe(s: &mut Scene, profile: &[(f32, f32)], at: Vec3, m: u32) {
     // Normal of band `j` at its end on profile point `i` (i = j or j + 1).
     let end_normal = |j: usize, i: usize| {
         let n = seg_normal(j);
-        let other = if i == j { j.checked_sub(1) } else { (j + 1 < bands).then_some(j + 1) };
+        let other = if i == j {
+            j.checked_sub(1)
+        } else {
+            (j + 1 < bands).then_some(j + 1)
+        };
         match other.map(seg_normal) {
             Some(o) if o.dot(n) >= smooth_cos => (n + o).normalize(),
             _ => n,
@@ -212,7 +282,8 @@ fn lathe(s: &mut Scene, profile: &[(f32, f32)], at: Vec3, m: u32) {
         let (r, y) = profile[i];
         at + Vec3::new(r * angle(k).cos(), y, r * angle(k).sin()) * PIECE_SCALE
     };
-    let normal3 = |n: glam::Vec2, k: usize| Vec3::new(n.x * angle(k).cos(), n.y, n.x * angle(k).sin());
+    let normal3 =
+        |n: glam::Vec2, k: usize| Vec3::new(n.x * angle(k).cos(), n.y, n.x * angle(k).sin());
     for j in 0..bands {
         let (n0, n1) = (end_normal(j, j), end_normal(j, j + 1));
         let mid = seg_normal(j);
@@ -220,22 +291,14 @@ fn lathe(s: &mut Scene, profile: &[(f32, f32)], at: Vec3, m: u32) {
             let k1 = k + 1;
             let out = normal3(mid, k).lerp(normal3(mid, k1), 0.5);
             let (a, b, c, d) = (point(j, k), point(j, k1), point(j + 1, k1), point(j + 1, k));
-            let (na, nb, nc, nd) = (normal3(n0, k), normal3(n0, k1), normal3(n1, k1), normal3(n1, k));
-            push_facing(s, Triangle::new(a, b, c), out, m, Some([na, nb, nc]));
-            push_facing(s, Triangle::new(a, c, d), out, m, Some([na, nc, nd]));
-        }
-    }
-}
-
-/// An axis-aligned box of half-size `half` around `centre`, flat-shaded.
-fn cuboid(s: &mut Scene, centre: Vec3, half: Vec3, m: u32) {
-    for axis in 0..3 {
-        for sign in [-1.0f32, 1.0] {
-            let n = Vec3::AXES[axis] * sign;
-            let (u, v) = (Vec3::AXES[(axis + 1) % 3], Vec3::AXES[(axis + 2) % 3]);
-            let c = centre + n * half[axis];
-            let (du, dv) = (u * half[(axis + 1) % 3], v * half[(axis + 2) % 3]);
-            quad(s, [c - du - dv, c + du - dv, c + du + dv, c - du + dv], n, m);
+            let (na, nb, nc, nd) = (
+                normal3(n0, k),
+                normal3(n0, k1),
+                normal3(n1, k1),
+                normal3(n1, k),
+            );
+            s.add_facing(Triangle::new(a, b, c), out, m, Some([na, nb, nc]));
+            s.add_facing(Triangle::new(a, c, d), out, m, Some([na, nc, nd]));
         }
     }
 }
@@ -253,9 +316,16 @@ mod tests {
         // 128 board triangles, 8 frame top + 8 walls, 2 table: 146; the rest are 32 pieces.
         let pieces = s.shapes.len() - 146;
         let per_piece = pieces as f32 / 32.0;
-        assert!((90.0..=140.0).contains(&per_piece), "{per_piece} triangles per piece");
+        assert!(
+            (90.0..=140.0).contains(&per_piece),
+            "{per_piece} triangles per piece"
+        );
         // Some pieces are glass.
-        let glass = s.materials.iter().position(|m| m.is_transmissive()).unwrap() as u32;
+        let glass = s
+            .materials
+            .iter()
+            .position(|m| m.is_transmissive())
+            .unwrap() as u32;
         let glass_tris = s.material_of.iter().filter(|&&m| m == glass).count();
         assert!(glass_tris > 300 && glass_tris < pieces / 2, "{glass_tris}");
     }

@@ -52,7 +52,9 @@ pub use whitted::{RayStats, ShadeOptions, Whitted};
 /// Loads a scene by name: `chess` (built in), or a path ending in `.obj` or `.nff`.
 pub fn load_scene(name: &str) -> Result<Scene, SceneError> {
     let path = std::path::Path::new(name);
-    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
     match (name, ext.as_deref()) {
         ("chess", _) => Ok(chess()),
         (_, Some("obj")) => load_obj_scene(path),

@@ -5,9 +5,13 @@ use glam::Vec3;
 /// How a surface answers light. Every coefficient is per colour channel (RGB, linear).
 ///
 /// The colour seen along a ray that hits the surface is
-/// `ambient * scene.ambient + sum over visible lights of
-///   (diffuse * I * max(0, n.l) + specular * I * max(0, r.v)^shininess)
-/// + reflect * (colour along the reflected ray) + transmit * (colour along the refracted ray)`,
+///
+/// ```text
+/// ambient * scene.ambient
+///   + sum over visible lights of (diffuse * I * max(0, n.l) + specular * I * max(0, r.v)^shininess)
+///   + reflect * (colour along the reflected ray) + transmit * (colour along the refracted ray)
+/// ```
+///
 /// where `I` is the light's colour and `n`, `l`, `r`, `v` are unit vectors (Whitted 1980 with
 /// Phong's highlight).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -94,10 +98,16 @@ impl Material {
             }
         }
         if !(self.shininess.is_finite() && self.shininess >= 0.0) {
-            return Err(format!("shininess must be finite and not negative, got {}", self.shininess));
+            return Err(format!(
+                "shininess must be finite and not negative, got {}",
+                self.shininess
+            ));
         }
         if self.is_transmissive() && !(self.ior.is_finite() && self.ior > 0.0) {
-            return Err(format!("index of refraction must be positive, got {}", self.ior));
+            return Err(format!(
+                "index of refraction must be positive, got {}",
+                self.ior
+            ));
         }
         Ok(())
     }

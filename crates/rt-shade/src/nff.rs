@@ -21,17 +21,26 @@ use std::path::Path;
 pub fn load_nff(path: &Path) -> Result<Scene, SceneError> {
     let text = std::fs::read(path).map_err(|e| SceneError::in_file(path, e.to_string()))?;
     let text = String::from_utf8(text).map_err(|e| {
-        let line = 1 + e.as_bytes()[..e.utf8_error().valid_up_to()].iter().filter(|&&b| b == b'\n').count();
+        let line = 1 + e.as_bytes()[..e.utf8_error().valid_up_to()]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count();
         SceneError::at(path, line, "not UTF-8 text")
     })?;
-    let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
     parse_nff(&text, path, &name)
 }
 
 /// Parses NFF text; `path` names the source in errors.
 pub fn parse_nff(text: &str, path: &Path, name: &str) -> Result<Scene, SceneError> {
     let mut tokens = Tokens::new(text, path);
-    let mut scene = Scene::new(name, Camera::perspective(Vec3::Z, Vec3::ZERO, Vec3::Y, 45.0));
+    let mut scene = Scene::new(
+        name,
+        Camera::perspective(Vec3::Z, Vec3::ZERO, Vec3::Y, 45.0),
+    );
     scene.background = Vec3::ZERO;
     let mut have_view = false;
     let mut light_colours = Vec::new();
@@ -45,8 +54,15 @@ pub fn parse_nff(text: &str, path: &Path, name: &str) -> Result<Scene, SceneErro
             "b" => scene.background = tokens.vec3("background colour")?,
             "l" => {
                 let position = tokens.vec3("light position")?;
-                let colour = if tokens.peek_is_number() { Some(tokens.vec3("light colour")?) } else { None };
-                scene.lights.push(PointLight { position, colour: Vec3::ZERO });
+                let colour = if tokens.peek_is_number() {
+                    Some(tokens.vec3("light colour")?)
+                } else {
+                    None
+                };
+                scene.lights.push(PointLight {
+                    position,
+                    colour: Vec3::ZERO,
+                });
                 light_colours.push(colour);
             }
             "f" => {
@@ -60,9 +76,15 @@ pub fn parse_nff(text: &str, path: &Path, name: &str) -> Result<Scene, SceneErro
                     return Err(SceneError::at(path, line, "negative material coefficient"));
                 }
                 if t > 0.0 && !(ior > 0.0) {
-                    return Err(SceneError::at(path, line, format!("transmitting material needs ior > 0, got {ior}")));
+                    return Err(SceneError::at(
+                        path,
+                        line,
+                        format!("transmitting material needs ior > 0, got {ior}"),
+                    ));
                 }
-                let mut m = Material::matte(rgb * kd).with_highlight(ks, shine).with_reflection(ks);
+                let mut m = Material::matte(rgb * kd)
+                    .with_highlight(ks, shine)
+                    .with_reflection(ks);
                 if t > 0.0 {
                     m = m.with_transmission(Vec3::splat(t), ior);
                 }
@@ -72,7 +94,11 @@ pub fn parse_nff(text: &str, path: &Path, name: &str) -> Result<Scene, SceneErro
                 let centre = tokens.vec3("sphere centre")?;
                 let radius = tokens.number("sphere radius")?;
                 if radius < 0.0 {
-                    return Err(SceneError::at(path, line, "negative radius (inside-only spheres) is not supported"));
+                    return Err(SceneError::at(
+                        path,
+                        line,
+                        "negative radius (inside-only spheres) is not supported",
+                    ));
                 }
                 let m = current(&mut scene, &mut material);
                 scene.add(Sphere::new(centre, radius), m, None);
@@ -83,7 +109,11 @@ pub fn parse_nff(text: &str, path: &Path, name: &str) -> Result<Scene, SceneErro
                 let apex = tokens.vec3("cone apex")?;
                 let ra = tokens.number("cone apex radius")?;
                 if rb < 0.0 || ra < 0.0 {
-                    return Err(SceneError::at(path, line, "negative radius (inside-only cones) is not supported"));
+                    return Err(SceneError::at(
+                        path,
+                        line,
+                        "negative radius (inside-only cones) is not supported",
+                    ));
                 }
                 let m = current(&mut scene, &mut material);
                 scene.add(Cone::new(base, rb, apex, ra), m, None);
@@ -99,7 +129,10 @@ pub fn parse_nff(text: &str, path: &Path, name: &str) -> Result<Scene, SceneErro
                     }
                 }
                 let Some(tris) = triangulate(&points) else {
-                    scene.warnings.push(format!("{}:{line}: polygon with no area skipped", path.display()));
+                    scene.warnings.push(format!(
+                        "{}:{line}: polygon with no area skipped",
+                        path.display()
+                    ));
                     continue;
                 };
                 let m = current(&mut scene, &mut material);
@@ -109,7 +142,11 @@ pub fn parse_nff(text: &str, path: &Path, name: &str) -> Result<Scene, SceneErro
                 }
             }
             other => {
-                return Err(SceneError::at(path, line, format!("unknown NFF command `{other}`")));
+                return Err(SceneError::at(
+                    path,
+                    line,
+                    format!("unknown NFF command `{other}`"),
+                ));
             }
         }
     }
@@ -120,14 +157,18 @@ pub fn parse_nff(text: &str, path: &Path, name: &str) -> Result<Scene, SceneErro
     for (l, c) in scene.lights.iter_mut().zip(light_colours) {
         l.colour = c.unwrap_or(Vec3::splat(default));
     }
-    scene.check().map_err(|e| SceneError::in_file(path, e.what))?;
+    scene
+        .check()
+        .map_err(|e| SceneError::in_file(path, e.what))?;
     Ok(scene)
 }
 
 /// The current fill material, or a default one (with a warning) before the first `f`.
 fn current(scene: &mut Scene, material: &mut Option<u32>) -> u32 {
     *material.get_or_insert_with(|| {
-        scene.warnings.push("object before any `f`: default material used".into());
+        scene
+            .warnings
+            .push("object before any `f`: default material used".into());
         scene.add_material(Material::default())
     })
 }
@@ -136,11 +177,26 @@ fn read_view(t: &mut Tokens, scene: &mut Scene, line: usize) -> Result<(), Scene
     let (mut from, mut at, mut up, mut angle, mut res) = (None, None, None, None, None);
     while let Some(kw) = t.peek_word() {
         match kw {
-            "from" => { t.next(); from = Some(t.vec3("from")?); }
-            "at" => { t.next(); at = Some(t.vec3("at")?); }
-            "up" => { t.next(); up = Some(t.vec3("up")?); }
-            "angle" => { t.next(); angle = Some(t.number("angle")?); }
-            "hither" => { t.next(); t.number("hither")?; }
+            "from" => {
+                t.next();
+                from = Some(t.vec3("from")?);
+            }
+            "at" => {
+                t.next();
+                at = Some(t.vec3("at")?);
+            }
+            "up" => {
+                t.next();
+                up = Some(t.vec3("up")?);
+            }
+            "angle" => {
+                t.next();
+                angle = Some(t.number("angle")?);
+            }
+            "hither" => {
+                t.next();
+                t.number("hither")?;
+            }
             "resolution" => {
                 t.next();
                 res = Some((t.count("resolution x")?, t.count("resolution y")?));
@@ -149,16 +205,27 @@ fn read_view(t: &mut Tokens, scene: &mut Scene, line: usize) -> Result<(), Scene
         }
     }
     let missing = |what: &str| SceneError::at(t.path, line, format!("view lacks `{what}`"));
-    let (from, at, up) = (from.ok_or_else(|| missing("from"))?, at.ok_or_else(|| missing("at"))?, up.ok_or_else(|| missing("up"))?);
+    let (from, at, up) = (
+        from.ok_or_else(|| missing("from"))?,
+        at.ok_or_else(|| missing("at"))?,
+        up.ok_or_else(|| missing("up"))?,
+    );
     let angle = angle.ok_or_else(|| missing("angle"))?;
     let (nx, ny) = res.unwrap_or((512, 512));
     if nx == 0 || ny == 0 || nx > 1 << 16 || ny > 1 << 16 {
-        return Err(SceneError::at(t.path, line, format!("absurd resolution {nx} x {ny}")));
+        return Err(SceneError::at(
+            t.path,
+            line,
+            format!("absurd resolution {nx} x {ny}"),
+        ));
     }
     // `angle` spans pixel centres of the top and bottom rows: widen it to the image edges.
     let half = (angle.to_radians() * 0.5).tan() * ny as f32 / (ny as f32 - 1.0).max(1.0);
     scene.camera = Camera::perspective(from, at, up, 2.0 * half.atan().to_degrees());
-    scene.camera.check().map_err(|e| SceneError::at(t.path, line, e))?;
+    scene
+        .camera
+        .check()
+        .map_err(|e| SceneError::at(t.path, line, e))?;
     scene.resolution = Some((nx as u32, ny as u32));
     Ok(())
 }
@@ -175,7 +242,13 @@ impl<'a> Tokens<'a> {
         let items = text
             .lines()
             .enumerate()
-            .flat_map(|(i, l)| l.split('#').next().unwrap_or("").split_whitespace().map(move |t| (t, i + 1)))
+            .flat_map(|(i, l)| {
+                l.split('#')
+                    .next()
+                    .unwrap_or("")
+                    .split_whitespace()
+                    .map(move |t| (t, i + 1))
+            })
             .collect();
         Self { items, at: 0, path }
     }
@@ -200,26 +273,50 @@ impl<'a> Tokens<'a> {
 
     fn number(&mut self, what: &str) -> Result<f32, SceneError> {
         let Some((tok, line)) = self.next() else {
-            return Err(SceneError::at(self.path, self.last_line(), format!("file ends where {what} was expected")));
+            return Err(SceneError::at(
+                self.path,
+                self.last_line(),
+                format!("file ends where {what} was expected"),
+            ));
         };
         match tok.parse::<f32>() {
             Ok(x) if x.is_finite() => Ok(x),
-            Ok(_) => Err(SceneError::at(self.path, line, format!("{what} is NaN or infinite"))),
-            Err(_) => Err(SceneError::at(self.path, line, format!("expected a number for {what}, found `{tok}`"))),
+            Ok(_) => Err(SceneError::at(
+                self.path,
+                line,
+                format!("{what} is NaN or infinite"),
+            )),
+            Err(_) => Err(SceneError::at(
+                self.path,
+                line,
+                format!("expected a number for {what}, found `{tok}`"),
+            )),
         }
     }
 
     fn vec3(&mut self, what: &str) -> Result<Vec3, SceneError> {
-        Ok(Vec3::new(self.number(what)?, self.number(what)?, self.number(what)?))
+        Ok(Vec3::new(
+            self.number(what)?,
+            self.number(what)?,
+            self.number(what)?,
+        ))
     }
 
     fn count(&mut self, what: &str) -> Result<usize, SceneError> {
         let Some((tok, line)) = self.next() else {
-            return Err(SceneError::at(self.path, self.last_line(), format!("file ends where {what} was expected")));
+            return Err(SceneError::at(
+                self.path,
+                self.last_line(),
+                format!("file ends where {what} was expected"),
+            ));
         };
         match tok.parse::<usize>() {
             Ok(n) if n <= 1 << 20 => Ok(n),
-            _ => Err(SceneError::at(self.path, line, format!("expected a count for {what}, found `{tok}`"))),
+            _ => Err(SceneError::at(
+                self.path,
+                line,
+                format!("expected a count for {what}, found `{tok}`"),
+            )),
         }
     }
 }
@@ -283,6 +380,9 @@ mod tests {
         let s = parse(VIEW).unwrap();
         assert!(s.shapes.is_empty());
         let w = s.render_warnings();
-        assert!(w.iter().any(|w| w.contains("no geometry")) && w.iter().any(|w| w.contains("no lights")));
+        assert!(
+            w.iter().any(|w| w.contains("no geometry"))
+                && w.iter().any(|w| w.contains("no lights"))
+        );
     }
 }

@@ -20,7 +20,10 @@ pub fn load_obj_scene(path: &Path) -> Result<Scene, SceneError> {
     let text = std::fs::read(path).map_err(|e| SceneError::in_file(path, e.to_string()))?;
     let mesh = parse_obj(&text, path).map_err(|e| SceneError::new(e.to_string()))?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
 
     let library = RefCell::new(MtlLibrary::default());
     let options = tobj::LoadOptions {
@@ -53,7 +56,9 @@ pub fn load_obj_scene(path: &Path) -> Result<Scene, SceneError> {
     // really have them.
     let mut with_normals = triangles_with_normals(&text);
     if with_normals.len() != triangles.len() {
-        scene.warnings.push("could not match normals to faces: flat shading".into());
+        scene
+            .warnings
+            .push("could not match normals to faces: flat shading".into());
         with_normals = vec![false; triangles.len()];
     }
     let mut next = 0;
@@ -66,20 +71,29 @@ pub fn load_obj_scene(path: &Path) -> Result<Scene, SceneError> {
             Vec3::new(m.normals[i], m.normals[i + 1], m.normals[i + 2]).normalize_or_zero()
         };
         for (f, _) in m.indices.chunks_exact(3).enumerate() {
-            let normals = has_normals.then(|| [normal(3 * f), normal(3 * f + 1), normal(3 * f + 2)]);
-            let normals = normals
-                .filter(|n| with_normals[next] && n.iter().all(|v| v.is_finite() && *v != Vec3::ZERO));
+            let normals =
+                has_normals.then(|| [normal(3 * f), normal(3 * f + 1), normal(3 * f + 2)]);
+            let normals = normals.filter(|n| {
+                with_normals[next] && n.iter().all(|v| v.is_finite() && *v != Vec3::ZERO)
+            });
             scene.add(triangles[next], material, normals);
             next += 1;
         }
     }
     if next != triangles.len() {
-        return Err(SceneError::in_file(path, "faces read twice disagree (internal error)"));
+        return Err(SceneError::in_file(
+            path,
+            "faces read twice disagree (internal error)",
+        ));
     }
     if models.iter().any(|m| m.mesh.material_id.is_none()) && !library.by_name.is_empty() {
-        scene.warnings.push("faces without a known material use the default".into());
+        scene
+            .warnings
+            .push("faces without a known material use the default".into());
     }
-    scene.check().map_err(|e| SceneError::in_file(path, e.what))?;
+    scene
+        .check()
+        .map_err(|e| SceneError::in_file(path, e.what))?;
     Ok(scene)
 }
 
@@ -92,8 +106,15 @@ fn triangles_with_normals(text: &[u8]) -> Vec<bool> {
         let Some(rest) = line.strip_prefix("f ").or_else(|| line.strip_prefix("f\t")) else {
             continue;
         };
-        let corners: Vec<&str> = rest.split('#').next().unwrap_or("").split_whitespace().collect();
-        let has = corners.iter().all(|c| c.split('/').nth(2).is_some_and(|n| !n.is_empty()));
+        let corners: Vec<&str> = rest
+            .split('#')
+            .next()
+            .unwrap_or("")
+            .split_whitespace()
+            .collect();
+        let has = corners
+            .iter()
+            .all(|c| c.split('/').nth(2).is_some_and(|n| !n.is_empty()));
         out.extend(std::iter::repeat_n(has, corners.len().saturating_sub(2)));
     }
     out
@@ -111,8 +132,14 @@ pub fn default_view(bounds: &rt_geom::Aabb) -> (Camera, Vec<PointLight>) {
     let dir = Vec3::new(0.25, 0.3, 1.0).normalize();
     let eye = centre + dir * dist;
     let lights = vec![
-        PointLight { position: eye + Vec3::Y * radius * 2.0, colour: Vec3::splat(0.7) },
-        PointLight { position: centre + Vec3::new(-2.0, 1.5, 0.5) * radius * 2.0, colour: Vec3::splat(0.4) },
+        PointLight {
+            position: eye + Vec3::Y * radius * 2.0,
+            colour: Vec3::splat(0.7),
+        },
+        PointLight {
+            position: centre + Vec3::new(-2.0, 1.5, 0.5) * radius * 2.0,
+            colour: Vec3::splat(0.4),
+        },
     ];
     (Camera::perspective(eye, centre, Vec3::Y, 45.0), lights)
 }
@@ -132,7 +159,9 @@ impl MtlLibrary {
             return;
         }
         match std::fs::read_to_string(path) {
-            Err(e) => self.warnings.push(format!("{}: {e}; default materials used", path.display())),
+            Err(e) => self
+                .warnings
+                .push(format!("{}: {e}; default materials used", path.display())),
             Ok(text) => match parse_mtl(&text, path) {
                 Ok((mats, warnings)) => {
                     for (name, m) in mats {
@@ -148,7 +177,10 @@ impl MtlLibrary {
 }
 
 /// Parses MTL text into named materials and warnings (statements not used, per keyword).
-pub fn parse_mtl(text: &str, path: &Path) -> Result<(Vec<(String, Material)>, Vec<String>), SceneError> {
+pub fn parse_mtl(
+    text: &str,
+    path: &Path,
+) -> Result<(Vec<(String, Material)>, Vec<String>), SceneError> {
     #[derive(Default)]
     struct Raw {
         kd: Option<Vec3>,
@@ -164,7 +196,10 @@ pub fn parse_mtl(text: &str, path: &Path) -> Result<(Vec<(String, Material)>, Ve
     for (i, line) in text.lines().enumerate() {
         let line_no = i + 1;
         let line = line.split('#').next().unwrap_or("").trim();
-        let Some((kw, rest)) = line.split_once(char::is_whitespace).or((!line.is_empty()).then_some((line, ""))) else {
+        let Some((kw, rest)) = line
+            .split_once(char::is_whitespace)
+            .or((!line.is_empty()).then_some((line, "")))
+        else {
             continue;
         };
         let rest = rest.trim();
@@ -172,10 +207,16 @@ pub fn parse_mtl(text: &str, path: &Path) -> Result<(Vec<(String, Material)>, Ve
         let nums = |n: usize| -> Result<Vec<f32>, SceneError> {
             let v: Vec<f32> = rest
                 .split_whitespace()
-                .map(|t| t.parse::<f32>().map_err(|_| err(format!("`{kw}` expects numbers, found `{t}`"))))
+                .map(|t| {
+                    t.parse::<f32>()
+                        .map_err(|_| err(format!("`{kw}` expects numbers, found `{t}`")))
+                })
                 .collect::<Result<_, _>>()?;
             if v.len() < n {
-                return Err(err(format!("`{kw}` needs {n} number(s), found {}", v.len())));
+                return Err(err(format!(
+                    "`{kw}` needs {n} number(s), found {}",
+                    v.len()
+                )));
             }
             if v.iter().any(|x| !x.is_finite() || *x < 0.0) {
                 return Err(err(format!("`{kw}` needs finite numbers >= 0")));
@@ -211,15 +252,25 @@ pub fn parse_mtl(text: &str, path: &Path) -> Result<(Vec<(String, Material)>, Ve
             "d" => raw.d = Some(nums(1)?[0].min(1.0)),
             "Tr" => raw.d = Some(1.0 - nums(1)?[0].min(1.0)),
             _ => {
-                raw.illum = Some(rest.parse().map_err(|_| err(format!("`illum` expects a model number, found `{rest}`")))?)
+                raw.illum =
+                    Some(rest.parse().map_err(|_| {
+                        err(format!("`illum` expects a model number, found `{rest}`"))
+                    })?)
             }
         }
     }
     let warnings = ignored
         .into_iter()
         .map(|(kw, (line, n))| {
-            let more = if n > 1 { format!(" (and {} more lines)", n - 1) } else { String::new() };
-            format!("{}:{line}: `{kw}` is not used by rt-shade{more}", path.display())
+            let more = if n > 1 {
+                format!(" (and {} more lines)", n - 1)
+            } else {
+                String::new()
+            };
+            format!(
+                "{}:{line}: `{kw}` is not used by rt-shade{more}",
+                path.display()
+            )
         })
         .collect();
     let materials = out
@@ -265,7 +316,10 @@ mod tests {
         assert!((g.transmit.x - 0.8).abs() < 1e-6);
         assert_eq!(mats[1].1.diffuse, Vec3::X);
         assert_eq!(mats[1].1.reflect, Vec3::ZERO);
-        assert_eq!(warnings, vec!["m.mtl:9: `map_Kd` is not used by rt-shade (and 1 more lines)"]);
+        assert_eq!(
+            warnings,
+            vec!["m.mtl:9: `map_Kd` is not used by rt-shade (and 1 more lines)"]
+        );
     }
 
     #[test]
@@ -284,7 +338,11 @@ mod tests {
     fn obj_with_mtl_normals_and_materials() {
         let dir = std::env::temp_dir().join(format!("rt-shade-obj-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        std::fs::write(dir.join("m.mtl"), "newmtl red\nKd 1 0 0\nnewmtl mirror\nKs 1 1 1\nillum 3\n").unwrap();
+        std::fs::write(
+            dir.join("m.mtl"),
+            "newmtl red\nKd 1 0 0\nnewmtl mirror\nKs 1 1 1\nillum 3\n",
+        )
+        .unwrap();
         std::fs::write(
             dir.join("s.obj"),
             "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\n\
@@ -295,16 +353,28 @@ mod tests {
         assert_eq!(s.shapes.len(), 3);
         assert_eq!(s.materials[s.material_of[0] as usize].diffuse, Vec3::X);
         assert_eq!(s.materials[s.material_of[1] as usize].reflect, Vec3::ONE);
-        assert_eq!(s.material_of[2] as usize, s.materials.len() - 1, "unknown material: default");
+        assert_eq!(
+            s.material_of[2] as usize,
+            s.materials.len() - 1,
+            "unknown material: default"
+        );
         assert_eq!(s.vertex_normals[0], Some([Vec3::Z; 3]));
         assert_eq!(s.vertex_normals[1], None);
         // A broken MTL names its line; a missing one is a warning.
         std::fs::write(dir.join("m.mtl"), "newmtl red\nKd 1 0\n").unwrap();
         let e = load_obj_scene(&dir.join("s.obj")).unwrap_err();
-        assert!(e.to_string().ends_with("m.mtl:2: `Kd` needs 1 or 3 numbers, found 2"), "{e}");
+        assert!(
+            e.to_string()
+                .ends_with("m.mtl:2: `Kd` needs 1 or 3 numbers, found 2"),
+            "{e}"
+        );
         std::fs::remove_file(dir.join("m.mtl")).unwrap();
         let s = load_obj_scene(&dir.join("s.obj")).unwrap();
-        assert!(s.warnings.iter().any(|w| w.contains("m.mtl")), "{:?}", s.warnings);
+        assert!(
+            s.warnings.iter().any(|w| w.contains("m.mtl")),
+            "{:?}",
+            s.warnings
+        );
         let e = load_obj_scene(&dir.join("none.obj")).unwrap_err();
         assert!(e.to_string().contains("none.obj"));
         std::fs::remove_dir_all(&dir).ok();

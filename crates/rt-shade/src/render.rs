@@ -40,7 +40,10 @@ impl Default for RenderOptions {
 impl RenderOptions {
     pub fn check(&self) -> Result<(), String> {
         if self.width == 0 || self.height == 0 {
-            return Err(format!("image size must be positive, got {}x{}", self.width, self.height));
+            return Err(format!(
+                "image size must be positive, got {}x{}",
+                self.width, self.height
+            ));
         }
         if self.width as u64 * self.height as u64 > MAX_PIXELS {
             return Err(format!(
@@ -167,7 +170,9 @@ pub fn render(
 fn lens_sample(x: u32, y: u32, s: u32) -> (f32, f32) {
     let mut h = (x as u64) << 40 ^ (y as u64) << 16 ^ s as u64;
     let mut next = || {
-        h = h.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+        h = h
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
         ((h >> 40) as u32) as f32 / (1u32 << 24) as f32
     };
     (next(), next())

@@ -117,14 +117,67 @@ impl Scene {
         self.vertex_normals.push(normals);
     }
 
+    /// Adds a triangle wound so that its normal points along `outward` (vertices and normals
+    /// swapped when it does not); zero-area triangles are skipped.
+    pub fn add_facing(
+        &mut self,
+        t: Triangle,
+        outward: Vec3,
+        material: u32,
+        normals: Option<[Vec3; 3]>,
+    ) {
+        if t.is_degenerate() {
+            return;
+        }
+        if t.cross().dot(outward) >= 0.0 {
+            self.add(t, material, normals);
+        } else {
+            let [a, b, c] = t.v;
+            self.add(
+                Triangle::new(a, c, b),
+                material,
+                normals.map(|[na, nb, nc]| [na, nc, nb]),
+            );
+        }
+    }
+
+    /// Adds a planar quad `a b c d` as two triangles facing `outward`.
+    pub fn add_quad(&mut self, [a, b, c, d]: [Vec3; 4], outward: Vec3, material: u32) {
+        self.add_facing(Triangle::new(a, b, c), outward, material, None);
+        self.add_facing(Triangle::new(a, c, d), outward, material, None);
+    }
+
+    /// Adds the axis-aligned box `[lo, hi]` as 12 triangles facing outwards (flat shaded).
+    pub fn add_box(&mut self, lo: Vec3, hi: Vec3, material: u32) {
+        let (centre, half) = ((lo + hi) * 0.5, (hi - lo) * 0.5);
+        for axis in 0..3 {
+            for sign in [-1.0f32, 1.0] {
+                let n = Vec3::AXES[axis] * sign;
+                let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+                let c = centre + n * half[axis];
+                let (du, dv) = (Vec3::AXES[u] * half[u], Vec3::AXES[v] * half[v]);
+                self.add_quad(
+                    [c - du - dv, c + du - dv, c + du + dv, c - du + dv],
+                    n,
+                    material,
+                );
+            }
+        }
+    }
+
     /// The scene's shapes as triangles, when every shape is one (so that triangle-only
     /// structures can render it with the same primitive ids).
     pub fn triangles(&self) -> Option<Vec<Triangle>> {
-        self.shapes.iter().map(|s| s.as_triangle().copied()).collect()
+        self.shapes
+            .iter()
+            .map(|s| s.as_triangle().copied())
+            .collect()
     }
 
     pub fn bounds(&self) -> Aabb {
-        self.shapes.iter().fold(Aabb::EMPTY, |b, s| b.union(s.bounds()))
+        self.shapes
+            .iter()
+            .fold(Aabb::EMPTY, |b, s| b.union(s.bounds()))
     }
 
     /// How far secondary rays start from the surface they leave: relative to the scene's size
@@ -145,13 +198,20 @@ impl Scene {
         self.camera.check().map_err(SceneError::new)?;
         let n = self.shapes.len();
         if self.material_of.len() != n || self.vertex_normals.len() != n {
-            return Err(SceneError::new("material and normal lists must match the shapes"));
+            return Err(SceneError::new(
+                "material and normal lists must match the shapes",
+            ));
         }
-        if let Some(&m) = self.material_of.iter().find(|&&m| m as usize >= self.materials.len()) {
+        if let Some(&m) = self
+            .material_of
+            .iter()
+            .find(|&&m| m as usize >= self.materials.len())
+        {
             return Err(SceneError::new(format!("material index {m} out of range")));
         }
         for (i, m) in self.materials.iter().enumerate() {
-            m.check().map_err(|e| SceneError::new(format!("material {i}: {e}")))?;
+            m.check()
+                .map_err(|e| SceneError::new(format!("material {i}: {e}")))?;
         }
         for l in &self.lights {
             if !(l.position.is_finite() && l.colour.is_finite()) {
@@ -159,10 +219,14 @@ impl Scene {
             }
         }
         if !(self.background.is_finite() && self.ambient.is_finite()) {
-            return Err(SceneError::new("background or ambient colour is not finite"));
+            return Err(SceneError::new(
+                "background or ambient colour is not finite",
+            ));
         }
         if let Some(i) = self.shapes.iter().position(|s| !s.is_finite()) {
-            return Err(SceneError::new(format!("shape {i} has a NaN or infinite coordinate")));
+            return Err(SceneError::new(format!(
+                "shape {i} has a NaN or infinite coordinate"
+            )));
         }
         Ok(())
     }
@@ -171,10 +235,16 @@ impl Scene {
     pub fn render_warnings(&self) -> Vec<String> {
         let mut w = self.warnings.clone();
         if self.shapes.is_empty() {
-            w.push(format!("scene '{}' has no geometry: the image is background only", self.name));
+            w.push(format!(
+                "scene '{}' has no geometry: the image is background only",
+                self.name
+            ));
         }
         if self.lights.is_empty() {
-            w.push(format!("scene '{}' has no lights: only ambient light and reflections", self.name));
+            w.push(format!(
+                "scene '{}' has no lights: only ambient light and reflections",
+                self.name
+            ));
         }
         w
     }

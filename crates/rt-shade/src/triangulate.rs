@@ -22,7 +22,13 @@ pub fn triangulate(points: &[Vec3]) -> Option<Vec<[usize; 3]>> {
     let flip = normal[drop] < 0.0;
     let p2: Vec<Vec2> = points
         .iter()
-        .map(|p| if flip { Vec2::new(p[b], p[a]) } else { Vec2::new(p[a], p[b]) })
+        .map(|p| {
+            if flip {
+                Vec2::new(p[b], p[a])
+            } else {
+                Vec2::new(p[a], p[b])
+            }
+        })
         .collect();
     let corner = |i: usize, j: usize, k: usize| (p2[j] - p2[i]).perp_dot(p2[k] - p2[j]);
     if (0..n).all(|i| corner(i, (i + 1) % n, (i + 2) % n) >= 0.0) {
@@ -74,7 +80,9 @@ pub fn newell_normal(points: &[Vec3]) -> Vec3 {
 
 /// `p` inside or on the counter-clockwise triangle `abc`.
 fn inside(p: Vec2, a: Vec2, b: Vec2, c: Vec2) -> bool {
-    (b - a).perp_dot(p - a) >= 0.0 && (c - b).perp_dot(p - b) >= 0.0 && (a - c).perp_dot(p - c) >= 0.0
+    (b - a).perp_dot(p - a) >= 0.0
+        && (c - b).perp_dot(p - b) >= 0.0
+        && (a - c).perp_dot(p - c) >= 0.0
 }
 
 #[cfg(test)]
@@ -108,11 +116,18 @@ mod tests {
         assert_eq!(tris.len(), 22);
         // Same total (signed) area as the polygon: no overlap, same winding.
         let want = newell_normal(&pts) * 0.5;
-        assert!(area(&pts, &tris).abs_diff_eq(want, 1e-5), "{} vs {want}", area(&pts, &tris));
+        assert!(
+            area(&pts, &tris).abs_diff_eq(want, 1e-5),
+            "{} vs {want}",
+            area(&pts, &tris)
+        );
         // A fan from v0 would cover area outside the star.
         for &[a, b, c] in &tris {
             let n = (pts[b] - pts[a]).cross(pts[c] - pts[a]);
-            assert!(n.dot(want) >= 0.0, "every triangle keeps the polygon's winding");
+            assert!(
+                n.dot(want) >= 0.0,
+                "every triangle keeps the polygon's winding"
+            );
         }
     }
 

@@ -70,7 +70,10 @@ impl ShadeOptions {
             return Err("maximum depth must be at least 1 (the eye ray)".into());
         }
         if !(self.min_weight >= 0.0 && self.min_weight.is_finite()) {
-            return Err(format!("minimum weight must be finite and >= 0, got {}", self.min_weight));
+            return Err(format!(
+                "minimum weight must be finite and >= 0, got {}",
+                self.min_weight
+            ));
         }
         Ok(())
     }
@@ -119,13 +122,19 @@ impl<'a> Whitted<'a> {
         let mut out = Vec::new();
         let mut ray = *ray;
         while out.len() < max {
-            let Some(hit) = self.accel.intersect(&ray) else { break };
+            let Some(hit) = self.accel.intersect(&ray) else {
+                break;
+            };
             let d = ray.dir().normalize();
             let s = self.surface(&ray, &hit, d);
             if !s.material.is_transmissive() {
                 break;
             }
-            let eta = if s.entering { 1.0 / s.material.ior } else { s.material.ior };
+            let eta = if s.entering {
+                1.0 / s.material.ior
+            } else {
+                s.material.ior
+            };
             let Some(t) = refract(d, &s, eta) else { break };
             ray = Ray::new(self.leave(&s, t), t);
             out.push(ray);
@@ -214,7 +223,9 @@ impl<'a> Whitted<'a> {
         let shape = &self.scene.shapes[i];
         let mut geometric = shape.normal_at(point);
         let mut shading = self.scene.vertex_normals[i]
-            .map(|[n0, n1, n2]| (n0 * (1.0 - hit.u - hit.v) + n1 * hit.u + n2 * hit.v).normalize_or_zero())
+            .map(|[n0, n1, n2]| {
+                (n0 * (1.0 - hit.u - hit.v) + n1 * hit.u + n2 * hit.v).normalize_or_zero()
+            })
             .filter(|n| *n != Vec3::ZERO)
             .unwrap_or(geometric);
         let entering = geometric.dot(d) < 0.0;
@@ -237,7 +248,11 @@ impl<'a> Whitted<'a> {
     /// The origin of a ray leaving the surface in direction `dir`: the hit point moved off the
     /// surface, to the side `dir` goes.
     fn leave(&self, s: &Surface, dir: Vec3) -> Vec3 {
-        let side = if dir.dot(s.geometric) >= 0.0 { 1.0 } else { -1.0 };
+        let side = if dir.dot(s.geometric) >= 0.0 {
+            1.0
+        } else {
+            -1.0
+        };
         let magnitude = s.point.abs().max_element();
         s.point + s.geometric * (side * (self.offset + magnitude * 1e-6))
     }
@@ -248,7 +263,11 @@ impl<'a> Whitted<'a> {
 fn mirror(d: Vec3, s: &Surface) -> Vec3 {
     let about = |n: Vec3| d - n * (2.0 * d.dot(n));
     let r = about(s.shading);
-    if r.dot(s.geometric) > 0.0 { r } else { about(s.geometric) }
+    if r.dot(s.geometric) > 0.0 {
+        r
+    } else {
+        about(s.geometric)
+    }
 }
 
 /// Snell's law: the refracted direction for relative index `eta` (incident over transmitted),
@@ -261,7 +280,11 @@ fn refract(d: Vec3, s: &Surface, eta: f32) -> Option<Vec3> {
         (k >= 0.0).then(|| (d * eta + n * (eta * cos_i - k.sqrt())).normalize())
     };
     let t = through(s.shading)?;
-    if t.dot(s.geometric) < 0.0 { Some(t) } else { through(s.geometric) }
+    if t.dot(s.geometric) < 0.0 {
+        Some(t)
+    } else {
+        through(s.geometric)
+    }
 }
 
 /// Unpolarised dielectric Fresnel reflectance from the cosines of the incident and transmitted

@@ -6,25 +6,6 @@ use rt_shade::{
     Camera, Material, PointLight, RayStats, RenderOptions, Scene, ShadeOptions, Whitted, render,
 };
 
-/// An axis-aligned box as 12 triangles wound outwards.
-fn cuboid(s: &mut Scene, lo: Vec3, hi: Vec3, m: u32) {
-    let c = (lo + hi) * 0.5;
-    let h = (hi - lo) * 0.5;
-    for axis in 0..3 {
-        for sign in [-1.0f32, 1.0] {
-            let n = Vec3::AXES[axis] * sign;
-            let (u, v) = (Vec3::AXES[(axis + 1) % 3], Vec3::AXES[(axis + 2) % 3]);
-            let f = c + n * h[axis];
-            let (du, dv) = (u * h[(axis + 1) % 3], v * h[(axis + 2) % 3]);
-            let q = [f - du - dv, f + du - dv, f + du + dv, f - du + dv];
-            for t in [Triangle::new(q[0], q[1], q[2]), Triangle::new(q[0], q[2], q[3])] {
-                let t = if t.normal().dot(n) > 0.0 { t } else { Triangle::new(t.v[0], t.v[2], t.v[1]) };
-                s.add(t, m, None);
-            }
-        }
-    }
-}
-
 fn looking_down_z() -> Camera {
     Camera::orthographic(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y, 1.0)
 }
@@ -39,7 +20,10 @@ fn one_ray(s: &Scene, max_depth: u32) -> (Vec3, RayStats) {
         width: 1,
         height: 1,
         samples_per_axis: 1,
-        shade: ShadeOptions { max_depth, ..ShadeOptions::default() },
+        shade: ShadeOptions {
+            max_depth,
+            ..ShadeOptions::default()
+        },
     };
     let out = render(s, &accel, &options, &|_| {}).unwrap();
     (out.image.pixels[0], out.stats)
@@ -49,10 +33,15 @@ fn one_ray(s: &Scene, max_depth: u32) -> (Vec3, RayStats) {
 fn glass_slab() -> Scene {
     let mut s = Scene::new("slab", looking_down_z());
     let glass = s.add_material(
-        Material::matte(Vec3::splat(0.1)).with_reflection(0.1).with_transmission(Vec3::splat(0.9), 1.5),
+        Material::matte(Vec3::splat(0.1))
+            .with_reflection(0.1)
+            .with_transmission(Vec3::splat(0.9), 1.5),
     );
-    cuboid(&mut s, Vec3::new(-3.0, -3.0, -1.0), Vec3::new(3.0, 3.0, 0.0), glass);
-    s.lights.push(PointLight { position: Vec3::new(0.0, 0.0, 5.0), colour: Vec3::ONE });
+    s.add_box(Vec3::new(-3.0, -3.0, -1.0), Vec3::new(3.0, 3.0, 0.0), glass);
+    s.lights.push(PointLight {
+        position: Vec3::new(0.0, 0.0, 5.0),
+        colour: Vec3::ONE,
+    });
     s
 }
 
@@ -62,17 +51,38 @@ fn matte_square_counts() {
     // and one behind it: 16 eye rays, 8 hits, 8 shadow rays (the light behind casts none).
     let mut s = Scene::new("half", looking_down_z());
     let m = s.add_material(Material::matte(Vec3::ONE));
-    let q = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(0.0, -1.0, 0.0), Vec3::new(0.0, 1.0, 0.0), Vec3::new(-1.0, 1.0, 0.0)];
+    let q = [
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(0.0, -1.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+        Vec3::new(-1.0, 1.0, 0.0),
+    ];
     s.add(Triangle::new(q[0], q[1], q[2]), m, None);
     s.add(Triangle::new(q[0], q[2], q[3]), m, None);
-    s.lights.push(PointLight { position: Vec3::new(0.0, 0.0, 3.0), colour: Vec3::ONE });
-    s.lights.push(PointLight { position: Vec3::new(0.0, 0.0, -3.0), colour: Vec3::ONE });
+    s.lights.push(PointLight {
+        position: Vec3::new(0.0, 0.0, 3.0),
+        colour: Vec3::ONE,
+    });
+    s.lights.push(PointLight {
+        position: Vec3::new(0.0, 0.0, -3.0),
+        colour: Vec3::ONE,
+    });
     let accel = brute(&s);
-    let options = RenderOptions { width: 4, height: 4, ..RenderOptions::default() };
+    let options = RenderOptions {
+        width: 4,
+        height: 4,
+        ..RenderOptions::default()
+    };
     let out = render(&s, &accel, &options, &|_| {}).unwrap();
     assert_eq!(
         out.stats,
-        RayStats { eye_rays: 16, eye_hits: 8, reflected: 0, refracted: 0, shadow: 8 }
+        RayStats {
+            eye_rays: 16,
+            eye_hits: 8,
+            reflected: 0,
+            refracted: 0,
+            shadow: 8
+        }
     );
     // A mirror adds one reflection ray per hit (which then misses).
     s.materials[0] = s.materials[0].with_reflection(0.5);
@@ -88,16 +98,43 @@ fn glass_slab_counts_by_depth() {
     let s = glass_slab();
     // Depth 1: the eye ray only, and its shadow ray.
     let (_, st) = one_ray(&s, 1);
-    assert_eq!(st, RayStats { eye_rays: 1, eye_hits: 1, reflected: 0, refracted: 0, shadow: 1 });
+    assert_eq!(
+        st,
+        RayStats {
+            eye_rays: 1,
+            eye_hits: 1,
+            reflected: 0,
+            refracted: 0,
+            shadow: 1
+        }
+    );
     // Depth 2: the front face spawns a reflection (misses) and a refraction, which hits the
     // back face from inside and casts a shadow ray there (the light is in front of that side of
     // the surface; the front face blocks it).
     let (_, st) = one_ray(&s, 2);
-    assert_eq!(st, RayStats { eye_rays: 1, eye_hits: 1, reflected: 1, refracted: 1, shadow: 2 });
+    assert_eq!(
+        st,
+        RayStats {
+            eye_rays: 1,
+            eye_hits: 1,
+            reflected: 1,
+            refracted: 1,
+            shadow: 2
+        }
+    );
     // Depth 3: the back face spawns an internal reflection (which reaches the front face from
     // inside, facing away from the light: no shadow ray) and the exiting refraction (misses).
     let (_, st) = one_ray(&s, 3);
-    assert_eq!(st, RayStats { eye_rays: 1, eye_hits: 1, reflected: 2, refracted: 2, shadow: 2 });
+    assert_eq!(
+        st,
+        RayStats {
+            eye_rays: 1,
+            eye_hits: 1,
+            reflected: 2,
+            refracted: 2,
+            shadow: 2
+        }
+    );
 }
 
 #[test]
@@ -121,25 +158,45 @@ fn slab_shifts_a_ray_as_snell_says() {
     let expect = (theta - theta_t).sin() / theta_t.cos();
     // Distance between the exit ray's line and the incident ray's line.
     let offset = (out.origin() - start).cross(dir).length();
-    assert!((offset - expect).abs() < 1e-4, "shift {offset}, Snell says {expect}");
+    assert!(
+        (offset - expect).abs() < 1e-4,
+        "shift {offset}, Snell says {expect}"
+    );
 }
 
 #[test]
 fn total_internal_reflection_past_the_critical_angle() {
     let s = glass_slab();
     let accel = brute(&s);
-    let w = Whitted::new(&s, &accel, ShadeOptions { max_depth: 2, ..ShadeOptions::default() });
+    let w = Whitted::new(
+        &s,
+        &accel,
+        ShadeOptions {
+            max_depth: 2,
+            ..ShadeOptions::default()
+        },
+    );
     let critical = (1.0f32 / 1.5).asin();
     let from_inside = |angle: f32| {
         let dir = Vec3::new(angle.sin(), 0.0, angle.cos());
         Ray::new(Vec3::new(0.0, 0.0, -0.5), dir)
     };
     // Below the critical angle the ray leaves; above it, it is reflected back inside.
-    assert_eq!(w.refraction_chain(&from_inside(critical - 0.02), 1).len(), 1);
-    assert!(w.refraction_chain(&from_inside(critical + 0.02), 1).is_empty());
+    assert_eq!(
+        w.refraction_chain(&from_inside(critical - 0.02), 1).len(),
+        1
+    );
+    assert!(
+        w.refraction_chain(&from_inside(critical + 0.02), 1)
+            .is_empty()
+    );
     let mut st = RayStats::default();
     w.eye(&from_inside(critical + 0.02), &mut st);
-    assert_eq!((st.reflected, st.refracted), (1, 0), "TIR: the reflection ray still goes");
+    assert_eq!(
+        (st.reflected, st.refracted),
+        (1, 0),
+        "TIR: the reflection ray still goes"
+    );
     let mut st = RayStats::default();
     w.eye(&from_inside(critical - 0.02), &mut st);
     assert_eq!((st.reflected, st.refracted), (1, 1));
@@ -152,16 +209,28 @@ fn occluder_casts_a_shadow() {
     s.ambient = Vec3::splat(0.1);
     let m = s.add_material(Material::matte(Vec3::ONE));
     let quad = |s: &mut Scene, lo: Vec3, hi: Vec3| {
-        let (a, b, c, d) = (lo, Vec3::new(hi.x, lo.y, lo.z), hi, Vec3::new(lo.x, hi.y, lo.z));
+        let (a, b, c, d) = (
+            lo,
+            Vec3::new(hi.x, lo.y, lo.z),
+            hi,
+            Vec3::new(lo.x, hi.y, lo.z),
+        );
         s.add(Triangle::new(a, b, c), m, None);
         s.add(Triangle::new(a, c, d), m, None);
     };
     quad(&mut s, Vec3::new(-3.0, -3.0, 0.0), Vec3::new(3.0, 3.0, 0.0));
-    s.lights.push(PointLight { position: Vec3::new(0.0, 0.0, 10.0), colour: Vec3::ONE });
+    s.lights.push(PointLight {
+        position: Vec3::new(0.0, 0.0, 10.0),
+        colour: Vec3::ONE,
+    });
     let shadowed = Vec3::new(-1.0, 0.0, 0.0);
     let lit = Vec3::new(1.0, 0.0, 0.0);
     // The occluder hangs at z = 5 over the shadowed point; the eye rays start below it (z = 2).
-    quad(&mut s, Vec3::new(-1.5, -0.5, 5.0), Vec3::new(-0.5, 0.5, 5.0));
+    quad(
+        &mut s,
+        Vec3::new(-1.5, -0.5, 5.0),
+        Vec3::new(-0.5, 0.5, 5.0),
+    );
     let accel = brute(&s);
     let w = Whitted::new(&s, &accel, ShadeOptions::default());
     let mut st = RayStats::default();
@@ -170,7 +239,10 @@ fn occluder_casts_a_shadow() {
     assert_eq!(st.shadow, 2);
     assert_eq!(dark, Vec3::splat(0.1), "ambient only");
     let cos = Vec3::new(-1.0, 0.0, 10.0).normalize().z;
-    assert!((bright - Vec3::splat(0.1 + cos)).abs().max_element() < 1e-5, "{bright}");
+    assert!(
+        (bright - Vec3::splat(0.1 + cos)).abs().max_element() < 1e-5,
+        "{bright}"
+    );
 }
 
 #[test]
@@ -178,7 +250,11 @@ fn scenes_without_lights_or_geometry_render_background() {
     let mut s = Scene::new("nothing", looking_down_z());
     s.background = Vec3::new(0.2, 0.3, 0.4);
     let accel = brute(&s);
-    let options = RenderOptions { width: 3, height: 2, ..RenderOptions::default() };
+    let options = RenderOptions {
+        width: 3,
+        height: 2,
+        ..RenderOptions::default()
+    };
     let out = render(&s, &accel, &options, &|_| {}).unwrap();
     assert!(out.image.pixels.iter().all(|&p| p == s.background));
     assert_eq!(out.stats.eye_hits, 0);
@@ -192,11 +268,33 @@ fn bad_options_are_refused() {
     let s = glass_slab();
     let accel = brute(&s);
     for bad in [
-        RenderOptions { width: 0, ..RenderOptions::default() },
-        RenderOptions { width: 1 << 20, height: 1 << 20, ..RenderOptions::default() },
-        RenderOptions { samples_per_axis: 0, ..RenderOptions::default() },
-        RenderOptions { shade: ShadeOptions { max_depth: 0, ..ShadeOptions::default() }, ..RenderOptions::default() },
-        RenderOptions { shade: ShadeOptions { min_weight: f32::NAN, ..ShadeOptions::default() }, ..RenderOptions::default() },
+        RenderOptions {
+            width: 0,
+            ..RenderOptions::default()
+        },
+        RenderOptions {
+            width: 1 << 20,
+            height: 1 << 20,
+            ..RenderOptions::default()
+        },
+        RenderOptions {
+            samples_per_axis: 0,
+            ..RenderOptions::default()
+        },
+        RenderOptions {
+            shade: ShadeOptions {
+                max_depth: 0,
+                ..ShadeOptions::default()
+            },
+            ..RenderOptions::default()
+        },
+        RenderOptions {
+            shade: ShadeOptions {
+                min_weight: f32::NAN,
+                ..ShadeOptions::default()
+            },
+            ..RenderOptions::default()
+        },
     ] {
         assert!(render(&s, &accel, &bad, &|_| {}).is_err(), "{bad:?}");
     }

@@ -513,8 +513,15 @@ mod tests {
         )
         .unwrap();
         assert!(report.mismatch_count > 10, "{}", report.mismatch_count);
-        assert!(report.mismatches[0].query.contains("tie"), "{}", report.mismatches[0]);
-        let lenient = Tolerance { lowest_on_ties: false, ..Tolerance::EXACT };
+        assert!(
+            report.mismatches[0].query.contains("tie"),
+            "{}",
+            report.mismatches[0]
+        );
+        let lenient = Tolerance {
+            lowest_on_ties: false,
+            ..Tolerance::EXACT
+        };
         let report = check_scene(
             &scene,
             |p: &[Triangle]| BruteForce::build(p).map(|b| HighestOnTies(p.to_vec(), b)),

@@ -273,14 +273,14 @@ pub fn mixed_shapes(n: usize, seed: u64) -> Vec<Shape> {
     let spheres = random_spheres(third, seed + 1);
     let cones = random_cones(n - 2 * third, seed + 2);
     // Interleaved, so that primitive ids of each kind are spread over the scene.
-    for i in 0..n - 2 * third {
+    for (i, cone) in cones.into_iter().enumerate() {
         if let Some(t) = tris.get(i) {
             out.push((*t).into());
         }
         if let Some(s) = spheres.get(i) {
             out.push((*s).into());
         }
-        out.push(cones[i].into());
+        out.push(cone.into());
     }
     out
 }
@@ -331,8 +331,16 @@ pub fn conformance_sphere_scenes() -> Vec<Scene<Sphere>> {
 /// `Primitive` must agree on.
 pub fn conformance_shape_scenes() -> Vec<Scene<Shape>> {
     let ground = [
-        Triangle::new(Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 1.0)),
-        Triangle::new(Vec3::ZERO, Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 0.0, 1.0)),
+        Triangle::new(
+            Vec3::ZERO,
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 1.0),
+        ),
+        Triangle::new(
+            Vec3::ZERO,
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(0.0, 0.0, 1.0),
+        ),
     ];
     // Cylinders standing on the ground, touching it and each other (as in SPD's rings).
     let mut posts: Vec<Shape> = ground.iter().map(|&t| t.into()).collect();
@@ -345,7 +353,10 @@ pub fn conformance_shape_scenes() -> Vec<Scene<Shape>> {
     }
     vec![
         Scene::new("shapes", mixed_shapes(1500, 7)),
-        Scene::new("cones", random_cones(1000, 8).into_iter().map(Shape::from).collect()),
+        Scene::new(
+            "cones",
+            random_cones(1000, 8).into_iter().map(Shape::from).collect(),
+        ),
         Scene::new("posts", posts),
     ]
 }
