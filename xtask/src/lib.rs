@@ -9,6 +9,7 @@
 //! | [`obvhs_accel`] | obvhs's BVH2 and CWBVH behind the `Accel` trait (the references) |
 //! | [`verify`] | every structure against brute force and obvhs |
 //! | [`bench`] | throughput, build time, memory, beside obvhs in the same run |
+//! | [`report`] | `bench --report DIR`: bench + sweep written as index.md with verdicts and PNG plots |
 //! | [`sweep`] | the scaling sweep: build time and time per ray against N (`bench --sweep`) |
 //! | [`render`] | Whitted renders of the chess, OBJ and NFF scenes with any structure (rt-shade) |
 //! | [`trace`] | ray files in, hit files out; standard ray sets out |
@@ -22,6 +23,7 @@ pub mod obvhs_accel;
 pub mod rayfile;
 pub mod registry;
 pub mod render;
+pub mod report;
 pub mod run;
 pub mod sweep;
 pub mod trace;

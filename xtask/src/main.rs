@@ -1,7 +1,7 @@
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use xtask::{bench, native, registry, render, sweep, trace, verify};
+use xtask::{bench, native, registry, render, report, sweep, trace, verify};
 
 /// rt's command line: list, verify, measure and run the acceleration structures.
 #[derive(Parser)]
@@ -51,6 +51,10 @@ enum Command {
         /// first thread count; default structures: brute,bvh,bvh8,kd,kd-midpoint,bsp,obvhs.
         #[arg(long, conflicts_with = "scenes")]
         sweep: bool,
+        /// Run the bench and the sweep and write a report to DIR: index.md (machine, commit,
+        /// command, a verdict per scene, tables) and PNG plots.
+        #[arg(long, value_name = "DIR", conflicts_with_all = ["sweep", "json"])]
+        report: Option<PathBuf>,
     },
     /// Whitted ray tracing of a scene to a PNG with any structure, with ray statistics.
     Render(render::RenderArgs),
@@ -129,9 +133,26 @@ fn run(command: Command) -> Result<ExitCode, String> {
             json,
             threads,
             sweep,
+            report,
         } => {
             if threads.is_empty() || threads.iter().any(|&t| t == 0 || t > 1024) {
                 return Err("--threads takes counts from 1 to 1024".into());
+            }
+            if let Some(dir) = report {
+                let command = std::iter::once("cargo xtask".to_string())
+                    .chain(std::env::args().skip(1))
+                    .collect::<Vec<_>>()
+                    .join(" ");
+                let index = report::report(&report::ReportOptions {
+                    dir,
+                    quick,
+                    accels,
+                    scenes,
+                    threads,
+                    command,
+                })?;
+                println!("wrote {}", index.display());
+                return Ok(ExitCode::SUCCESS);
             }
             if sweep {
                 sweep::sweep(&sweep::SweepOptions {
