@@ -47,7 +47,7 @@ enum Command {
         #[arg(long, value_delimiter = ',', default_value = "1,2")]
         threads: Vec<usize>,
         /// The scaling sweep instead: build time and time per ray against N (1k to 1M
-        /// triangles; --quick: to 100k) on spheres and soups, with log-log slopes. Uses the
+        /// triangles; --quick: to 100k) on spheres, soups and a teapot in a stadium, with log-log slopes. Uses the
         /// first thread count; default structures: brute,bvh,bvh8,kd,kd-midpoint,bsp,obvhs.
         #[arg(long, conflicts_with = "scenes")]
         sweep: bool,

@@ -241,7 +241,7 @@ fn index_md(
     let _ = writeln!(s, "\n## Scaling sweep\n");
     let _ = writeln!(
         s,
-        "Tessellated spheres and random soups from {} to {} triangles, {threads} thread(s), \
+        "Tessellated spheres, random soups and a teapot in a stadium from {} to {} triangles, {threads} thread(s), \
          128x128 camera rays. Slopes are least-squares fits of log(time) against log(N): \
          1 is linear (brute force), 1/3 the uniform grid's N^(1/3), ~0.1-0.3 logarithmic.\n",
         sweep.iter().map(|r| r.n).min().unwrap_or(0),

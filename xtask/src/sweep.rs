@@ -70,13 +70,16 @@ pub fn family_scene(family: &str, n: usize) -> Result<Vec<Triangle>, String> {
                 })
                 .collect())
         }
+        // A dense object in a large sparse stadium (the uniform grid's worst case).
+        "stadium" => Ok(scenes::teapot_in_stadium(n)),
         _ => Err(format!(
-            "unknown sweep family '{family}'; known: sphere, soup"
+            "unknown sweep family '{family}'; known: {}",
+            FAMILIES.join(", ")
         )),
     }
 }
 
-pub const FAMILIES: [&str; 2] = ["sphere", "soup"];
+pub const FAMILIES: [&str; 3] = ["sphere", "soup", "stadium"];
 
 pub fn sweep(opts: &SweepOptions) -> Result<Vec<SweepRecord>, String> {
     let entries = registry::select(Some(opts.accels.as_deref().unwrap_or(DEFAULT_ACCELS)))?;
@@ -88,7 +91,7 @@ pub fn sweep(opts: &SweepOptions) -> Result<Vec<SweepRecord>, String> {
             .map(|&n| entries.iter().filter(|e| runs_at(e, n)).count())
             .sum::<usize>();
     eprintln!(
-        "sweep: {} structures, N = {:?}, spheres and soups, {} thread(s)",
+        "sweep: {} structures, N = {:?}, spheres, soups and stadiums, {} thread(s)",
         entries.len(),
         sizes,
         opts.threads
@@ -245,6 +248,11 @@ mod tests {
                 s.len()
             );
             assert_eq!(family_scene("soup", n).unwrap().len(), n);
+            let stadium = family_scene("stadium", n).unwrap().len();
+            assert!(
+                (stadium as f64 - n as f64).abs() < 0.1 * n as f64,
+                "{stadium}"
+            );
         }
         assert!(family_scene("nope", 10).is_err());
     }
