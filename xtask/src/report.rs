@@ -338,10 +338,14 @@ struct SpdRow {
 
 /// Renders every SPD scene present with each of [`SPD_ACCELS`] (on all cores).
 fn spd_renders(quick: bool) -> Result<Vec<SpdRow>, String> {
+    // The full report adds the larger sizes of balls, tetra and mount: the same scenes at 9x,
+    // 16x-64x and 16x the primitives, a scaling series on real scenes.
     let names: Vec<&str> = if quick {
         vec!["balls", "gears", "tree"]
     } else {
-        rt_testkit::models::SPD_NAMES.to_vec()
+        let mut v = rt_testkit::models::SPD_NAMES.to_vec();
+        v.extend(["balls-size5", "balls-size6", "tetra-size8", "tetra-size9", "mount-size8"]);
+        v
     };
     let size = if quick { 96 } else { 256 };
     let accels = crate::registry::select(Some(SPD_ACCELS))?;
