@@ -32,6 +32,9 @@ pub struct Record {
     pub bytes: usize,
     /// `mrays_s` over the faster of `obvhs` and `obvhs-cwbvh` on the same scene, rays, threads.
     pub ratio_vs_obvhs: Option<f64>,
+    /// `mrays_s` over Embree's on the same scene, rays, threads (with the `embree` feature).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ratio_vs_embree: Option<f64>,
     pub ray_count: usize,
     pub hits: usize,
     /// Primitives in the scene.
@@ -98,9 +101,12 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
         .collect::<Result<_, _>>()?;
     // obvhs is always measured: every ratio is against it, in the same run.
     let mut measured: Vec<&AccelEntry> = entries.clone();
-    for name in ["obvhs", "obvhs-cwbvh"] {
-        if !measured.iter().any(|e| e.name == name) {
-            measured.push(registry::find(name).expect("registered"));
+    // So is Embree when it is registered (the `embree` feature).
+    for name in ["obvhs", "obvhs-cwbvh", "embree"] {
+        if let Some(e) = registry::find(name) {
+            if !measured.iter().any(|m| m.name == name) {
+                measured.push(e);
+            }
         }
     }
     eprintln!(
@@ -128,7 +134,11 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
         for entry in runnable {
             pb.set_message(format!("{} build", entry.name));
             let start = Instant::now();
-            let accel = (entry.build)(&tris).map_err(|e| format!("{}: {e}", entry.name))?;
+            // Built in the largest pool: parallel builders (and Embree's device) use its threads.
+            let build_pool = &pools.last().expect("at least one thread count").1;
+            let accel = build_pool
+                .install(|| (entry.build)(&tris))
+                .map_err(|e| format!("{}: {e}", entry.name))?;
             let build_ms = start.elapsed().as_secs_f64() * 1e3;
             let stats = accel.stats();
             for set in RaySets::NAMES {
@@ -146,6 +156,7 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
                         mrays_s: rate,
                         bytes: stats.bytes,
                         ratio_vs_obvhs: None,
+                        ratio_vs_embree: None,
                         ray_count: count,
                         hits,
                         prims: tris.len(),
@@ -158,7 +169,9 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
         pb.finish_and_clear();
     }
     fill_ratios(&mut records);
-    records.retain(|r| entries.iter().any(|e| e.name == r.accel) || r.accel.starts_with("obvhs"));
+    records.retain(|r| {
+        entries.iter().any(|e| e.name == r.accel) || r.accel.starts_with("obvhs") || r.accel == "embree"
+    });
     print_table(&records);
     if let Some(path) = &opts.json {
         let text = serde_json::to_string_pretty(&records).map_err(|e| e.to_string())?;
@@ -209,34 +222,50 @@ fn measure(
 }
 
 fn fill_ratios(records: &mut [Record]) {
-    let best: Vec<Option<f64>> = records
-        .iter()
-        .map(|r| {
-            records
-                .iter()
-                .filter(|o| {
-                    o.accel.starts_with("obvhs")
-                        && o.scene == r.scene
-                        && o.rays == r.rays
-                        && o.threads == r.threads
-                })
-                .map(|o| o.mrays_s)
-                .fold(None, |a: Option<f64>, x| Some(a.map_or(x, |a| a.max(x))))
-        })
-        .collect();
-    for (r, b) in records.iter_mut().zip(best) {
-        r.ratio_vs_obvhs = b.filter(|b| *b > 0.0).map(|b| r.mrays_s / b);
+    // The best rate among the references named by `is_ref`, per scene, rays and threads.
+    let best = |records: &[Record], is_ref: fn(&str) -> bool| -> Vec<Option<f64>> {
+        records
+            .iter()
+            .map(|r| {
+                records
+                    .iter()
+                    .filter(|o| {
+                        is_ref(&o.accel) && o.scene == r.scene && o.rays == r.rays && o.threads == r.threads
+                    })
+                    .map(|o| o.mrays_s)
+                    .fold(None, |a: Option<f64>, x| Some(a.map_or(x, |a| a.max(x))))
+                    .filter(|b| *b > 0.0)
+                    .map(|b| r.mrays_s / b)
+            })
+            .collect()
+    };
+    let obvhs = best(records, |a| a.starts_with("obvhs"));
+    let embree = best(records, |a| a == "embree");
+    for ((r, o), e) in records.iter_mut().zip(obvhs).zip(embree) {
+        r.ratio_vs_obvhs = o;
+        r.ratio_vs_embree = e;
     }
 }
 
 pub fn print_table(records: &[Record]) {
+    let embree = records.iter().any(|r| r.ratio_vs_embree.is_some());
     println!(
-        "{:<18} {:<12} {:<8} {:>3} {:>10} {:>9} {:>8} {:>8} {:>8} {:>7}",
-        "accel", "scene", "rays", "thr", "build_ms", "Mrays/s", "vs obvhs", "B/prim", "MiB", "sah"
+        "{:<18} {:<12} {:<8} {:>3} {:>10} {:>9} {:>8} {:>8} {:>8} {:>7}{}",
+        "accel",
+        "scene",
+        "rays",
+        "thr",
+        "build_ms",
+        "Mrays/s",
+        "vs obvhs",
+        "B/prim",
+        "MiB",
+        "sah",
+        if embree { "  vs embree" } else { "" }
     );
     for r in records {
         println!(
-            "{:<18} {:<12} {:<8} {:>3} {:>10.1} {:>9.2} {:>8} {:>8} {:>8.1} {:>7}",
+            "{:<18} {:<12} {:<8} {:>3} {:>10.1} {:>9.2} {:>8} {:>8} {:>8.1} {:>7}{}",
             r.accel,
             r.scene,
             r.rays,
@@ -247,6 +276,7 @@ pub fn print_table(records: &[Record]) {
             format!("{:.1}", r.bytes as f64 / r.prims.max(1) as f64),
             r.bytes as f64 / (1 << 20) as f64,
             r.sah_cost.map_or("-".into(), |x| format!("{x:.1}")),
+            r.ratio_vs_embree.map_or(String::new(), |x| format!(" {x:>10.2}x")),
         );
     }
 }

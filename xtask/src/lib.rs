@@ -15,9 +15,12 @@
 //! | [`trace`] | ray files in, hit files out; standard ray sets out |
 //! | [`rayfile`] | the `.rays` / `.hits` formats |
 //! | [`run`] | timed parallel tracing, medians, progress bars |
+//! | `embree` | Intel Embree 3 behind `Accel` (feature `embree`, system `libembree-dev`) |
 //! | [`native`] | re-running `bench`/`trace` built with `-C target-cpu=native` |
 
 pub mod bench;
+#[cfg(feature = "embree")]
+pub mod embree;
 pub mod native;
 pub mod obvhs_accel;
 pub mod rayfile;

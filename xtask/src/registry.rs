@@ -12,6 +12,7 @@ use rt_geom::{Aabb, Accel, BoundingSphere, BruteForce, BuildError, Kdop7, Shape,
 use rt_testkit::Tolerance;
 
 /// A structure that can be built from triangles.
+#[derive(Clone, Copy)]
 pub struct AccelEntry {
     /// The name users type (`--accel NAME`).
     pub name: &'static str,
@@ -28,6 +29,9 @@ pub struct AccelEntry {
     /// Largest scene `bench` and `verify` run it on (brute force and flat volume lists are
     /// O(n) per ray).
     pub bench_max_prims: usize,
+    /// Whether `verify` runs it on the adversarial conformance scenes (peers that answer
+    /// differently by design there are checked on the meshes' camera, shadow and diffuse rays).
+    pub conformance: bool,
 }
 
 fn boxed<A: Accel + 'static>(r: Result<A, BuildError>) -> Result<Box<dyn Accel>, BuildError> {
@@ -63,6 +67,7 @@ const fn own(
         tolerance: Tolerance::EXACT,
         external: false,
         bench_max_prims: usize::MAX,
+        conformance: true,
     }
 }
 
@@ -126,7 +131,55 @@ fn bvlist_two_level() -> BvListParams {
     }
 }
 
-pub static REGISTRY: &[AccelEntry] = &[
+/// Every registered structure: rt's own and the references, then the optional peers.
+pub static REGISTRY: [AccelEntry; BASE.len() + OPTIONAL.len()] = concat(BASE, OPTIONAL);
+
+/// `a` then `b`, as one array (entries are plain data: names, function pointers, numbers).
+const fn concat<const N: usize>(a: &[AccelEntry], b: &[AccelEntry]) -> [AccelEntry; N] {
+    let mut out = [a[0]; N];
+    let mut i = 0;
+    while i < b.len() {
+        out[a.len() + i] = b[i];
+        i += 1;
+    }
+    i = 0;
+    while i < a.len() {
+        out[i] = a[i];
+        i += 1;
+    }
+    out
+}
+
+/// Intel Embree 3 (`--features embree`, Debian's `libembree-dev`): high-quality build,
+/// `rtcIntersect1` / `rtcOccluded1`, as many build threads as the pool it is built in.
+#[cfg(feature = "embree")]
+const OPTIONAL: &[AccelEntry] = &[AccelEntry {
+    name: "embree",
+    about: "Intel Embree 3 (system library), high-quality robust build, rtcIntersect1/rtcOccluded1",
+    build: |p| boxed(crate::embree::EmbreeScene::build(p, 0)),
+    build_shapes: None,
+    tolerance: EMBREE_TOLERANCE,
+    external: true,
+    bench_max_prims: usize::MAX,
+    // On the adversarial scenes Embree answers differently by design: a ray that starts on a
+    // triangle hits it at t = 0, and a hit exactly at `tmax` may be dropped or kept.
+    conformance: false,
+}];
+
+#[cfg(not(feature = "embree"))]
+const OPTIONAL: &[AccelEntry] = &[];
+
+/// What Embree is held to: `t` within 1e-4 relative; rays of the boundary families may lose
+/// hits (its watertight test differs from rt's in which of two triangles a shared edge or
+/// vertex belongs to).
+pub const EMBREE_TOLERANCE: Tolerance = Tolerance {
+    rel_t: 1e-4,
+    near_t: 0.0,
+    boundary_misses: true,
+    lowest_on_ties: false,
+};
+
+const BASE: &[AccelEntry] = &[
     AccelEntry {
         name: "brute",
         about: "brute force: every ray against every primitive (the reference on small scenes)",
@@ -135,6 +188,7 @@ pub static REGISTRY: &[AccelEntry] = &[
         tolerance: Tolerance::EXACT,
         external: false,
         bench_max_prims: 10_000,
+        conformance: true,
     },
     generic!(
         "bvh",
@@ -312,6 +366,7 @@ pub static REGISTRY: &[AccelEntry] = &[
         tolerance: OBVHS_TOLERANCE,
         external: true,
         bench_max_prims: usize::MAX,
+        conformance: true,
     },
     AccelEntry {
         name: "obvhs-cwbvh",
@@ -324,6 +379,7 @@ pub static REGISTRY: &[AccelEntry] = &[
         },
         external: true,
         bench_max_prims: usize::MAX,
+        conformance: true,
     },
 ];
 

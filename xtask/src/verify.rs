@@ -25,6 +25,9 @@ pub struct Row {
     pub scene: String,
     pub build_ms: f64,
     pub report: Result<Report, String>,
+    /// On the meshes, with the `embree` feature: `(rays that disagree with Embree, rays)`,
+    /// disagreeing meaning hit against miss, or `t` off by more than 1e-4 relative.
+    pub vs_embree: Option<(usize, usize)>,
 }
 
 impl Row {
@@ -80,6 +83,7 @@ fn conformance_rows(entries: &[&'static AccelEntry]) -> Vec<Row> {
     let scenes = scenes::conformance_triangle_scenes();
     let jobs: Vec<_> = entries
         .iter()
+        .filter(|e| e.conformance)
         .flat_map(|e| scenes.iter().map(move |s| (*e, s)))
         .collect();
     let pb = run::bar(jobs.len() as u64, "conformance");
@@ -95,6 +99,7 @@ fn conformance_rows(entries: &[&'static AccelEntry]) -> Vec<Row> {
                 scene: scene.name.clone(),
                 build_ms: start.elapsed().as_secs_f64() * 1e3,
                 report,
+                vs_embree: None,
             }
         })
         .collect();
@@ -122,6 +127,15 @@ fn mesh_rows(name: &str, entries: &[&'static AccelEntry], quick: bool) -> Result
         .par_iter()
         .map(|r| reference.intersect(&r.ray))
         .collect();
+    // Embree's answers on the same rays, when it is registered.
+    let embree_hits: Option<Vec<Option<rt_geom::Hit>>> = match registry::find("embree") {
+        Some(e) => {
+            pb.set_message(format!("{name}: Embree's answers"));
+            let embree = (e.build)(&tris).map_err(|e| e.to_string())?;
+            Some(rays.par_iter().map(|r| embree.intersect(&r.ray)).collect())
+        }
+        None => None,
+    };
     pb.finish_and_clear();
     let scene = format!(
         "{name} ({} vs {})",
@@ -137,8 +151,12 @@ fn mesh_rows(name: &str, entries: &[&'static AccelEntry], quick: bool) -> Result
         let start = Instant::now();
         let built = (entry.build)(&tris);
         let build_ms = start.elapsed().as_secs_f64() * 1e3;
+        let mut vs_embree = None;
         let report = built.map_err(|e| e.to_string()).and_then(|accel| {
             accel.validate()?;
+            if let Some(theirs) = &embree_hits {
+                vs_embree = Some((disagreements(&rays, theirs, accel.as_ref()), rays.len()));
+            }
             Ok(compare_parallel(
                 &scene,
                 &tris,
@@ -154,6 +172,7 @@ fn mesh_rows(name: &str, entries: &[&'static AccelEntry], quick: bool) -> Result
             scene: scene.clone(),
             build_ms,
             report,
+            vs_embree,
         });
     }
     Ok(rows)
@@ -179,6 +198,19 @@ fn compare_parallel(
         })
 }
 
+/// Rays on which `accel` and Embree's answers differ: hit against miss, or `t` more than 1e-4
+/// relative apart.
+fn disagreements(rays: &[TestRay], embree: &[Option<rt_geom::Hit>], accel: &dyn Accel) -> usize {
+    rays.par_iter()
+        .zip(embree)
+        .filter(|(r, theirs)| match (accel.intersect(&r.ray), theirs) {
+            (None, None) => false,
+            (Some(a), Some(b)) => (a.t - b.t).abs() > 1e-4 * b.t.abs().max(1e-30),
+            _ => true,
+        })
+        .count()
+}
+
 fn print_table(rows: &[Row]) {
     println!(
         "{:<18} {:<32} {:>8} {:>8} {:>10} {:>9} {:>10} {:>10}",
@@ -198,6 +230,22 @@ fn print_table(rows: &[Row]) {
                 r.build_ms
             ),
             Err(e) => println!("{:<18} {:<32} ERROR: {e}", r.accel, r.scene),
+        }
+    }
+    let with_embree: Vec<&Row> = rows.iter().filter(|r| r.vs_embree.is_some()).collect();
+    if !with_embree.is_empty() {
+        println!("\nagreement with Embree on the meshes (hit/miss, t within 1e-4 relative):");
+        println!("{:<18} {:<32} {:>8} {:>12} {:>9}", "accel", "scene", "rays", "disagreeing", "agree %");
+        for r in with_embree {
+            let (bad, n) = r.vs_embree.unwrap_or_default();
+            println!(
+                "{:<18} {:<32} {:>8} {:>12} {:>9.4}",
+                r.accel,
+                r.scene,
+                n,
+                bad,
+                100.0 * (n - bad) as f64 / n.max(1) as f64
+            );
         }
     }
 }

@@ -1,0 +1,286 @@
+//! Intel Embree 3 behind the `Accel` trait (Cargo feature `embree`; Debian's `libembree-dev`).
+//!
+//! A small FFI module of our own, of the few calls rt needs: a device with `threads=N`, one
+//! triangle geometry with shared vertex and index buffers, a scene built at high quality with
+//! the robust flag, `rtcIntersect1` and `rtcOccluded1`. Struct layouts follow Embree 3.13's
+//! headers (`RTC_MAX_INSTANCE_LEVEL_COUNT` 1, `RTC_MIN_WIDTH` 0) and are checked at compile time.
+
+use rt_geom::{Accel, AccelStats, BuildError, Hit, Ray, Triangle, check_primitives};
+use std::ffi::{CStr, c_char, c_uint, c_void};
+use std::ptr::NonNull;
+
+#[repr(C)]
+struct RtcIntersectContext {
+    flags: c_uint,
+    filter: *const c_void,
+    inst_id: [c_uint; 1],
+}
+
+#[repr(C, align(16))]
+#[derive(Clone, Copy)]
+struct RtcRay {
+    org: [f32; 3],
+    tnear: f32,
+    dir: [f32; 3],
+    time: f32,
+    tfar: f32,
+    mask: c_uint,
+    id: c_uint,
+    flags: c_uint,
+}
+
+#[repr(C, align(16))]
+#[derive(Clone, Copy)]
+struct RtcHit {
+    ng: [f32; 3],
+    u: f32,
+    v: f32,
+    prim_id: c_uint,
+    geom_id: c_uint,
+    inst_id: [c_uint; 1],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy)]
+struct RtcRayHit {
+    ray: RtcRay,
+    hit: RtcHit,
+}
+
+const _: () = assert!(size_of::<RtcIntersectContext>() == 24);
+const _: () = assert!(size_of::<RtcRay>() == 48);
+const _: () = assert!(size_of::<RtcHit>() == 32);
+const _: () = assert!(size_of::<RtcRayHit>() == 80);
+
+const INVALID_GEOMETRY_ID: c_uint = u32::MAX;
+const GEOMETRY_TYPE_TRIANGLE: c_uint = 0;
+const BUFFER_TYPE_INDEX: c_uint = 0;
+const BUFFER_TYPE_VERTEX: c_uint = 1;
+const FORMAT_UINT3: c_uint = 0x5003;
+const FORMAT_FLOAT3: c_uint = 0x9003;
+const BUILD_QUALITY_HIGH: c_uint = 2;
+const SCENE_FLAG_ROBUST: c_uint = 1 << 2;
+
+#[link(name = "embree3")]
+unsafe extern "C" {
+    fn rtcNewDevice(config: *const c_char) -> *mut c_void;
+    fn rtcReleaseDevice(device: *mut c_void);
+    fn rtcGetDeviceError(device: *mut c_void) -> c_uint;
+    fn rtcNewScene(device: *mut c_void) -> *mut c_void;
+    fn rtcReleaseScene(scene: *mut c_void);
+    fn rtcSetSceneBuildQuality(scene: *mut c_void, quality: c_uint);
+    fn rtcSetSceneFlags(scene: *mut c_void, flags: c_uint);
+    fn rtcCommitScene(scene: *mut c_void);
+    fn rtcNewGeometry(device: *mut c_void, kind: c_uint) -> *mut c_void;
+    fn rtcSetGeometryBuildQuality(geometry: *mut c_void, quality: c_uint);
+    fn rtcSetNewGeometryBuffer(
+        geometry: *mut c_void,
+        kind: c_uint,
+        slot: c_uint,
+        format: c_uint,
+        byte_stride: usize,
+        item_count: usize,
+    ) -> *mut c_void;
+    fn rtcCommitGeometry(geometry: *mut c_void);
+    fn rtcAttachGeometry(scene: *mut c_void, geometry: *mut c_void) -> c_uint;
+    fn rtcReleaseGeometry(geometry: *mut c_void);
+    fn rtcIntersect1(scene: *mut c_void, context: *mut RtcIntersectContext, rayhit: *mut RtcRayHit);
+    fn rtcOccluded1(scene: *mut c_void, context: *mut RtcIntersectContext, ray: *mut RtcRay);
+}
+
+/// An Embree scene of triangles (ids are the caller's indices).
+pub struct EmbreeScene {
+    device: NonNull<c_void>,
+    scene: NonNull<c_void>,
+    prims: usize,
+    threads: usize,
+}
+
+// SAFETY: Embree scenes are immutable after `rtcCommitScene`, and `rtcIntersect1` /
+// `rtcOccluded1` may be called on one scene from any number of threads at once (Embree 3 API
+// documentation, "Thread safety"); the device is only released in `Drop`.
+unsafe impl Send for EmbreeScene {}
+// SAFETY: as above.
+unsafe impl Sync for EmbreeScene {}
+
+impl Drop for EmbreeScene {
+    fn drop(&mut self) {
+        // SAFETY: both handles were created by this value and are released once, scene first.
+        unsafe {
+            rtcReleaseScene(self.scene.as_ptr());
+            rtcReleaseDevice(self.device.as_ptr());
+        }
+    }
+}
+
+fn error(what: &str) -> BuildError {
+    BuildError::InvalidParameter {
+        name: "embree",
+        value: what.to_string(),
+        expected: "a working Embree 3 device",
+    }
+}
+
+impl EmbreeScene {
+    /// Builds at high quality with `threads` build threads (0: rayon's current pool size).
+    pub fn build(tris: &[Triangle], threads: usize) -> Result<Self, BuildError> {
+        check_primitives(tris, u32::MAX as usize)?;
+        let threads = if threads == 0 { rayon::current_num_threads() } else { threads };
+        let config = format!("threads={threads},verbose=0\0");
+        let config = CStr::from_bytes_with_nul(config.as_bytes()).map_err(|_| error("config"))?;
+        // SAFETY: a valid NUL-terminated configuration string.
+        let device = NonNull::new(unsafe { rtcNewDevice(config.as_ptr()) })
+            .ok_or_else(|| error("rtcNewDevice failed"))?;
+        // SAFETY: `device` is a live device; every handle below comes from it, buffers are
+        // written within the sizes Embree allocated for them, and errors are checked before
+        // the scene is used.
+        unsafe {
+            let Some(scene) = NonNull::new(rtcNewScene(device.as_ptr())) else {
+                rtcReleaseDevice(device.as_ptr());
+                return Err(error("rtcNewScene failed"));
+            };
+            let out = Self { device, scene, prims: tris.len(), threads };
+            rtcSetSceneBuildQuality(scene.as_ptr(), BUILD_QUALITY_HIGH);
+            rtcSetSceneFlags(scene.as_ptr(), SCENE_FLAG_ROBUST);
+            if !tris.is_empty() {
+                let geometry = rtcNewGeometry(device.as_ptr(), GEOMETRY_TYPE_TRIANGLE);
+                if geometry.is_null() {
+                    return Err(error("rtcNewGeometry failed"));
+                }
+                rtcSetGeometryBuildQuality(geometry, BUILD_QUALITY_HIGH);
+                let n = tris.len();
+                let vertices = rtcSetNewGeometryBuffer(geometry, BUFFER_TYPE_VERTEX, 0, FORMAT_FLOAT3, 12, 3 * n) as *mut f32;
+                let indices = rtcSetNewGeometryBuffer(geometry, BUFFER_TYPE_INDEX, 0, FORMAT_UINT3, 12, n) as *mut u32;
+                if vertices.is_null() || indices.is_null() {
+                    rtcReleaseGeometry(geometry);
+                    return Err(error("geometry buffers could not be allocated"));
+                }
+                let vertices = std::slice::from_raw_parts_mut(vertices, 9 * n);
+                let indices = std::slice::from_raw_parts_mut(indices, 3 * n);
+                for (i, t) in tris.iter().enumerate() {
+                    for (k, v) in t.v.iter().enumerate() {
+                        vertices[9 * i + 3 * k..9 * i + 3 * k + 3].copy_from_slice(&v.to_array());
+                        indices[3 * i + k] = (3 * i + k) as u32;
+                    }
+                }
+                rtcCommitGeometry(geometry);
+                rtcAttachGeometry(scene.as_ptr(), geometry);
+                rtcReleaseGeometry(geometry);
+            }
+            rtcCommitScene(scene.as_ptr());
+            match rtcGetDeviceError(device.as_ptr()) {
+                0 => Ok(out),
+                code => Err(error(&format!("Embree error code {code} while building"))),
+            }
+        }
+    }
+
+    fn context() -> RtcIntersectContext {
+        RtcIntersectContext {
+            flags: 0,
+            filter: std::ptr::null(),
+            inst_id: [INVALID_GEOMETRY_ID],
+        }
+    }
+
+    fn ray(ray: &Ray) -> RtcRay {
+        RtcRay {
+            org: ray.origin().to_array(),
+            tnear: ray.tmin.max(0.0),
+            dir: ray.dir().to_array(),
+            time: 0.0,
+            tfar: ray.tmax,
+            mask: u32::MAX,
+            id: 0,
+            flags: 0,
+        }
+    }
+}
+
+impl Accel for EmbreeScene {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        if !ray.is_valid() || self.prims == 0 || !(ray.tmin <= ray.tmax) {
+            return None;
+        }
+        let mut rh = RtcRayHit {
+            ray: Self::ray(ray),
+            hit: RtcHit {
+                ng: [0.0; 3],
+                u: 0.0,
+                v: 0.0,
+                prim_id: INVALID_GEOMETRY_ID,
+                geom_id: INVALID_GEOMETRY_ID,
+                inst_id: [INVALID_GEOMETRY_ID],
+            },
+        };
+        let mut context = Self::context();
+        // SAFETY: a committed scene, an initialised context and a 16-byte aligned ray/hit.
+        unsafe { rtcIntersect1(self.scene.as_ptr(), &mut context, &mut rh) };
+        (rh.hit.geom_id != INVALID_GEOMETRY_ID).then_some(Hit {
+            t: rh.ray.tfar,
+            u: rh.hit.u,
+            v: rh.hit.v,
+            prim: rh.hit.prim_id,
+        })
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        if !ray.is_valid() || self.prims == 0 || !(ray.tmin <= ray.tmax) {
+            return false;
+        }
+        let mut r = Self::ray(ray);
+        let mut context = Self::context();
+        // SAFETY: as in `intersect`; Embree sets `tfar` to -inf when the ray is occluded.
+        unsafe { rtcOccluded1(self.scene.as_ptr(), &mut context, &mut r) };
+        r.tfar == f32::NEG_INFINITY
+    }
+
+    fn stats(&self) -> AccelStats {
+        AccelStats {
+            primitives: self.prims,
+            // Embree does not report its memory here; its input copy is a lower bound.
+            bytes: self.prims * 48,
+            nodes: 1,
+            leaves: 1,
+            references: self.prims,
+            ..AccelStats::default()
+        }
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        (self.threads > 0).then_some(()).ok_or_else(|| "no build threads".into())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rt_geom::Vec3;
+
+    #[test]
+    fn embree_hits_what_rt_hits() {
+        let tris = rt_testkit::scenes::random_soup(500, 3);
+        let scene = EmbreeScene::build(&tris, 1).unwrap();
+        let brute = rt_geom::BruteForce::build(&tris).unwrap();
+        let mut agree = 0;
+        for i in 0..400 {
+            let o = Vec3::new(0.5, 0.5, -2.0);
+            let d = Vec3::new((i % 20) as f32 / 20.0 - 0.5, (i / 20) as f32 / 20.0 - 0.5, 2.0);
+            let ray = Ray::new(o, d);
+            let (a, b) = (scene.intersect(&ray), brute.intersect(&ray));
+            assert_eq!(a.is_some(), scene.occluded(&ray));
+            match (a, b) {
+                (Some(a), Some(b)) => {
+                    assert!((a.t - b.t).abs() <= 1e-4 * b.t, "{a:?} {b:?}");
+                    agree += 1;
+                }
+                (None, None) => agree += 1,
+                _ => {}
+            }
+        }
+        assert!(agree >= 398, "{agree} of 400 agree");
+        let empty = EmbreeScene::build(&[], 1).unwrap();
+        assert!(empty.intersect(&Ray::new(Vec3::ZERO, Vec3::X)).is_none());
+        assert!(EmbreeScene::build(&[Triangle::new(Vec3::NAN, Vec3::X, Vec3::Y)], 1).is_err());
+    }
+}
