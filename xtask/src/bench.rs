@@ -170,7 +170,9 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
     }
     fill_ratios(&mut records);
     records.retain(|r| {
-        entries.iter().any(|e| e.name == r.accel) || r.accel.starts_with("obvhs") || r.accel == "embree"
+        entries.iter().any(|e| e.name == r.accel)
+            || r.accel.starts_with("obvhs")
+            || r.accel == "embree"
     });
     print_table(&records);
     if let Some(path) = &opts.json {
@@ -230,7 +232,10 @@ fn fill_ratios(records: &mut [Record]) {
                 records
                     .iter()
                     .filter(|o| {
-                        is_ref(&o.accel) && o.scene == r.scene && o.rays == r.rays && o.threads == r.threads
+                        is_ref(&o.accel)
+                            && o.scene == r.scene
+                            && o.rays == r.rays
+                            && o.threads == r.threads
                     })
                     .map(|o| o.mrays_s)
                     .fold(None, |a: Option<f64>, x| Some(a.map_or(x, |a| a.max(x))))
@@ -276,7 +281,8 @@ pub fn print_table(records: &[Record]) {
             format!("{:.1}", r.bytes as f64 / r.prims.max(1) as f64),
             r.bytes as f64 / (1 << 20) as f64,
             r.sah_cost.map_or("-".into(), |x| format!("{x:.1}")),
-            r.ratio_vs_embree.map_or(String::new(), |x| format!(" {x:>10.2}x")),
+            r.ratio_vs_embree
+                .map_or(String::new(), |x| format!(" {x:>10.2}x")),
         );
     }
 }

@@ -125,7 +125,11 @@ impl EmbreeScene {
     /// Builds at high quality with `threads` build threads (0: rayon's current pool size).
     pub fn build(tris: &[Triangle], threads: usize) -> Result<Self, BuildError> {
         check_primitives(tris, u32::MAX as usize)?;
-        let threads = if threads == 0 { rayon::current_num_threads() } else { threads };
+        let threads = if threads == 0 {
+            rayon::current_num_threads()
+        } else {
+            threads
+        };
         let config = format!("threads={threads},verbose=0\0");
         let config = CStr::from_bytes_with_nul(config.as_bytes()).map_err(|_| error("config"))?;
         // SAFETY: a valid NUL-terminated configuration string.
@@ -139,7 +143,12 @@ impl EmbreeScene {
                 rtcReleaseDevice(device.as_ptr());
                 return Err(error("rtcNewScene failed"));
             };
-            let out = Self { device, scene, prims: tris.len(), threads };
+            let out = Self {
+                device,
+                scene,
+                prims: tris.len(),
+                threads,
+            };
             rtcSetSceneBuildQuality(scene.as_ptr(), BUILD_QUALITY_HIGH);
             rtcSetSceneFlags(scene.as_ptr(), SCENE_FLAG_ROBUST);
             if !tris.is_empty() {
@@ -149,8 +158,17 @@ impl EmbreeScene {
                 }
                 rtcSetGeometryBuildQuality(geometry, BUILD_QUALITY_HIGH);
                 let n = tris.len();
-                let vertices = rtcSetNewGeometryBuffer(geometry, BUFFER_TYPE_VERTEX, 0, FORMAT_FLOAT3, 12, 3 * n) as *mut f32;
-                let indices = rtcSetNewGeometryBuffer(geometry, BUFFER_TYPE_INDEX, 0, FORMAT_UINT3, 12, n) as *mut u32;
+                let vertices = rtcSetNewGeometryBuffer(
+                    geometry,
+                    BUFFER_TYPE_VERTEX,
+                    0,
+                    FORMAT_FLOAT3,
+                    12,
+                    3 * n,
+                ) as *mut f32;
+                let indices =
+                    rtcSetNewGeometryBuffer(geometry, BUFFER_TYPE_INDEX, 0, FORMAT_UINT3, 12, n)
+                        as *mut u32;
                 if vertices.is_null() || indices.is_null() {
                     rtcReleaseGeometry(geometry);
                     return Err(error("geometry buffers could not be allocated"));
@@ -248,7 +266,9 @@ impl Accel for EmbreeScene {
     }
 
     fn validate(&self) -> Result<(), String> {
-        (self.threads > 0).then_some(()).ok_or_else(|| "no build threads".into())
+        (self.threads > 0)
+            .then_some(())
+            .ok_or_else(|| "no build threads".into())
     }
 }
 
@@ -265,7 +285,11 @@ mod tests {
         let mut agree = 0;
         for i in 0..400 {
             let o = Vec3::new(0.5, 0.5, -2.0);
-            let d = Vec3::new((i % 20) as f32 / 20.0 - 0.5, (i / 20) as f32 / 20.0 - 0.5, 2.0);
+            let d = Vec3::new(
+                (i % 20) as f32 / 20.0 - 0.5,
+                (i / 20) as f32 / 20.0 - 0.5,
+                2.0,
+            );
             let ray = Ray::new(o, d);
             let (a, b) = (scene.intersect(&ray), brute.intersect(&ray));
             assert_eq!(a.is_some(), scene.occluded(&ray));

@@ -32,7 +32,11 @@ pub fn rerun_natively() -> Option<ExitCode> {
         .arg("--target-dir")
         .arg(root.join("target/native"))
         // The same optional peers as this build.
-        .args(if cfg!(feature = "embree") { &["--features", "embree"][..] } else { &[] })
+        .args(if cfg!(feature = "embree") {
+            &["--features", "embree"][..]
+        } else {
+            &[]
+        })
         .arg("--")
         .args(std::env::args_os().skip(1))
         .env("RUSTFLAGS", flags.trim())

@@ -218,15 +218,22 @@ fn index_md(
         let _ = writeln!(s, "![{p}]({p})\n");
     }
     let _ = writeln!(s, "## Tables\n");
+    // With the `embree` feature, a last column: the ratio to Embree.
+    let embree = records.iter().any(|r| r.ratio_vs_embree.is_some());
     let _ = writeln!(
         s,
-        "| structure | scene | rays | threads | build ms | Mrays/s | vs obvhs | MiB | SAH |"
+        "| structure | scene | rays | threads | build ms | Mrays/s | vs obvhs | MiB | SAH |{}",
+        if embree { " vs embree |" } else { "" }
     );
-    let _ = writeln!(s, "|---|---|---|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(
+        s,
+        "|---|---|---|---:|---:|---:|---:|---:|---:|{}",
+        if embree { "---:|" } else { "" }
+    );
     for r in records {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {:.1} | {:.2} | {} | {:.1} | {} |",
+            "| {} | {} | {} | {} | {:.1} | {:.2} | {} | {:.1} | {} |{}",
             r.accel,
             r.scene,
             r.rays,
@@ -236,6 +243,10 @@ fn index_md(
             r.ratio_vs_obvhs.map_or("-".into(), |x| format!("{x:.2}x")),
             r.bytes as f64 / (1 << 20) as f64,
             r.sah_cost.map_or("-".into(), |x| format!("{x:.1}")),
+            match (embree, r.ratio_vs_embree) {
+                (false, _) => String::new(),
+                (true, x) => format!(" {} |", x.map_or("-".into(), |x| format!("{x:.2}x"))),
+            },
         );
     }
     let _ = writeln!(s, "\n## Scaling sweep\n");
@@ -344,7 +355,13 @@ fn spd_renders(quick: bool) -> Result<Vec<SpdRow>, String> {
         vec!["balls", "gears", "tree"]
     } else {
         let mut v = rt_testkit::models::SPD_NAMES.to_vec();
-        v.extend(["balls-size5", "balls-size6", "tetra-size8", "tetra-size9", "mount-size8"]);
+        v.extend([
+            "balls-size5",
+            "balls-size6",
+            "tetra-size8",
+            "tetra-size9",
+            "mount-size8",
+        ]);
         v
     };
     let size = if quick { 96 } else { 256 };

@@ -235,7 +235,10 @@ fn print_table(rows: &[Row]) {
     let with_embree: Vec<&Row> = rows.iter().filter(|r| r.vs_embree.is_some()).collect();
     if !with_embree.is_empty() {
         println!("\nagreement with Embree on the meshes (hit/miss, t within 1e-4 relative):");
-        println!("{:<18} {:<32} {:>8} {:>12} {:>9}", "accel", "scene", "rays", "disagreeing", "agree %");
+        println!(
+            "{:<18} {:<32} {:>8} {:>12} {:>9}",
+            "accel", "scene", "rays", "disagreeing", "agree %"
+        );
         for r in with_embree {
             let (bad, n) = r.vs_embree.unwrap_or_default();
             println!(
