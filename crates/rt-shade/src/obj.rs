@@ -18,7 +18,12 @@ use std::path::Path;
 /// Loads an OBJ file and the MTL files it names (relative to its folder).
 pub fn load_obj_scene(path: &Path) -> Result<Scene, SceneError> {
     let text = std::fs::read(path).map_err(|e| SceneError::in_file(path, e.to_string()))?;
-    let mesh = parse_obj(&text, path).map_err(|e| SceneError::new(e.to_string()))?;
+    let mesh = match parse_obj(&text, path) {
+        Ok(mesh) => mesh,
+        // A file without faces is a scene without geometry: background, with a warning.
+        Err(rt_geom::MeshError::NoTriangles { .. }) => rt_geom::Mesh::default(),
+        Err(e) => return Err(SceneError::new(e.to_string())),
+    };
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let name = path
         .file_stem()
@@ -374,6 +379,15 @@ mod tests {
             s.warnings.iter().any(|w| w.contains("m.mtl")),
             "{:?}",
             s.warnings
+        );
+        std::fs::write(dir.join("empty.obj"), "# nothing here\nv 0 0 0\n").unwrap();
+        let empty = load_obj_scene(&dir.join("empty.obj")).unwrap();
+        assert!(empty.shapes.is_empty());
+        assert!(
+            empty
+                .render_warnings()
+                .iter()
+                .any(|w| w.contains("no geometry"))
         );
         let e = load_obj_scene(&dir.join("none.obj")).unwrap_err();
         assert!(e.to_string().contains("none.obj"));
