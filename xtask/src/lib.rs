@@ -8,7 +8,7 @@
 //! | [`registry`] | the one list of structures by name ([`registry::REGISTRY`]) |
 //! | [`obvhs_accel`] | obvhs's BVH2 and CWBVH behind the `Accel` trait (the references) |
 //! | [`verify`] | every structure against brute force and obvhs |
-//! | [`bench`] | throughput, build time, memory, beside obvhs in the same run |
+//! | [`bench`](mod@bench) | throughput, build time, memory, beside obvhs in the same run |
 //! | [`report`] | `bench --report DIR`: bench + sweep written as index.md with verdicts and PNG plots |
 //! | [`sweep`] | the scaling sweep: build time and time per ray against N (`bench --sweep`) |
 //! | [`render`] | Whitted renders of the chess, OBJ and NFF scenes with any structure (rt-shade) |

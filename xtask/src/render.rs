@@ -42,7 +42,7 @@ pub struct RenderArgs {
     /// Threads (0 = all cores).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
-    /// PNG to write (default target/render/<scene>.png).
+    /// PNG to write (default target/render/SCENE.png).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Write ray statistics as JSON.

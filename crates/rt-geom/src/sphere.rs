@@ -32,7 +32,8 @@ impl Sphere {
         (p - self.center).normalize_or_zero()
     }
 
-    /// The nearest of the two roots (see [`sphere_roots`]) that lies in `[tmin, tmax]`.
+    /// The nearest of the two roots of the ray/sphere quadratic (solved in `f64`, stable form)
+    /// that lies in `[tmin, tmax]`.
     /// `(u, v)` are spherical coordinates of the hit point, each in `[0, 1]`.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<PrimHit> {

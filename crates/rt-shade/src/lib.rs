@@ -2,7 +2,7 @@
 //!
 //! A scene is shapes ([`rt_geom::Shape`]: triangles, spheres, cones) with materials, lights and
 //! a camera; the caller builds any [`Accel`](rt_geom::Accel) over [`Scene::shapes`] (or over
-//! [`Scene::triangles`] for triangle-only structures) and [`render`]s.
+//! [`Scene::triangles`] for triangle-only structures) and calls [`render()`].
 //!
 //! | module | what it holds |
 //! |---|---|
