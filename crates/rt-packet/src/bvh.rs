@@ -1,0 +1,233 @@
+//! Packet traversal of [`Bvh`] (Wald, Boulos & Shirley 2007, "Ray Tracing Deformable Scenes
+//! Using Dynamic Bounding Volume Hierarchies"): the packet descends together, each node is
+//! entered when some active lane hits its box, and the *first active ray* is tracked: lanes
+//! before the first one that hits a node cannot hit its children, so the search in a subtree
+//! starts there. Children are visited near first by that ray's direction on the split axis.
+//!
+//! Per lane, the box test is the single-ray traversal's (padded slab test against the lane's
+//! current closest hit), the primitive kernel is the same and ties go to the lower id
+//! ([`rt_geom::replaces`]), so every lane's answer equals `Bvh::intersect` of its ray.
+
+use crate::RayPacket;
+use rt_accel_bvh::{Bvh, BvhNode, MAX_DEPTH};
+use rt_geom::aabb::{pad_down, pad_up};
+use rt_geom::{Hit, Primitive, Ray, replaces};
+
+/// Whether lane `i` of `p` enters `node`'s box within its `[tmin, tmax]` (the single-ray
+/// traversal's padded slab test; NaN from an origin on a slab plane leaves the interval as is).
+#[inline(always)]
+fn lane_enters<const N: usize>(node: &BvhNode, p: &RayPacket<N>, i: usize) -> bool {
+    let mut t0 = p.tmin[i];
+    let mut t1 = p.tmax[i];
+    for a in 0..3 {
+        let inv = p.inv_dir[a][i];
+        let (near, far) = if inv.is_sign_negative() {
+            (node.max[a], node.min[a])
+        } else {
+            (node.min[a], node.max[a])
+        };
+        let tn = (near - p.origin[a][i]) * inv;
+        let tf = (far - p.origin[a][i]) * inv;
+        t0 = if tn > t0 { tn } else { t0 };
+        t1 = if tf < t1 { tf } else { t1 };
+    }
+    pad_down(t0) <= pad_up(t1)
+}
+
+/// The first active lane at or after `from` that enters `node`, if any.
+#[inline(always)]
+fn first_entering<const N: usize>(node: &BvhNode, p: &RayPacket<N>, from: usize) -> Option<usize> {
+    (from..N).find(|&i| p.active[i] && lane_enters(node, p, i))
+}
+
+/// Packet queries on a BVH. Results are per lane, in the packet's order; inactive lanes miss.
+pub trait PacketTraversal {
+    /// Closest hit of every lane.
+    fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<N>) -> [Option<Hit>; N];
+    /// Whether each lane is blocked (lanes stop as soon as they are).
+    fn occluded_packet<const N: usize>(&self, packet: &mut RayPacket<N>) -> [bool; N];
+
+    /// `intersect` of every ray, traced as packets of `N` consecutive rays.
+    fn intersect_rays<const N: usize>(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
+        let mut out = Vec::with_capacity(rays.len());
+        for chunk in rays.chunks(N) {
+            let hits = self.intersect_packet(&mut RayPacket::<N>::new(chunk));
+            out.extend_from_slice(&hits[..chunk.len()]);
+        }
+        out
+    }
+
+    /// `occluded` of every ray, traced as packets of `N` consecutive rays.
+    fn occluded_rays<const N: usize>(&self, rays: &[Ray]) -> Vec<bool> {
+        let mut out = Vec::with_capacity(rays.len());
+        for chunk in rays.chunks(N) {
+            let blocked = self.occluded_packet(&mut RayPacket::<N>::new(chunk));
+            out.extend_from_slice(&blocked[..chunk.len()]);
+        }
+        out
+    }
+}
+
+impl<P: Primitive> PacketTraversal for Bvh<P> {
+    fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<N>) -> [Option<Hit>; N] {
+        let mut best: [Option<Hit>; N] = [None; N];
+        traverse::<P, N, false>(self, packet, &mut best);
+        best
+    }
+
+    fn occluded_packet<const N: usize>(&self, packet: &mut RayPacket<N>) -> [bool; N] {
+        let mut best: [Option<Hit>; N] = [None; N];
+        traverse::<P, N, true>(self, packet, &mut best);
+        best.map(|h| h.is_some())
+    }
+}
+
+/// The one traversal behind both queries. With `ANY_HIT`, a lane that hits anything is done
+/// (made inactive) at once.
+fn traverse<P: Primitive, const N: usize, const ANY_HIT: bool>(
+    bvh: &Bvh<P>,
+    p: &mut RayPacket<N>,
+    best: &mut [Option<Hit>; N],
+) {
+    let nodes = bvh.nodes();
+    if nodes.is_empty() {
+        return;
+    }
+    let (prims, ids) = (bvh.prims(), bvh.ids());
+    // Pending far children with the first active lane of their parent.
+    let mut stack = [(0u32, 0u32); MAX_DEPTH + 1];
+    let mut sp = 0;
+    let mut next = Some((0usize, 0usize));
+    while let Some((index, from)) = next.take().or_else(|| {
+        (sp > 0).then(|| {
+            sp -= 1;
+            (stack[sp].0 as usize, stack[sp].1 as usize)
+        })
+    }) {
+        let node = &nodes[index];
+        let Some(first) = first_entering(node, p, from) else {
+            continue;
+        };
+        if node.is_leaf() {
+            let range = node.offset as usize..(node.offset + node.count()) as usize;
+            #[allow(clippy::needless_range_loop)] // lanes index several arrays of the packet
+            for lane in first..N {
+                if !p.active[lane] || (lane > first && !lane_enters(node, p, lane)) {
+                    continue;
+                }
+                let mut ray = p.rays[lane];
+                ray.tmax = p.tmax[lane];
+                for i in range.clone() {
+                    let Some(h) = prims[i].intersect(&ray) else {
+                        continue;
+                    };
+                    let id = ids[i];
+                    if ANY_HIT {
+                        best[lane] = Some(Hit::new(h, id));
+                        p.active[lane] = false;
+                        break;
+                    }
+                    if replaces(h.t, id, best[lane].as_ref().map(Hit::key)) {
+                        best[lane] = Some(Hit::new(h, id));
+                        ray.tmax = h.t;
+                    }
+                }
+                p.tmax[lane] = ray.tmax;
+            }
+            continue;
+        }
+        // Near child first, by the first entering lane's direction on the split axis.
+        let (a, b) = (index + 1, node.offset as usize);
+        let (near, far) = if p.inv_dir[node.axis()][first].is_sign_negative() {
+            (b, a)
+        } else {
+            (a, b)
+        };
+        stack[sp] = (far as u32, first as u32);
+        sp += 1;
+        next = Some((near, first));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rt_accel_bvh::BvhParams;
+    use rt_geom::Accel;
+    use rt_testkit::scenes;
+
+    /// Every lane of packets of `N` equals the single-ray answer, closest and any hit.
+    fn lanes_equal_single_rays<const N: usize, P: Primitive>(
+        bvh: &Bvh<P>,
+        rays: &[Ray],
+        what: &str,
+    ) {
+        let hits = bvh.intersect_rays::<N>(rays);
+        let blocked = bvh.occluded_rays::<N>(rays);
+        for (k, r) in rays.iter().enumerate() {
+            assert_eq!(hits[k], bvh.intersect(r), "{what}, N = {N}, ray {k}: {r:?}");
+            assert_eq!(
+                blocked[k],
+                bvh.occluded(r),
+                "{what}, N = {N}, ray {k}: {r:?}"
+            );
+        }
+    }
+
+    fn all_sizes<P: Primitive>(bvh: &Bvh<P>, rays: &[Ray], what: &str) {
+        lanes_equal_single_rays::<4, P>(bvh, rays, what);
+        lanes_equal_single_rays::<16, P>(bvh, rays, what);
+        lanes_equal_single_rays::<64, P>(bvh, rays, what);
+        lanes_equal_single_rays::<256, P>(bvh, rays, what);
+    }
+
+    #[test]
+    fn conformance_rays_in_packets_equal_single_rays() {
+        // The adversarial ray families, in file order: packets of mixed directions, rays
+        // starting inside boxes, tmin/tmax limits, invalid rays, partial last packets.
+        for scene in scenes::conformance_triangle_scenes() {
+            let bvh = Bvh::build(&scene.prims, BvhParams::balanced()).unwrap();
+            let reference = rt_geom::BruteForce::build(&scene.prims).unwrap();
+            let rays: Vec<Ray> =
+                rt_testkit::rays::conformance_rays(&scene.prims, &reference, 60, 7)
+                    .into_iter()
+                    .map(|t| t.ray)
+                    .collect();
+            all_sizes(&bvh, &rays, &scene.name);
+        }
+    }
+
+    #[test]
+    fn camera_tiles_equal_single_rays() {
+        let tris = scenes::tessellated_sphere(5000, rt_geom::Vec3::splat(0.5), 0.4);
+        let bvh = Bvh::build(&tris, BvhParams::balanced()).unwrap();
+        let bounds = tris
+            .iter()
+            .fold(rt_geom::Aabb::EMPTY, |b, t| b.union(t.bounds()));
+        let view = rt_testkit::View::front(&bounds);
+        let (w, h) = (48, 40);
+        let rays = view.camera_rays(w, h);
+        for side in crate::TILE_SIDES {
+            let tiled: Vec<Ray> = crate::tiles(w, h, side, side)
+                .concat()
+                .into_iter()
+                .map(|i| rays[i])
+                .collect();
+            all_sizes(&bvh, &tiled, &format!("{side}x{side} tiles"));
+        }
+    }
+
+    #[test]
+    fn mixed_shapes_and_empty() {
+        let scene = scenes::shape_scene("shapes");
+        let bvh = Bvh::build(&scene.prims, BvhParams::balanced()).unwrap();
+        let reference = rt_geom::BruteForce::build(&scene.prims).unwrap();
+        let rays: Vec<Ray> = rt_testkit::rays::conformance_rays(&scene.prims, &reference, 60, 3)
+            .into_iter()
+            .map(|t| t.ray)
+            .collect();
+        all_sizes(&bvh, &rays, "shapes");
+        let empty = Bvh::<rt_geom::Triangle>::build(&[], BvhParams::balanced()).unwrap();
+        assert_eq!(empty.intersect_rays::<4>(&rays[..3]), vec![None; 3]);
+    }
+}

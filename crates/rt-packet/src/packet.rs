@@ -1,0 +1,110 @@
+//! Ray packets: `N` rays in structure-of-arrays form (the layout the per-lane box test
+//! vectorises over), an active mask, and packets cut from image tiles.
+
+use rt_geom::{Ray, Vec3};
+
+/// The packet sizes of the seeds: square tiles of 2x2 to 16x16 pixels.
+pub const TILE_SIDES: [usize; 4] = [2, 4, 8, 16];
+
+/// `N` rays, structure of arrays. Lanes past the rays given, and lanes with invalid rays, are
+/// inactive from the start.
+#[derive(Clone, Debug)]
+pub struct RayPacket<const N: usize> {
+    /// The rays themselves (the primitive kernels take them whole).
+    pub rays: [Ray; N],
+    pub origin: [[f32; N]; 3],
+    /// `1 / dir` per axis (`+-inf` for zero components, as `Ray::inv_dir`).
+    pub inv_dir: [[f32; N]; 3],
+    pub tmin: [f32; N],
+    /// Shrinks to each lane's closest hit during traversal.
+    pub tmax: [f32; N],
+    pub active: [bool; N],
+}
+
+impl<const N: usize> RayPacket<N> {
+    /// A packet of up to `N` rays (the first `rays.len()` lanes).
+    pub fn new(rays: &[Ray]) -> Self {
+        assert!(
+            rays.len() <= N,
+            "{} rays do not fit a packet of {N}",
+            rays.len()
+        );
+        let idle = Ray::segment(Vec3::ZERO, Vec3::X, 1.0, 0.0);
+        let mut p = Self {
+            rays: [idle; N],
+            origin: [[0.0; N]; 3],
+            inv_dir: [[0.0; N]; 3],
+            tmin: [0.0; N],
+            tmax: [f32::NEG_INFINITY; N],
+            active: [false; N],
+        };
+        for (i, r) in rays.iter().enumerate() {
+            p.rays[i] = *r;
+            let (o, inv) = (r.origin(), r.inv_dir());
+            for a in 0..3 {
+                p.origin[a][i] = o[a];
+                p.inv_dir[a][i] = inv[a];
+            }
+            p.tmin[i] = r.tmin;
+            p.tmax[i] = r.tmax;
+            p.active[i] = r.is_valid() && r.tmin <= r.tmax;
+        }
+        p
+    }
+
+    /// Number of active lanes.
+    pub fn active_count(&self) -> usize {
+        self.active.iter().filter(|&&a| a).count()
+    }
+}
+
+/// Indices of a row-major `width x height` image's pixels grouped into `tw x th` tiles, tiles
+/// in row-major order, pixels row-major inside each tile (edge tiles are smaller).
+pub fn tiles(width: usize, height: usize, tw: usize, th: usize) -> Vec<Vec<usize>> {
+    let (tw, th) = (tw.max(1), th.max(1));
+    let mut out = Vec::with_capacity(width.div_ceil(tw) * height.div_ceil(th));
+    for ty in (0..height).step_by(th) {
+        for tx in (0..width).step_by(tw) {
+            let mut t = Vec::with_capacity(tw * th);
+            for y in ty..(ty + th).min(height) {
+                for x in tx..(tx + tw).min(width) {
+                    t.push(y * width + x);
+                }
+            }
+            out.push(t);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tiles_cover_every_pixel_once() {
+        let t = tiles(10, 7, 4, 4);
+        assert_eq!(t.len(), 3 * 2);
+        assert_eq!(
+            t[0],
+            vec![0, 1, 2, 3, 10, 11, 12, 13, 20, 21, 22, 23, 30, 31, 32, 33]
+        );
+        assert_eq!(t[2].len(), 2 * 4);
+        let mut all: Vec<usize> = t.concat();
+        all.sort();
+        assert_eq!(all, (0..70).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn partial_and_invalid_lanes_are_inactive() {
+        let rays = [
+            Ray::new(Vec3::ZERO, Vec3::X),
+            Ray::new(Vec3::ZERO, Vec3::ZERO),
+            Ray::segment(Vec3::ZERO, Vec3::Y, 2.0, 1.0),
+        ];
+        let p = RayPacket::<4>::new(&rays);
+        assert_eq!(p.active, [true, false, false, false]);
+        assert_eq!(p.inv_dir[0][0], 1.0);
+        assert_eq!(p.inv_dir[1][0], f32::INFINITY);
+    }
+}
