@@ -18,6 +18,9 @@ enum Command {
         /// Also print what each one is.
         #[arg(long)]
         long: bool,
+        /// Only the structures that have a packet path (`trace --packet`).
+        #[arg(long)]
+        packet: bool,
     },
     /// Every structure against brute force (conformance scenes) and obvhs (shared meshes).
     Verify {
@@ -75,6 +78,13 @@ enum Command {
         /// Trace this many times and report the median.
         #[arg(long, default_value_t = 1)]
         repeat: usize,
+        /// Trace WxH tiles of the image as packets (needs --width; the structure's packet path);
+        /// rays after the last whole image row go in file order.
+        #[arg(long, value_name = "WxH", value_parser = render::parse_size, requires = "width")]
+        packet: Option<(u32, u32)>,
+        /// Width in pixels of the row-major image the ray file holds (for --packet).
+        #[arg(long)]
+        width: Option<usize>,
         #[arg(long)]
         out: Option<PathBuf>,
     },
@@ -111,8 +121,11 @@ fn main() -> ExitCode {
 
 fn run(command: Command) -> Result<ExitCode, String> {
     match command {
-        Command::Accels { long } => {
-            for e in registry::REGISTRY {
+        Command::Accels { long, packet } => {
+            for e in registry::REGISTRY
+                .iter()
+                .filter(|e| !packet || e.packets.is_some())
+            {
                 if long {
                     println!("{:<18} {}", e.name, e.about);
                 } else {
@@ -185,6 +198,8 @@ fn run(command: Command) -> Result<ExitCode, String> {
             occluded,
             threads,
             repeat,
+            packet,
+            width,
             out,
         } => {
             let s = trace::trace(&trace::TraceOptions {
@@ -194,6 +209,8 @@ fn run(command: Command) -> Result<ExitCode, String> {
                 occluded,
                 threads,
                 repeat,
+                packet: packet.map(|(w, h)| (w as usize, h as usize)),
+                width,
                 out,
             })?;
             println!("{}", s.line());

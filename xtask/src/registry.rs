@@ -9,6 +9,12 @@ use rt_accel_grid::{Grid, GridParams};
 use rt_accel_kd::{BspParams, BspTree, KdParams, KdTraversal, KdTree};
 use rt_accel_octree::{Octree, OctreeParams, OctreeTraversal};
 use rt_geom::{Aabb, Accel, BoundingSphere, BruteForce, BuildError, Kdop7, Shape, Triangle};
+use rt_packet::PacketAccel;
+
+/// A packet path over rt's BVH2 (boxed as a `PacketAccel`).
+fn packets_of(r: Result<Bvh<Triangle>, BuildError>) -> Result<Box<dyn PacketAccel>, BuildError> {
+    r.map(|b| Box::new(b) as Box<dyn PacketAccel>)
+}
 use rt_testkit::Tolerance;
 
 /// A structure that can be built from triangles.
@@ -29,6 +35,8 @@ pub struct AccelEntry {
     /// Largest scene `bench` and `verify` run it on (brute force and flat volume lists are
     /// O(n) per ray).
     pub bench_max_prims: usize,
+    /// Its packet path (`rt-packet`), when it has one: `trace --packet`, `accels --packet`.
+    pub packets: Option<fn(&[Triangle]) -> Result<Box<dyn PacketAccel>, BuildError>>,
     /// Whether `verify` runs it on the adversarial conformance scenes (peers that answer
     /// differently by design there are checked on the meshes' camera, shadow and diffuse rays).
     pub conformance: bool,
@@ -68,6 +76,7 @@ const fn own(
         external: false,
         bench_max_prims: usize::MAX,
         conformance: true,
+        packets: None,
     }
 }
 
@@ -83,6 +92,14 @@ impl AccelEntry {
     /// Limits the scenes `bench` runs the entry on by default.
     const fn bench_up_to(mut self, prims: usize) -> Self {
         self.bench_max_prims = prims;
+        self
+    }
+
+    const fn with_packets(
+        mut self,
+        build: fn(&[Triangle]) -> Result<Box<dyn PacketAccel>, BuildError>,
+    ) -> Self {
+        self.packets = Some(build);
         self
     }
 
@@ -164,6 +181,7 @@ const OPTIONAL: &[AccelEntry] = &[AccelEntry {
     // On the adversarial scenes Embree answers differently by design: a ray that starts on a
     // triangle hits it at t = 0, and a hit exactly at `tmax` may be dropped or kept.
     conformance: false,
+    packets: None,
 }];
 
 #[cfg(not(feature = "embree"))]
@@ -189,12 +207,14 @@ const BASE: &[AccelEntry] = &[
         external: false,
         bench_max_prims: 10_000,
         conformance: true,
+        packets: None,
     },
     generic!(
         "bvh",
         "rt BVH2, binned SAH (16 bins), leaves of up to 4, parallel build (BvhParams::balanced)",
         |p| boxed(Bvh::build(p, BvhParams::balanced())),
-    ),
+    )
+    .with_packets(|p| packets_of(Bvh::build(p, BvhParams::balanced()))),
     generic!(
         "bvh4",
         "rt BVH4 collapsed from the balanced BVH2 (largest child opened first), 4 boxes per test",
@@ -224,17 +244,20 @@ const BASE: &[AccelEntry] = &[
         "bvh-fast",
         "rt BVH2, binned SAH (8 bins), leaves of up to 8 (BvhParams::fast)",
         |p| boxed(Bvh::build(p, BvhParams::fast())),
-    ),
+    )
+    .with_packets(|p| packets_of(Bvh::build(p, BvhParams::fast()))),
     generic!(
         "bvh-sweep",
         "rt BVH2, full sweep SAH, leaves of up to 4 (BvhParams::quality)",
         |p| boxed(Bvh::build(p, BvhParams::quality())),
-    ),
+    )
+    .with_packets(|p| packets_of(Bvh::build(p, BvhParams::quality()))),
     generic!(
         "bvh-spatial",
         "rt BVH2, binned SAH with spatial splits (SBVH, alpha 1e-5, up to one extra reference per primitive)",
         |p| boxed(Bvh::build(p, BvhParams::spatial())),
-    ),
+    )
+    .with_packets(|p| packets_of(Bvh::build(p, BvhParams::spatial()))),
     generic!(
         "bvh8-spatial",
         "rt BVH8 collapsed from the spatial-split BVH2",
@@ -367,6 +390,7 @@ const BASE: &[AccelEntry] = &[
         external: true,
         bench_max_prims: usize::MAX,
         conformance: true,
+        packets: None,
     },
     AccelEntry {
         name: "obvhs-cwbvh",
@@ -380,6 +404,7 @@ const BASE: &[AccelEntry] = &[
         external: true,
         bench_max_prims: usize::MAX,
         conformance: true,
+        packets: None,
     },
 ];
 

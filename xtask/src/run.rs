@@ -43,6 +43,42 @@ pub fn trace_into(
     start.elapsed()
 }
 
+/// Traces the rays as packets, one per group of ray indices (image tiles), into `out`.
+pub fn trace_packets_into(
+    accel: &dyn rt_packet::PacketAccel,
+    rays: &[Ray],
+    groups: &[Vec<usize>],
+    occluded: bool,
+    pool: &rayon::ThreadPool,
+    out: &mut [HitRecord],
+) -> Duration {
+    assert_eq!(rays.len(), out.len());
+    let start = Instant::now();
+    let results: Vec<Vec<HitRecord>> = pool.install(|| {
+        groups
+            .par_iter()
+            .map(|g| {
+                let tile: Vec<Ray> = g.iter().map(|&i| rays[i]).collect();
+                if occluded {
+                    let mut b = vec![false; tile.len()];
+                    accel.occluded_group(&tile, &mut b);
+                    b.into_iter().map(HitRecord::from_occluded).collect()
+                } else {
+                    let mut h = vec![None; tile.len()];
+                    accel.intersect_group(&tile, &mut h);
+                    h.into_iter().map(HitRecord::from_hit).collect()
+                }
+            })
+            .collect()
+    });
+    for (g, r) in groups.iter().zip(results) {
+        for (&i, rec) in g.iter().zip(r) {
+            out[i] = rec;
+        }
+    }
+    start.elapsed()
+}
+
 /// Traces every ray and counts hits (nothing stored); returns `(hits, time)`.
 pub fn trace_count(
     accel: &dyn Accel,

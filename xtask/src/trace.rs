@@ -17,6 +17,9 @@ pub struct TraceOptions {
     pub occluded: bool,
     pub threads: usize,
     pub repeat: usize,
+    /// Trace `(w, h)` tiles of a row-major image `width` pixels wide as packets.
+    pub packet: Option<(usize, usize)>,
+    pub width: Option<usize>,
     pub out: Option<PathBuf>,
 }
 
@@ -65,13 +68,39 @@ pub fn trace(opts: &TraceOptions) -> Result<TraceSummary, String> {
         tris.len()
     ));
     let start = Instant::now();
-    let accel = (entry.build)(&tris).map_err(|e| format!("{}: {e}", opts.mesh.display()))?;
-    let build_ms = start.elapsed().as_secs_f64() * 1e3;
-    pb.finish_and_clear();
     let mut out = vec![HitRecord::MISS; rays.len()];
-    let times: Vec<_> = (0..opts.repeat)
-        .map(|_| run::trace_into(accel.as_ref(), &rays, opts.occluded, &pool, &mut out))
-        .collect();
+    let (build_ms, times): (f64, Vec<_>) = match opts.packet {
+        None => {
+            let accel =
+                (entry.build)(&tris).map_err(|e| format!("{}: {e}", opts.mesh.display()))?;
+            let build_ms = start.elapsed().as_secs_f64() * 1e3;
+            pb.finish_and_clear();
+            let times = (0..opts.repeat)
+                .map(|_| run::trace_into(accel.as_ref(), &rays, opts.occluded, &pool, &mut out))
+                .collect();
+            (build_ms, times)
+        }
+        Some((w, h)) => {
+            let packets = packet_tiles(entry, (w, h), opts.width, rays.len())?;
+            let build = entry.packets.expect("checked by packet_tiles");
+            let accel = build(&tris).map_err(|e| format!("{}: {e}", opts.mesh.display()))?;
+            let build_ms = start.elapsed().as_secs_f64() * 1e3;
+            pb.finish_and_clear();
+            let times = (0..opts.repeat)
+                .map(|_| {
+                    run::trace_packets_into(
+                        accel.as_ref(),
+                        &rays,
+                        &packets,
+                        opts.occluded,
+                        &pool,
+                        &mut out,
+                    )
+                })
+                .collect();
+            (build_ms, times)
+        }
+    };
     let trace_time = run::median(times);
     if let Some(path) = &opts.out {
         rayfile::write_hits(path, &out)?;
@@ -84,6 +113,44 @@ pub fn trace(opts: &TraceOptions) -> Result<TraceSummary, String> {
         trace_ms: trace_time.as_secs_f64() * 1e3,
         mrays_s: run::mrays_per_s(rays.len(), trace_time),
     })
+}
+
+/// The packets (ray indices) of `--packet WxH --width N`, after checking the options.
+fn packet_tiles(
+    entry: &registry::AccelEntry,
+    (w, h): (usize, usize),
+    width: Option<usize>,
+    rays: usize,
+) -> Result<Vec<Vec<usize>>, String> {
+    if entry.packets.is_none() {
+        let with: Vec<_> = registry::REGISTRY
+            .iter()
+            .filter(|e| e.packets.is_some())
+            .map(|e| e.name)
+            .collect();
+        return Err(format!(
+            "{} has no packet path; these do: {}",
+            entry.name,
+            with.join(", ")
+        ));
+    }
+    if w == 0 || h == 0 || w * h > rt_packet::MAX_GROUP {
+        return Err(format!(
+            "--packet {w}x{h}: tiles need 1 to {} rays",
+            rt_packet::MAX_GROUP
+        ));
+    }
+    let width = width.ok_or("--packet needs --width (pixels per image row)")?;
+    if width == 0 {
+        return Err("--width must be at least 1".into());
+    }
+    // Whole rows form the image and go in tiles; rays after the last whole row (other ray sets
+    // of the file) go in file order, `w * h` per packet.
+    let rows = rays / width;
+    let mut groups = rt_packet::tiles(width, rows, w, h);
+    let tail: Vec<usize> = (rows * width..rays).collect();
+    groups.extend(tail.chunks(w * h).map(<[usize]>::to_vec));
+    Ok(groups)
 }
 
 #[derive(Clone, Debug)]

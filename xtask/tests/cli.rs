@@ -348,3 +348,68 @@ fn render_writes_png_stats_and_clear_errors() {
         "aperture",
     );
 }
+
+#[test]
+fn packets_trace_the_same_hit_file() {
+    let dir = TempDir::new("packet");
+    let mesh = dir.path("octa.obj");
+    octahedron(&mesh);
+    let rays = dir.path("r.rays");
+    let (mesh_s, rays_s) = (mesh.to_str().unwrap(), rays.to_str().unwrap());
+    let o = xtask(&[
+        "rays", "--mesh", mesh_s, "--size", "24", "--set", "all", "--out", rays_s,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = xtask(&["accels", "--packet"]);
+    let names: Vec<String> = stdout(&o).lines().map(str::to_string).collect();
+    assert!(
+        names.contains(&"bvh".to_string()) && !names.contains(&"kd".to_string()),
+        "{names:?}"
+    );
+    let trace = |extra: &[&str], out: &str| {
+        let hits = dir.path(out);
+        let mut args = vec![
+            "trace", "--mesh", mesh_s, "--rays", rays_s, "--accel", "bvh", "--out",
+        ];
+        args.push(hits.to_str().unwrap());
+        args.extend_from_slice(extra);
+        let o = xtask(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read(hits).unwrap()
+    };
+    let single = trace(&[], "single.hits");
+    for tile in ["2x2", "4x4", "8x8", "16x16", "4x2"] {
+        assert_eq!(
+            trace(&["--packet", tile, "--width", "24"], "p.hits"),
+            single,
+            "{tile}"
+        );
+    }
+    let occluded = trace(&["--occluded"], "o1.hits");
+    assert_eq!(
+        trace(
+            &["--occluded", "--packet", "8x8", "--width", "24"],
+            "o2.hits"
+        ),
+        occluded
+    );
+    // Clear errors: no packet path, tiles too large, no or wrong width.
+    let bad = |extra: &[&str]| {
+        let mut args = vec!["trace", "--mesh", mesh_s, "--rays", rays_s];
+        args.extend_from_slice(extra);
+        xtask(&args)
+    };
+    fails_cleanly(
+        &bad(&["--accel", "kd", "--packet", "4x4", "--width", "24"]),
+        "no packet path",
+    );
+    fails_cleanly(
+        &bad(&["--accel", "bvh", "--packet", "32x32", "--width", "24"]),
+        "tiles need",
+    );
+    fails_cleanly(&bad(&["--accel", "bvh", "--packet", "4x4"]), "--width");
+    fails_cleanly(
+        &bad(&["--accel", "bvh", "--packet", "4x4", "--width", "0"]),
+        "--width",
+    );
+}

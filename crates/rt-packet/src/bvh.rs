@@ -68,6 +68,54 @@ pub trait PacketTraversal {
     }
 }
 
+/// Packet queries behind a trait object (the registry's packet paths): a group of up to 256
+/// rays is traced as one packet of the smallest size that holds it (4, 16, 64 or 256 lanes).
+pub trait PacketAccel: Send + Sync {
+    /// Closest hit of every ray of the group into `out` (same length, at most 256).
+    fn intersect_group(&self, rays: &[Ray], out: &mut [Option<Hit>]);
+    /// Whether each ray of the group is blocked.
+    fn occluded_group(&self, rays: &[Ray], out: &mut [bool]);
+}
+
+/// Largest group [`PacketAccel`] traces as one packet.
+pub const MAX_GROUP: usize = 256;
+
+impl<P: Primitive> PacketAccel for Bvh<P> {
+    fn intersect_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        assert!(rays.len() <= MAX_GROUP && rays.len() == out.len());
+        let n = rays.len();
+        match n {
+            0..=4 => {
+                out.copy_from_slice(&self.intersect_packet(&mut RayPacket::<4>::new(rays))[..n])
+            }
+            5..=16 => {
+                out.copy_from_slice(&self.intersect_packet(&mut RayPacket::<16>::new(rays))[..n])
+            }
+            17..=64 => {
+                out.copy_from_slice(&self.intersect_packet(&mut RayPacket::<64>::new(rays))[..n])
+            }
+            _ => out.copy_from_slice(&self.intersect_packet(&mut RayPacket::<256>::new(rays))[..n]),
+        }
+    }
+
+    fn occluded_group(&self, rays: &[Ray], out: &mut [bool]) {
+        assert!(rays.len() <= MAX_GROUP && rays.len() == out.len());
+        let n = rays.len();
+        match n {
+            0..=4 => {
+                out.copy_from_slice(&self.occluded_packet(&mut RayPacket::<4>::new(rays))[..n])
+            }
+            5..=16 => {
+                out.copy_from_slice(&self.occluded_packet(&mut RayPacket::<16>::new(rays))[..n])
+            }
+            17..=64 => {
+                out.copy_from_slice(&self.occluded_packet(&mut RayPacket::<64>::new(rays))[..n])
+            }
+            _ => out.copy_from_slice(&self.occluded_packet(&mut RayPacket::<256>::new(rays))[..n]),
+        }
+    }
+}
+
 impl<P: Primitive> PacketTraversal for Bvh<P> {
     fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<N>) -> [Option<Hit>; N] {
         let mut best: [Option<Hit>; N] = [None; N];
@@ -214,6 +262,30 @@ mod tests {
                 .map(|i| rays[i])
                 .collect();
             all_sizes(&bvh, &tiled, &format!("{side}x{side} tiles"));
+        }
+    }
+
+    #[test]
+    fn groups_of_any_size_equal_single_rays() {
+        let tris = scenes::random_soup(3000, 9);
+        let bvh = Bvh::build(&tris, BvhParams::balanced()).unwrap();
+        let reference = rt_geom::BruteForce::build(&tris).unwrap();
+        let rays: Vec<Ray> = rt_testkit::rays::conformance_rays(&tris, &reference, 40, 5)
+            .into_iter()
+            .map(|t| t.ray)
+            .collect();
+        let accel: &dyn PacketAccel = &bvh;
+        for size in [1, 3, 4, 5, 8, 16, 17, 50, 64, 65, 200, 256] {
+            for group in rays.chunks(size) {
+                let mut hits = vec![None; group.len()];
+                let mut blocked = vec![false; group.len()];
+                accel.intersect_group(group, &mut hits);
+                accel.occluded_group(group, &mut blocked);
+                for (k, r) in group.iter().enumerate() {
+                    assert_eq!(hits[k], bvh.intersect(r), "group of {size}");
+                    assert_eq!(blocked[k], bvh.occluded(r), "group of {size}");
+                }
+            }
         }
     }
 

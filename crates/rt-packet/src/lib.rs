@@ -3,7 +3,7 @@
 //! | module | what it holds |
 //! |---|---|
 //! | [`packet`] | [`RayPacket`]: `N` rays in structure-of-arrays form with an active mask; [`tiles`] of an image |
-//! | [`bvh`] | [`PacketTraversal`] for rt's [`Bvh`](rt_accel_bvh::Bvh): first-active-ray descent (Wald, Boulos & Shirley 2007) |
+//! | [`bvh`] | [`PacketTraversal`] for rt's [`Bvh`](rt_accel_bvh::Bvh): first-active-ray descent (Wald, Boulos & Shirley 2007); [`PacketAccel`], the same behind a trait object |
 //!
 //! Every lane's answer equals the single-ray answer of its ray, bit for bit (same box test,
 //! same kernel, same tie rule).
@@ -27,5 +27,5 @@
 pub mod bvh;
 pub mod packet;
 
-pub use bvh::PacketTraversal;
+pub use bvh::{MAX_GROUP, PacketAccel, PacketTraversal};
 pub use packet::{RayPacket, TILE_SIDES, tiles};
