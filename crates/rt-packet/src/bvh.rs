@@ -80,39 +80,41 @@ pub trait PacketAccel: Send + Sync {
 /// Largest group [`PacketAccel`] traces as one packet.
 pub const MAX_GROUP: usize = 256;
 
-impl<P: Primitive> PacketAccel for Bvh<P> {
-    fn intersect_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+/// Traces `$rays` (at most 256) as one packet of the smallest size that holds them, binding
+/// the packet to `$p` in `$query`, and copies the lanes' answers to `$out`.
+macro_rules! as_one_packet {
+    ($rays:expr, $out:expr, |$p:ident| $query:expr) => {{
+        let (rays, out) = ($rays, $out);
         assert!(rays.len() <= MAX_GROUP && rays.len() == out.len());
         let n = rays.len();
         match n {
             0..=4 => {
-                out.copy_from_slice(&self.intersect_packet(&mut RayPacket::<4>::new(rays))[..n])
+                let $p = &mut RayPacket::<4>::new(rays);
+                out.copy_from_slice(&$query[..n])
             }
             5..=16 => {
-                out.copy_from_slice(&self.intersect_packet(&mut RayPacket::<16>::new(rays))[..n])
+                let $p = &mut RayPacket::<16>::new(rays);
+                out.copy_from_slice(&$query[..n])
             }
             17..=64 => {
-                out.copy_from_slice(&self.intersect_packet(&mut RayPacket::<64>::new(rays))[..n])
+                let $p = &mut RayPacket::<64>::new(rays);
+                out.copy_from_slice(&$query[..n])
             }
-            _ => out.copy_from_slice(&self.intersect_packet(&mut RayPacket::<256>::new(rays))[..n]),
+            _ => {
+                let $p = &mut RayPacket::<256>::new(rays);
+                out.copy_from_slice(&$query[..n])
+            }
         }
+    }};
+}
+
+impl<P: Primitive> PacketAccel for Bvh<P> {
+    fn intersect_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        as_one_packet!(rays, out, |p| self.intersect_packet(p))
     }
 
     fn occluded_group(&self, rays: &[Ray], out: &mut [bool]) {
-        assert!(rays.len() <= MAX_GROUP && rays.len() == out.len());
-        let n = rays.len();
-        match n {
-            0..=4 => {
-                out.copy_from_slice(&self.occluded_packet(&mut RayPacket::<4>::new(rays))[..n])
-            }
-            5..=16 => {
-                out.copy_from_slice(&self.occluded_packet(&mut RayPacket::<16>::new(rays))[..n])
-            }
-            17..=64 => {
-                out.copy_from_slice(&self.occluded_packet(&mut RayPacket::<64>::new(rays))[..n])
-            }
-            _ => out.copy_from_slice(&self.occluded_packet(&mut RayPacket::<256>::new(rays))[..n]),
-        }
+        as_one_packet!(rays, out, |p| self.occluded_packet(p))
     }
 }
 
