@@ -3,6 +3,9 @@
 //! entered when some active lane hits its box, and the *first active ray* is tracked: lanes
 //! before the first one that hits a node cannot hit its children, so the search in a subtree
 //! starts there. Children are visited near first by that ray's direction on the split axis.
+//! When the first active ray misses a node, packets of 64 lanes and more first try an
+//! interval-arithmetic test over the whole packet, which culls the node at once when no lane
+//! can enter it.
 //!
 //! Per lane, the box test is the single-ray traversal's (padded slab test against the lane's
 //! current closest hit), the primitive kernel is the same and ties go to the lower id
@@ -34,10 +37,93 @@ fn lane_enters<const N: usize>(node: &BvhNode, p: &RayPacket<N>, i: usize) -> bo
     pad_down(t0) <= pad_up(t1)
 }
 
-/// The first active lane at or after `from` that enters `node`, if any.
+/// Bounds of a packet's rays per axis, for interval-arithmetic culling (Wald, Boulos & Shirley
+/// 2007): if even the loosest entry over all lanes lies beyond the tightest exit, no lane
+/// enters the box.
+struct PacketBounds {
+    origin: [(f32, f32); 3],
+    /// `(min, max)` of `1 / dir`; `None` when lanes' signs differ or a component is infinite
+    /// (that axis then constrains nothing).
+    inv: [Option<(f32, f32)>; 3],
+    tmin: f32,
+    tmax: f32,
+}
+
+impl PacketBounds {
+    fn new<const N: usize>(p: &RayPacket<N>) -> Self {
+        let lanes = || (0..N).filter(|&i| p.active[i]);
+        let range = |v: &[f32; N]| {
+            lanes().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), i| {
+                (lo.min(v[i]), hi.max(v[i]))
+            })
+        };
+        let inv = |a: usize| {
+            let (lo, hi) = range(&p.inv_dir[a]);
+            let one_sign = lanes().all(|i| p.inv_dir[a][i].is_sign_negative())
+                || lanes().all(|i| !p.inv_dir[a][i].is_sign_negative());
+            (one_sign && lo.is_finite() && hi.is_finite()).then_some((lo, hi))
+        };
+        Self {
+            origin: [
+                range(&p.origin[0]),
+                range(&p.origin[1]),
+                range(&p.origin[2]),
+            ],
+            inv: [inv(0), inv(1), inv(2)],
+            tmin: range(&p.tmin).0,
+            tmax: range(&p.tmax).1,
+        }
+    }
+
+    /// False only when no lane can enter `node` (the lanes' own padded test would fail for all).
+    fn may_enter(&self, node: &BvhNode) -> bool {
+        let (mut t0, mut t1) = (self.tmin, self.tmax);
+        for a in 0..3 {
+            let Some((lo, hi)) = self.inv[a] else {
+                continue;
+            };
+            let (near, far) = if hi < 0.0 || (hi == 0.0 && lo.is_sign_negative()) {
+                (node.max[a], node.min[a])
+            } else {
+                (node.min[a], node.max[a])
+            };
+            let (o_lo, o_hi) = self.origin[a];
+            // Products of the intervals [near - o] x [inv]: the extreme corners.
+            let corners = |d_lo: f32, d_hi: f32| {
+                let c = [d_lo * lo, d_lo * hi, d_hi * lo, d_hi * hi];
+                (
+                    c.iter().copied().fold(f32::INFINITY, f32::min),
+                    c.iter().copied().fold(f32::NEG_INFINITY, f32::max),
+                )
+            };
+            let (tn_lo, _) = corners(near - o_hi, near - o_lo);
+            let (_, tf_hi) = corners(far - o_hi, far - o_lo);
+            t0 = t0.max(tn_lo);
+            t1 = t1.min(tf_hi);
+        }
+        // The differences `near - o` round; widen by the same relative pad as the lanes.
+        pad_down(pad_down(t0)) <= pad_up(pad_up(t1))
+    }
+}
+
+/// The first active lane at or after `from` that enters `node`, if any: the first active ray
+/// is tried first; when it misses, the interval test may cull the node for the whole packet
+/// before the other lanes are tried one by one.
 #[inline(always)]
-fn first_entering<const N: usize>(node: &BvhNode, p: &RayPacket<N>, from: usize) -> Option<usize> {
-    (from..N).find(|&i| p.active[i] && lane_enters(node, p, i))
+fn first_entering<const N: usize>(
+    node: &BvhNode,
+    p: &RayPacket<N>,
+    bounds: Option<&PacketBounds>,
+    from: usize,
+) -> Option<usize> {
+    let first = (from..N).find(|&i| p.active[i])?;
+    if lane_enters(node, p, first) {
+        return Some(first);
+    }
+    if bounds.is_some_and(|b| !b.may_enter(node)) {
+        return None;
+    }
+    (first + 1..N).find(|&i| p.active[i] && lane_enters(node, p, i))
 }
 
 /// Packet queries on a BVH. Results are per lane, in the packet's order; inactive lanes miss.
@@ -144,6 +230,8 @@ fn traverse<P: Primitive, const N: usize, const ANY_HIT: bool>(
         return;
     }
     let (prims, ids) = (bvh.prims(), bvh.ids());
+    // Interval culling pays off for large packets only.
+    let bounds = (N >= 64).then(|| PacketBounds::new(p));
     // Pending far children with the first active lane of their parent.
     let mut stack = [(0u32, 0u32); MAX_DEPTH + 1];
     let mut sp = 0;
@@ -155,7 +243,7 @@ fn traverse<P: Primitive, const N: usize, const ANY_HIT: bool>(
         })
     }) {
         let node = &nodes[index];
-        let Some(first) = first_entering(node, p, from) else {
+        let Some(first) = first_entering(node, p, bounds.as_ref(), from) else {
             continue;
         };
         if node.is_leaf() {
