@@ -170,7 +170,7 @@ const fn concat<const N: usize>(a: &[AccelEntry], b: &[AccelEntry]) -> [AccelEnt
 /// Intel Embree 3 (`--features embree`, Debian's `libembree-dev`): high-quality build,
 /// `rtcIntersect1` / `rtcOccluded1`, as many build threads as the pool it is built in.
 #[cfg(feature = "embree")]
-const OPTIONAL: &[AccelEntry] = &[AccelEntry {
+const EMBREE: AccelEntry = AccelEntry {
     name: "embree",
     about: "Intel Embree 3 (system library), high-quality robust build, rtcIntersect1/rtcOccluded1",
     build: |p| boxed(crate::embree::EmbreeScene::build(p, 0)),
@@ -182,7 +182,23 @@ const OPTIONAL: &[AccelEntry] = &[AccelEntry {
     // triangle hits it at t = 0, and a hit exactly at `tmax` may be dropped or kept.
     conformance: false,
     packets: None,
-}];
+};
+
+#[cfg(feature = "embree")]
+const OPTIONAL: &[AccelEntry] = &[
+    EMBREE,
+    // Embree's packet path for the packet comparisons; its single rays are `embree`'s, so bench
+    // and verify do not run them twice.
+    AccelEntry {
+        name: "embree-packet8",
+        about: "the Embree scene traced by rtcIntersect8/rtcOccluded8, 8 rays per packet (trace --packet 4x2)",
+        bench_max_prims: 0,
+        packets: Some(|p| {
+            crate::embree::EmbreeScene::build(p, 0).map(|s| Box::new(s) as Box<dyn PacketAccel>)
+        }),
+        ..EMBREE
+    },
+];
 
 #[cfg(not(feature = "embree"))]
 const OPTIONAL: &[AccelEntry] = &[];
