@@ -19,7 +19,7 @@
 use crate::Grid;
 use crate::level::NO_CHILD;
 use rt_geom::aabb::{pad_down, pad_up};
-use rt_geom::{Hit, Mailbox, Primitive, Ray, replaces};
+use rt_geom::{Hit, Mailbox, Primitive, Ray, test_primitives};
 
 /// Mailbox slots per ray.
 const MAILBOX: usize = 8;
@@ -38,22 +38,10 @@ impl<P: Primitive> Walk<'_, P> {
     /// Tests primitives `ids`; true when `ANY_HIT` and something was hit.
     #[inline(always)]
     fn test<const ANY_HIT: bool, const MAILBOXES: bool>(&mut self, ids: &[u32]) -> bool {
-        for &p in ids {
-            if MAILBOXES && self.mailbox.seen(p) {
-                continue;
-            }
-            if let Some(h) = self.grid.prims[p as usize].intersect(&self.ray) {
-                if ANY_HIT {
-                    self.best = Some(Hit::new(h, p));
-                    return true;
-                }
-                if replaces(h.t, p, self.best.as_ref().map(Hit::key)) {
-                    self.best = Some(Hit::new(h, p));
-                    self.ray.tmax = h.t;
-                }
-            }
-        }
-        false
+        let mailbox = &mut self.mailbox;
+        test_primitives::<P, ANY_HIT>(&self.grid.prims, ids, &mut self.ray, &mut self.best, |p| {
+            MAILBOXES && mailbox.seen(p)
+        })
     }
 
     /// Walks level `l` over `[t0, t1]`; true when `ANY_HIT` found a hit.

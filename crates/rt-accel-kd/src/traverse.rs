@@ -12,7 +12,7 @@
 use crate::params::{KdTraversal, MAX_DEPTH};
 use crate::{KdNode, KdTree};
 use rt_geom::aabb::PAD;
-use rt_geom::{Aabb, Hit, Primitive, Ray, replaces};
+use rt_geom::{Aabb, Hit, Primitive, Ray, test_primitives};
 
 /// Which children of an inner node the ray visits, first = on the side of the origin.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -91,19 +91,7 @@ fn test_leaf<P: Primitive, const ANY_HIT: bool>(
     r: &mut Ray,
     best: &mut Option<Hit>,
 ) -> bool {
-    for &p in ids {
-        if let Some(h) = prims[p as usize].intersect(r) {
-            if ANY_HIT {
-                *best = Some(Hit::new(h, p));
-                return true;
-            }
-            if replaces(h.t, p, best.as_ref().map(Hit::key)) {
-                *best = Some(Hit::new(h, p));
-                r.tmax = h.t;
-            }
-        }
-    }
-    false
+    test_primitives::<P, ANY_HIT>(prims, ids, r, best, |_| false)
 }
 
 /// Iterative front-to-back traversal with an explicit stack of pending far cells, from the

@@ -20,7 +20,7 @@
 use crate::Octree;
 use crate::node::octant;
 use rt_geom::aabb::{pad_down, pad_up};
-use rt_geom::{Aabb, Hit, Mailbox, Primitive, Ray, replaces};
+use rt_geom::{Aabb, Hit, Mailbox, Primitive, Ray, test_primitives};
 
 struct Walk<'a, P> {
     tree: &'a Octree<P>,
@@ -38,22 +38,11 @@ impl<P: Primitive> Walk<'_, P> {
     /// Tests leaf `i`; true when `ANY_HIT` and something was hit.
     fn leaf<const ANY_HIT: bool>(&mut self, i: usize) -> bool {
         let tree = self.tree;
-        for &p in &tree.indices[tree.nodes[i].prims()] {
-            if self.mailbox.seen(p) {
-                continue;
-            }
-            if let Some(h) = tree.prims[p as usize].intersect(&self.ray) {
-                if ANY_HIT {
-                    self.best = Some(Hit::new(h, p));
-                    return true;
-                }
-                if replaces(h.t, p, self.best.as_ref().map(Hit::key)) {
-                    self.best = Some(Hit::new(h, p));
-                    self.ray.tmax = h.t;
-                }
-            }
-        }
-        false
+        let ids = &tree.indices[tree.nodes[i].prims()];
+        let mailbox = &mut self.mailbox;
+        test_primitives::<P, ANY_HIT>(&tree.prims, ids, &mut self.ray, &mut self.best, |p| {
+            mailbox.seen(p)
+        })
     }
 
     /// True when a pending part of the ray entered at `t` cannot hold a closer hit.

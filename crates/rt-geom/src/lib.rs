@@ -51,7 +51,7 @@ pub use cone::Cone;
 pub use glam::{self, Vec3};
 pub use mesh::{Mesh, MeshError, MeshGroup, load_obj, parse_obj};
 pub use primitive::Primitive;
-pub use ray::{Hit, PrimHit, Ray, replaces};
+pub use ray::{Hit, PrimHit, Ray, replaces, test_primitives};
 pub use shape::Shape;
 pub use sphere::Sphere;
 pub use triangle::{Triangle, TriangleKernel, watertight_edges};

@@ -177,6 +177,36 @@ pub fn replaces(t: f32, prim: u32, best: Option<(f32, u32)>) -> bool {
     }
 }
 
+/// Tests primitives `ids` of `prims` against `ray` in order, skipping ids for which `skip`
+/// says so (mailboxes), updating `best` by [`replaces`] and shrinking `ray.tmax` to it. With
+/// `ANY_HIT`, stops at the first hit and returns true. The leaf test of every structure that
+/// lists primitive ids in its cells.
+#[inline(always)]
+pub fn test_primitives<P: crate::Primitive, const ANY_HIT: bool>(
+    prims: &[P],
+    ids: &[u32],
+    ray: &mut Ray,
+    best: &mut Option<Hit>,
+    mut skip: impl FnMut(u32) -> bool,
+) -> bool {
+    for &p in ids {
+        if skip(p) {
+            continue;
+        }
+        if let Some(h) = prims[p as usize].intersect(ray) {
+            if ANY_HIT {
+                *best = Some(Hit::new(h, p));
+                return true;
+            }
+            if replaces(h.t, p, best.as_ref().map(Hit::key)) {
+                *best = Some(Hit::new(h, p));
+                ray.tmax = h.t;
+            }
+        }
+    }
+    false
+}
+
 impl Hit {
     /// `(t, prim)`, the key of [`replaces`].
     #[inline(always)]
