@@ -141,6 +141,41 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
                 .map_err(|e| format!("{}: {e}", entry.name))?;
             let build_ms = start.elapsed().as_secs_f64() * 1e3;
             let stats = accel.stats();
+            // Structures with a packet path: primary rays as image tiles too
+            // (`primary-WxH` records beside the single-ray ones).
+            if let Some(build_packets) = entry.packets {
+                let packets = build_pool
+                    .install(|| build_packets(&tris))
+                    .map_err(|e| format!("{}: {e}", entry.name))?;
+                let sides: &[usize] = if opts.quick {
+                    &[8]
+                } else {
+                    &rt_packet::TILE_SIDES
+                };
+                for &side in sides {
+                    let groups = rt_packet::tiles(size, size, side, side);
+                    for (threads, pool) in &pools {
+                        pb.set_message(format!("{} {side}x{side} packets x{threads}", entry.name));
+                        let (rate, hits) =
+                            measure_packets(packets.as_ref(), &sets.primary, &groups, pool, reps);
+                        records.push(Record {
+                            accel: entry.name.to_string(),
+                            scene: scene.clone(),
+                            rays: format!("primary-{side}x{side}"),
+                            threads: *threads,
+                            build_ms,
+                            mrays_s: rate,
+                            bytes: stats.bytes,
+                            ratio_vs_obvhs: None,
+                            ratio_vs_embree: None,
+                            ray_count: sets.primary.len(),
+                            hits,
+                            prims: tris.len(),
+                            sah_cost: stats.sah_cost,
+                        });
+                    }
+                }
+            }
             for set in RaySets::NAMES {
                 let rays = sets.by_name(set).expect("known set");
                 for (threads, pool) in &pools {
@@ -223,6 +258,23 @@ fn measure(
     )
 }
 
+/// Median Mrays/s of the primary rays traced as packets (one per group of ray indices).
+fn measure_packets(
+    accel: &dyn rt_packet::PacketAccel,
+    rays: &[Ray],
+    groups: &[Vec<usize>],
+    pool: &rayon::ThreadPool,
+    reps: usize,
+) -> (f64, usize) {
+    let mut out = vec![crate::rayfile::HitRecord::MISS; rays.len()];
+    run::trace_packets_into(accel, rays, groups, false, pool, &mut out); // warm-up
+    let times = (0..reps)
+        .map(|_| run::trace_packets_into(accel, rays, groups, false, pool, &mut out))
+        .collect();
+    let hits = out.iter().filter(|h| h.is_hit()).count();
+    (run::mrays_per_s(rays.len(), run::median(times)), hits)
+}
+
 fn fill_ratios(records: &mut [Record]) {
     // The best rate among the references named by `is_ref`, per scene, rays and threads.
     let best = |records: &[Record], is_ref: fn(&str) -> bool| -> Vec<Option<f64>> {
@@ -232,9 +284,11 @@ fn fill_ratios(records: &mut [Record]) {
                 records
                     .iter()
                     .filter(|o| {
+                        // Packet records (`primary-8x8`) against the references' single rays.
+                        let set = r.rays.split('-').next().unwrap_or(&r.rays);
                         is_ref(&o.accel)
                             && o.scene == r.scene
-                            && o.rays == r.rays
+                            && o.rays == set
                             && o.threads == r.threads
                     })
                     .map(|o| o.mrays_s)
@@ -255,7 +309,7 @@ fn fill_ratios(records: &mut [Record]) {
 pub fn print_table(records: &[Record]) {
     let embree = records.iter().any(|r| r.ratio_vs_embree.is_some());
     println!(
-        "{:<18} {:<12} {:<8} {:>3} {:>10} {:>9} {:>8} {:>8} {:>8} {:>7}{}",
+        "{:<18} {:<12} {:<13} {:>3} {:>10} {:>9} {:>8} {:>8} {:>8} {:>7}{}",
         "accel",
         "scene",
         "rays",
@@ -270,7 +324,7 @@ pub fn print_table(records: &[Record]) {
     );
     for r in records {
         println!(
-            "{:<18} {:<12} {:<8} {:>3} {:>10.1} {:>9.2} {:>8} {:>8} {:>8.1} {:>7}{}",
+            "{:<18} {:<12} {:<13} {:>3} {:>10.1} {:>9.2} {:>8} {:>8} {:>8.1} {:>7}{}",
             r.accel,
             r.scene,
             r.rays,

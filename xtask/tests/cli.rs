@@ -413,3 +413,44 @@ fn packets_trace_the_same_hit_file() {
         "--width",
     );
 }
+
+#[test]
+fn bench_records_packet_paths_beside_single_rays() {
+    let dir = TempDir::new("bench");
+    let json = dir.path("b.json");
+    let o = xtask(&[
+        "bench",
+        "--quick",
+        "--accels",
+        "bvh",
+        "--scenes",
+        "soup-20k",
+        "--threads",
+        "1",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&json).unwrap();
+    let records: Vec<serde_json::Value> = serde_json::from_str(&text).unwrap();
+    let rays_of = |accel: &str| -> Vec<String> {
+        records
+            .iter()
+            .filter(|r| r["accel"] == accel)
+            .map(|r| r["rays"].as_str().unwrap().to_string())
+            .collect()
+    };
+    assert_eq!(
+        rays_of("bvh"),
+        ["primary-8x8", "primary", "shadow", "diffuse"]
+    );
+    let packet = records.iter().find(|r| r["rays"] == "primary-8x8").unwrap();
+    let single = records
+        .iter()
+        .find(|r| r["accel"] == "bvh" && r["rays"] == "primary")
+        .unwrap();
+    // The same rays, the same hits; a ratio to obvhs's single rays.
+    assert_eq!(packet["hits"], single["hits"]);
+    assert!(packet["mrays_s"].as_f64().unwrap() > 0.0);
+    assert!(packet["ratio_vs_obvhs"].as_f64().is_some());
+}
