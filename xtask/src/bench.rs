@@ -141,6 +141,25 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
                 .map_err(|e| format!("{}: {e}", entry.name))?;
             let build_ms = start.elapsed().as_secs_f64() * 1e3;
             let stats = accel.stats();
+            // One measurement of this structure on this scene (ratios are filled in later).
+            let record =
+                |rays: String, threads: usize, mrays_s: f64, hits: usize, ray_count: usize| {
+                    Record {
+                        accel: entry.name.to_string(),
+                        scene: scene.clone(),
+                        rays,
+                        threads,
+                        build_ms,
+                        mrays_s,
+                        bytes: stats.bytes,
+                        ratio_vs_obvhs: None,
+                        ratio_vs_embree: None,
+                        ray_count,
+                        hits,
+                        prims: tris.len(),
+                        sah_cost: stats.sah_cost,
+                    }
+                };
             // Structures with a packet path: primary rays as image tiles too
             // (`primary-WxH` records beside the single-ray ones).
             if let Some(build_packets) = entry.packets {
@@ -158,21 +177,9 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
                         pb.set_message(format!("{} {side}x{side} packets x{threads}", entry.name));
                         let (rate, hits) =
                             measure_packets(packets.as_ref(), &sets.primary, &groups, pool, reps);
-                        records.push(Record {
-                            accel: entry.name.to_string(),
-                            scene: scene.clone(),
-                            rays: format!("primary-{side}x{side}"),
-                            threads: *threads,
-                            build_ms,
-                            mrays_s: rate,
-                            bytes: stats.bytes,
-                            ratio_vs_obvhs: None,
-                            ratio_vs_embree: None,
-                            ray_count: sets.primary.len(),
-                            hits,
-                            prims: tris.len(),
-                            sah_cost: stats.sah_cost,
-                        });
+                        let count = sets.primary.len();
+                        let rays = format!("primary-{side}x{side}");
+                        records.push(record(rays, *threads, rate, hits, count));
                     }
                 }
             }
@@ -182,21 +189,7 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
                     pb.set_message(format!("{} {set} x{threads}", entry.name));
                     let (rate, hits, count) =
                         measure(accel.as_ref(), rays, set == "shadow", pool, reps);
-                    records.push(Record {
-                        accel: entry.name.to_string(),
-                        scene: scene.clone(),
-                        rays: set.to_string(),
-                        threads: *threads,
-                        build_ms,
-                        mrays_s: rate,
-                        bytes: stats.bytes,
-                        ratio_vs_obvhs: None,
-                        ratio_vs_embree: None,
-                        ray_count: count,
-                        hits,
-                        prims: tris.len(),
-                        sah_cost: stats.sah_cost,
-                    });
+                    records.push(record(set.to_string(), *threads, rate, hits, count));
                     pb.inc(1);
                 }
             }

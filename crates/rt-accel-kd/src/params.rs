@@ -123,13 +123,7 @@ impl KdParams {
             leaf,
             "1..=1048576",
         )?;
-        let budget = self.reference_budget;
-        BuildError::require(
-            (1.0..=64.0).contains(&budget),
-            "reference_budget",
-            budget,
-            "1..=64",
-        )?;
+        BuildError::require_reference_budget(self.reference_budget)?;
         Ok(())
     }
 }

@@ -54,13 +54,7 @@ impl OctreeParams {
         BuildError::require(self.max_prims >= 1, "max_prims", self.max_prims, ">= 1")?;
         let depth = self.max_depth;
         BuildError::require(depth <= MAX_DEPTH, "max_depth", depth, "0..=24")?;
-        let budget = self.reference_budget;
-        BuildError::require(
-            (1.0..=64.0).contains(&budget),
-            "reference_budget",
-            budget,
-            "1..=64",
-        )?;
+        BuildError::require_reference_budget(self.reference_budget)?;
         Ok(())
     }
 }

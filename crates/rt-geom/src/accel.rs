@@ -173,6 +173,17 @@ impl BuildError {
             })
         }
     }
+
+    /// The check of a `reference_budget` parameter (references per primitive, 1 to 64), shared
+    /// by the builders that duplicate references (kd-trees, BSP trees, octrees).
+    pub fn require_reference_budget(budget: f32) -> Result<(), BuildError> {
+        Self::require(
+            (1.0..=64.0).contains(&budget),
+            "reference_budget",
+            budget,
+            "1..=64",
+        )
+    }
 }
 
 /// Sums what a walk over a tree of cells sees into its [`AccelStats`]: depth, non-empty
