@@ -160,8 +160,9 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
                         sah_cost: stats.sah_cost,
                     }
                 };
-            // Structures with a packet path: primary rays as image tiles too
-            // (`primary-WxH` records beside the single-ray ones).
+            // Structures with a packet path: primary rays as image tiles, and the shadow rays
+            // of those tiles' pixels toward the light, too (`primary-WxH`, `shadow-WxH`
+            // records beside the single-ray ones).
             if let Some(build_packets) = entry.packets {
                 let packets = build_pool
                     .install(|| build_packets(&tris))
@@ -172,16 +173,35 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
                     &rt_packet::TILE_SIDES
                 };
                 for &side in sides {
-                    let groups = rt_packet::tiles(size, size, side, side);
-                    for (threads, pool) in &pools {
-                        pb.set_message(format!("{} {side}x{side} packets x{threads}", entry.name));
-                        let (rate, hits) =
-                            measure_packets(packets.as_ref(), &sets.primary, &groups, pool, reps);
-                        let count = sets.primary.len();
-                        let rays = format!("primary-{side}x{side}");
-                        records.push(record(rays, *threads, rate, hits, count));
+                    let tiles = rt_packet::tiles(size, size, side, side);
+                    let shadow_tiles = sets.secondary_groups(&tiles);
+                    for (set, rays, groups) in [
+                        ("primary", &sets.primary, &tiles),
+                        ("shadow", &sets.shadow, &shadow_tiles),
+                    ] {
+                        let occluded = set == "shadow";
+                        for (threads, pool) in &pools {
+                            pb.set_message(format!(
+                                "{} {set} {side}x{side} packets x{threads}",
+                                entry.name
+                            ));
+                            let (rate, hits) = measure_packets(
+                                packets.as_ref(),
+                                rays,
+                                groups,
+                                occluded,
+                                pool,
+                                reps,
+                            );
+                            let name = format!("{set}-{side}x{side}");
+                            records.push(record(name, *threads, rate, hits, rays.len()));
+                        }
                     }
                 }
+            }
+            if entry.packet_only.is_some() {
+                pb.inc((RaySets::NAMES.len() * pools.len()) as u64);
+                continue;
             }
             for set in RaySets::NAMES {
                 let rays = sets.by_name(set).expect("known set");
@@ -203,6 +223,7 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
             || r.accel == "embree"
     });
     print_table(&records);
+    print_packet_table(&records);
     if let Some(path) = &opts.json {
         let text = serde_json::to_string_pretty(&records).map_err(|e| e.to_string())?;
         std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -251,18 +272,20 @@ fn measure(
     )
 }
 
-/// Median Mrays/s of the primary rays traced as packets (one per group of ray indices).
+/// Median Mrays/s of rays traced as packets (one per group of ray indices), closest hit or
+/// (`occluded`) any hit.
 fn measure_packets(
     accel: &dyn rt_packet::PacketAccel,
     rays: &[Ray],
     groups: &[Vec<usize>],
+    occluded: bool,
     pool: &rayon::ThreadPool,
     reps: usize,
 ) -> (f64, usize) {
     let mut out = vec![crate::rayfile::HitRecord::MISS; rays.len()];
-    run::trace_packets_into(accel, rays, groups, false, pool, &mut out); // warm-up
+    run::trace_packets_into(accel, rays, groups, occluded, pool, &mut out); // warm-up
     let times = (0..reps)
-        .map(|_| run::trace_packets_into(accel, rays, groups, false, pool, &mut out))
+        .map(|_| run::trace_packets_into(accel, rays, groups, occluded, pool, &mut out))
         .collect();
     let hits = out.iter().filter(|h| h.is_hit()).count();
     (run::mrays_per_s(rays.len(), run::median(times)), hits)
@@ -296,6 +319,45 @@ fn fill_ratios(records: &mut [Record]) {
     for ((r, o), e) in records.iter_mut().zip(obvhs).zip(embree) {
         r.ratio_vs_obvhs = o;
         r.ratio_vs_embree = e;
+    }
+}
+
+/// The packet records against the same structure's single rays (and, for a packet path over
+/// another entry's structure, against that entry's packets on the same tiles).
+pub fn print_packet_table(records: &[Record]) {
+    let packets: Vec<&Record> = records.iter().filter(|r| r.rays.contains('-')).collect();
+    if packets.is_empty() {
+        return;
+    }
+    let find = |accel: &str, r: &Record, rays: &str| {
+        records
+            .iter()
+            .find(|o| {
+                o.accel == accel && o.scene == r.scene && o.threads == r.threads && o.rays == rays
+            })
+            .map(|o| o.mrays_s)
+    };
+    println!(
+        "\npackets: {:<18} {:<12} {:<15} {:>3} {:>9} {:>9} {:>9} {:>10}",
+        "accel", "scene", "rays", "thr", "Mrays/s", "x single", "vs obvhs", "x plain"
+    );
+    for r in packets {
+        let set = r.rays.split('-').next().unwrap_or(&r.rays);
+        let base = registry::find(&r.accel).and_then(|e| e.packet_only);
+        let single = find(base.unwrap_or(&r.accel), r, set);
+        let plain = base.and_then(|b| find(b, r, &r.rays));
+        let ratio = |x: Option<f64>| x.map_or("-".into(), |x| format!("{:.2}x", r.mrays_s / x));
+        println!(
+            "         {:<18} {:<12} {:<15} {:>3} {:>9.2} {:>9} {:>9} {:>10}",
+            r.accel,
+            r.scene,
+            r.rays,
+            r.threads,
+            r.mrays_s,
+            ratio(single),
+            r.ratio_vs_obvhs.map_or("-".into(), |x| format!("{x:.2}x")),
+            ratio(plain),
+        );
     }
 }
 

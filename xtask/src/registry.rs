@@ -9,10 +9,12 @@ use rt_accel_grid::{Grid, GridParams};
 use rt_accel_kd::{BspParams, BspTree, KdParams, KdTraversal, KdTree};
 use rt_accel_octree::{Octree, OctreeParams, OctreeTraversal};
 use rt_geom::{Aabb, Accel, BoundingSphere, BruteForce, BuildError, Kdop7, Shape, Triangle};
-use rt_packet::PacketAccel;
+use rt_packet::{MlrtaKdTree, PacketAccel};
 
-/// A packet path over rt's BVH2 (boxed as a `PacketAccel`).
-fn packets_of(r: Result<Bvh<Triangle>, BuildError>) -> Result<Box<dyn PacketAccel>, BuildError> {
+/// A packet path (boxed as a `PacketAccel`).
+fn packets_of<A: PacketAccel + 'static>(
+    r: Result<A, BuildError>,
+) -> Result<Box<dyn PacketAccel>, BuildError> {
     r.map(|b| Box::new(b) as Box<dyn PacketAccel>)
 }
 use rt_testkit::Tolerance;
@@ -40,6 +42,10 @@ pub struct AccelEntry {
     /// Whether `verify` runs it on the adversarial conformance scenes (peers that answer
     /// differently by design there are checked on the meshes' camera, shadow and diffuse rays).
     pub conformance: bool,
+    /// `Some(entry)` when its single rays are that entry's (it exists for its packet path):
+    /// `bench` measures only its packets (and compares them with that entry's), and `verify`
+    /// only checks its packets against its single rays.
+    pub packet_only: Option<&'static str>,
 }
 
 fn boxed<A: Accel + 'static>(r: Result<A, BuildError>) -> Result<Box<dyn Accel>, BuildError> {
@@ -77,6 +83,7 @@ const fn own(
         bench_max_prims: usize::MAX,
         conformance: true,
         packets: None,
+        packet_only: None,
     }
 }
 
@@ -92,6 +99,12 @@ impl AccelEntry {
     /// Limits the scenes `bench` runs the entry on by default.
     const fn bench_up_to(mut self, prims: usize) -> Self {
         self.bench_max_prims = prims;
+        self
+    }
+
+    /// Registers a packet path whose single rays are those of the entry `single`.
+    const fn packet_only(mut self, single: &'static str) -> Self {
+        self.packet_only = Some(single);
         self
     }
 
@@ -182,6 +195,7 @@ const EMBREE: AccelEntry = AccelEntry {
     // triangle hits it at t = 0, and a hit exactly at `tmax` may be dropped or kept.
     conformance: false,
     packets: None,
+    packet_only: None,
 };
 
 #[cfg(feature = "embree")]
@@ -224,6 +238,7 @@ const BASE: &[AccelEntry] = &[
         bench_max_prims: 10_000,
         conformance: true,
         packets: None,
+        packet_only: None,
     },
     generic!(
         "bvh",
@@ -331,7 +346,15 @@ const BASE: &[AccelEntry] = &[
         "kd",
         "rt kd-tree, SAH over all clipped-box planes in O(N log N) (Wald & Havran 2006), iterative traversal",
         |p| boxed(KdTree::build(p, KdParams::sah())),
-    ),
+    )
+    .with_packets(|p| packets_of(KdTree::build(p, KdParams::sah()))),
+    generic!(
+        "kd-mlrta",
+        "the SAH kd-tree's packets by multi-level ray tracing (Reshetov et al. 2005): each beam starts at its entry point; single rays are kd's",
+        |p| boxed(KdTree::build(p, KdParams::sah())),
+    )
+    .with_packets(|p| packets_of(KdTree::build(p, KdParams::sah()).map(MlrtaKdTree::new)))
+    .packet_only("kd"),
     generic!(
         "kd-recursive",
         "the same SAH kd-tree, traversed by the seeds' recursive front-to-back descent",
@@ -407,6 +430,7 @@ const BASE: &[AccelEntry] = &[
         bench_max_prims: usize::MAX,
         conformance: true,
         packets: None,
+        packet_only: None,
     },
     AccelEntry {
         name: "obvhs-cwbvh",
@@ -421,6 +445,7 @@ const BASE: &[AccelEntry] = &[
         bench_max_prims: usize::MAX,
         conformance: true,
         packets: None,
+        packet_only: None,
     },
 ];
 

@@ -1,6 +1,7 @@
 //! `cargo xtask verify`: every registered structure against brute force on the conformance
 //! scenes, and, when `../shared/models` exists, on the standard meshes with camera, shadow and
-//! diffuse rays (against brute force on small meshes, against obvhs on large ones).
+//! diffuse rays (against brute force on small meshes, against obvhs on large ones). Packet
+//! paths are checked on the same rays against their own structure's single rays, exactly.
 
 use crate::registry::{self, AccelEntry};
 use crate::run;
@@ -88,22 +89,38 @@ pub fn verify(opts: &VerifyOptions) -> Result<bool, String> {
 
 fn conformance_rows(entries: &[&'static AccelEntry]) -> Vec<Row> {
     let scenes = scenes::conformance_triangle_scenes();
+    // Single rays against brute force; packet paths against their own single rays.
     let jobs: Vec<_> = entries
         .iter()
         .filter(|e| e.conformance)
-        .flat_map(|e| scenes.iter().map(move |s| (*e, s)))
+        .flat_map(|e| {
+            let single = e.packet_only.is_none().then_some(false);
+            let packets = e.packets.is_some().then_some(true);
+            single.into_iter().chain(packets).map(move |p| (*e, p))
+        })
+        .flat_map(|(e, packets)| scenes.iter().map(move |s| (e, packets, s)))
         .collect();
     let pb = run::bar(jobs.len() as u64, "conformance");
     let rows = jobs
         .par_iter()
-        .map(|(entry, scene)| {
+        .map(|(entry, packets, scene)| {
             pb.set_message(format!("{} {}", entry.name, scene.name));
             let start = Instant::now();
-            let report = conformance::check_scene(scene, entry.build, entry.tolerance);
+            let report = if *packets {
+                let reference = BruteForce::build(&scene.prims).map_err(|e| e.to_string());
+                reference.and_then(|reference| {
+                    let seed = 0x5eed ^ scene.prims.len() as u64;
+                    let rays =
+                        rt_testkit::rays::conformance_rays(&scene.prims, &reference, 400, seed);
+                    packet_report(&scene.name, &scene.prims, &rays, entry)
+                })
+            } else {
+                conformance::check_scene(scene, entry.build, entry.tolerance)
+            };
             pb.inc(1);
             Row {
                 accel: entry.name,
-                scene: scene.name.clone(),
+                scene: row_scene(&scene.name, *packets),
                 build_ms: start.elapsed().as_secs_f64() * 1e3,
                 report,
                 vs_embree: None,
@@ -112,6 +129,85 @@ fn conformance_rows(entries: &[&'static AccelEntry]) -> Vec<Row> {
         .collect();
     pb.finish_and_clear();
     rows
+}
+
+/// The scene column of a row: packet rows say so.
+fn row_scene(scene: &str, packets: bool) -> String {
+    if packets {
+        format!("{scene} [packets]")
+    } else {
+        scene.to_string()
+    }
+}
+
+/// Group sizes of the packet check, cycled in file order: full and partial packets of every
+/// size the packet paths pick (4, 16, 64, 256 lanes), single rays, odd sizes.
+const PACKET_GROUPS: [usize; 7] = [256, 64, 16, 4, 1, 37, 200];
+
+/// An entry's packet path against its own single rays, exactly (every field of every hit, and
+/// every occluded answer), with `rays` traced as groups of [`PACKET_GROUPS`] sizes.
+fn packet_report(
+    scene: &str,
+    tris: &[Triangle],
+    rays: &[TestRay],
+    entry: &AccelEntry,
+) -> Result<Report, String> {
+    let build = entry.packets.ok_or("no packet path")?;
+    let packets = build(tris).map_err(|e| e.to_string())?;
+    let single = (entry.build)(tris).map_err(|e| e.to_string())?;
+    let mut groups = Vec::new();
+    let mut start = 0;
+    for size in PACKET_GROUPS.iter().cycle() {
+        if start >= rays.len() {
+            break;
+        }
+        let end = (start + size).min(rays.len());
+        groups.push(start..end);
+        start = end;
+    }
+    let reports: Vec<Report> = groups
+        .par_iter()
+        .map(|g| {
+            let group: Vec<rt_geom::Ray> = rays[g.clone()].iter().map(|t| t.ray).collect();
+            let mut hits = vec![None; group.len()];
+            let mut blocked = vec![false; group.len()];
+            packets.intersect_group(&group, &mut hits);
+            packets.occluded_group(&group, &mut blocked);
+            let mut report = Report {
+                scene: scene.to_string(),
+                rays: group.len(),
+                ..Report::default()
+            };
+            for (k, test) in rays[g.clone()].iter().enumerate() {
+                let expected = single.intersect(&test.ray);
+                report.hits += expected.is_some() as usize;
+                let query = if hits[k] != expected {
+                    "packet intersect"
+                } else if blocked[k] != single.occluded(&test.ray) {
+                    "packet occluded"
+                } else {
+                    continue;
+                };
+                report.mismatch_count += 1;
+                report.mismatches.push(conformance::Mismatch {
+                    scene: scene.to_string(),
+                    kind: test.kind,
+                    query,
+                    ray: test.ray,
+                    expected,
+                    got: hits[k],
+                });
+            }
+            report
+        })
+        .collect();
+    Ok(reports.into_iter().fold(Report::default(), |mut a, b| {
+        if a.scene.is_empty() {
+            a.scene = b.scene.clone();
+        }
+        a.merge(b);
+        a
+    }))
 }
 
 /// Rows of a mesh (a shared model, or a procedural stand-in) traced with the standard camera,
@@ -157,6 +253,22 @@ fn mesh_rows(
     for entry in entries {
         if tris.len() > entry.bench_max_prims {
             continue; // brute force as a subject on a large mesh: O(n) per ray, not verified
+        }
+        if entry.packets.is_some() {
+            let pb = run::spinner(format!("{name}: {} packets", entry.name));
+            let start = Instant::now();
+            let report = packet_report(&scene, &tris, &rays, entry);
+            pb.finish_and_clear();
+            rows.push(Row {
+                accel: entry.name,
+                scene: row_scene(&scene, true),
+                build_ms: start.elapsed().as_secs_f64() * 1e3,
+                report,
+                vs_embree: None,
+            });
+        }
+        if entry.packet_only.is_some() {
+            continue; // its single rays are another entry's
         }
         let pb = run::spinner(format!("{name}: {}", entry.name));
         let start = Instant::now();

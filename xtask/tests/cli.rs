@@ -362,37 +362,40 @@ fn packets_trace_the_same_hit_file() {
     assert!(o.status.success(), "{}", stderr(&o));
     let o = xtask(&["accels", "--packet"]);
     let names: Vec<String> = stdout(&o).lines().map(str::to_string).collect();
-    assert!(
-        names.contains(&"bvh".to_string()) && !names.contains(&"kd".to_string()),
-        "{names:?}"
-    );
-    let trace = |extra: &[&str], out: &str| {
-        let hits = dir.path(out);
-        let mut args = vec![
-            "trace", "--mesh", mesh_s, "--rays", rays_s, "--accel", "bvh", "--out",
-        ];
-        args.push(hits.to_str().unwrap());
-        args.extend_from_slice(extra);
-        let o = xtask(&args);
-        assert!(o.status.success(), "{}", stderr(&o));
-        std::fs::read(hits).unwrap()
-    };
-    let single = trace(&[], "single.hits");
-    for tile in ["2x2", "4x4", "8x8", "16x16", "4x2"] {
+    for name in ["bvh", "kd", "kd-mlrta"] {
+        assert!(names.contains(&name.to_string()), "{names:?}");
+    }
+    assert!(!names.contains(&"grid".to_string()), "{names:?}");
+    for accel in ["bvh", "kd", "kd-mlrta"] {
+        let trace = |extra: &[&str], out: &str| {
+            let hits = dir.path(out);
+            let mut args = vec![
+                "trace", "--mesh", mesh_s, "--rays", rays_s, "--accel", accel, "--out",
+            ];
+            args.push(hits.to_str().unwrap());
+            args.extend_from_slice(extra);
+            let o = xtask(&args);
+            assert!(o.status.success(), "{}", stderr(&o));
+            std::fs::read(hits).unwrap()
+        };
+        let single = trace(&[], "single.hits");
+        for tile in ["2x2", "4x4", "8x8", "16x16", "4x2"] {
+            assert_eq!(
+                trace(&["--packet", tile, "--width", "24"], "p.hits"),
+                single,
+                "{accel} {tile}"
+            );
+        }
+        let occluded = trace(&["--occluded"], "o1.hits");
         assert_eq!(
-            trace(&["--packet", tile, "--width", "24"], "p.hits"),
-            single,
-            "{tile}"
+            trace(
+                &["--occluded", "--packet", "8x8", "--width", "24"],
+                "o2.hits"
+            ),
+            occluded,
+            "{accel}"
         );
     }
-    let occluded = trace(&["--occluded"], "o1.hits");
-    assert_eq!(
-        trace(
-            &["--occluded", "--packet", "8x8", "--width", "24"],
-            "o2.hits"
-        ),
-        occluded
-    );
     // Clear errors: no packet path, tiles too large, no or wrong width.
     let bad = |extra: &[&str]| {
         let mut args = vec!["trace", "--mesh", mesh_s, "--rays", rays_s];
@@ -400,7 +403,7 @@ fn packets_trace_the_same_hit_file() {
         xtask(&args)
     };
     fails_cleanly(
-        &bad(&["--accel", "kd", "--packet", "4x4", "--width", "24"]),
+        &bad(&["--accel", "grid", "--packet", "4x4", "--width", "24"]),
         "no packet path",
     );
     fails_cleanly(
@@ -422,7 +425,7 @@ fn bench_records_packet_paths_beside_single_rays() {
         "bench",
         "--quick",
         "--accels",
-        "bvh",
+        "bvh,kd-mlrta",
         "--scenes",
         "soup-20k",
         "--threads",
@@ -442,15 +445,31 @@ fn bench_records_packet_paths_beside_single_rays() {
     };
     assert_eq!(
         rays_of("bvh"),
-        ["primary-8x8", "primary", "shadow", "diffuse"]
+        ["primary-8x8", "shadow-8x8", "primary", "shadow", "diffuse"]
     );
-    let packet = records.iter().find(|r| r["rays"] == "primary-8x8").unwrap();
-    let single = records
-        .iter()
-        .find(|r| r["accel"] == "bvh" && r["rays"] == "primary")
-        .unwrap();
+    // A packet path over another entry's structure: packets only.
+    assert_eq!(rays_of("kd-mlrta"), ["primary-8x8", "shadow-8x8"]);
+    let find = |accel: &str, rays: &str| {
+        records
+            .iter()
+            .find(|r| r["accel"] == accel && r["rays"] == rays)
+            .unwrap()
+    };
     // The same rays, the same hits; a ratio to obvhs's single rays.
-    assert_eq!(packet["hits"], single["hits"]);
-    assert!(packet["mrays_s"].as_f64().unwrap() > 0.0);
-    assert!(packet["ratio_vs_obvhs"].as_f64().is_some());
+    for (accel, set) in [
+        ("bvh", "primary"),
+        ("bvh", "shadow"),
+        ("kd-mlrta", "primary"),
+        ("kd-mlrta", "shadow"),
+    ] {
+        let packet = find(accel, &format!("{set}-8x8"));
+        assert_eq!(packet["hits"], find("bvh", set)["hits"], "{accel} {set}");
+        assert_eq!(
+            packet["ray_count"],
+            find("bvh", set)["ray_count"],
+            "{accel} {set}"
+        );
+        assert!(packet["mrays_s"].as_f64().unwrap() > 0.0);
+        assert!(packet["ratio_vs_obvhs"].as_f64().is_some());
+    }
 }

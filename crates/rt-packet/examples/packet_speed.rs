@@ -1,10 +1,13 @@
-//! Primary rays of the standard camera through rt's BVH, single rays against packets of every
-//! tile size, one thread: `cargo run --release -p rt-packet --example packet_speed -- [MESH.obj]`
-//! (default: a tessellated sphere of 200k triangles).
+//! Primary rays of the standard camera, single rays against packets of every tile size, one
+//! thread, for rt's BVH, the SAH kd-tree and the kd-tree with multi-level ray tracing:
+//! `cargo run --release -p rt-packet --example packet_speed -- [MESH.obj|-] [bvh|kd|kd-mlrta]`
+//! (default: a tessellated sphere of 200k triangles, all three structures). `cargo xtask bench` measures the same
+//! on 2 threads beside obvhs.
 
 use rt_accel_bvh::{Bvh, BvhParams};
+use rt_accel_kd::{KdParams, KdTree};
 use rt_geom::{Aabb, Accel, Ray, Triangle, Vec3};
-use rt_packet::{PacketTraversal, TILE_SIDES, tiles};
+use rt_packet::{MlrtaKdTree, PacketTraversal, TILE_SIDES, tiles};
 use std::time::Instant;
 
 fn median_mrays(rays: usize, mut run: impl FnMut() -> usize) -> (f64, usize) {
@@ -19,22 +22,12 @@ fn median_mrays(rays: usize, mut run: impl FnMut() -> usize) -> (f64, usize) {
     (rays as f64 / times[2] / 1e6, hits)
 }
 
-fn main() -> Result<(), String> {
-    let tris: Vec<Triangle> = match std::env::args().nth(1) {
-        Some(path) => rt_geom::load_obj(&path)
-            .map_err(|e| e.to_string())?
-            .triangles(),
-        None => rt_testkit::scenes::tessellated_sphere(200_000, Vec3::ZERO, 1.0),
-    };
-    let bvh = Bvh::build(&tris, BvhParams::balanced()).map_err(|e| e.to_string())?;
-    let bounds = tris.iter().fold(Aabb::EMPTY, |b, t| b.union(t.bounds()));
-    let (w, h) = (512, 512);
-    let rays = rt_testkit::View::front(&bounds).camera_rays(w, h);
+/// Single rays, then packets of every tile size, of one structure.
+fn report<T: Accel + PacketTraversal>(name: &str, accel: &T, rays: &[Ray], (w, h): (usize, usize)) {
     let (single, hits) = median_mrays(rays.len(), || {
-        rays.iter().filter(|r| bvh.intersect(r).is_some()).count()
+        rays.iter().filter(|r| accel.intersect(r).is_some()).count()
     });
-    println!("{} triangles, {w}x{h} primary rays, 1 thread", tris.len());
-    println!("single rays      {single:7.2} Mrays/s  ({hits} hits)");
+    println!("{name:<10} single rays  {single:7.2} Mrays/s  ({hits} hits)");
     for side in TILE_SIDES {
         let tiled: Vec<Ray> = tiles(w, h, side, side)
             .concat()
@@ -43,17 +36,72 @@ fn main() -> Result<(), String> {
             .collect();
         let (rate, hits) = median_mrays(tiled.len(), || {
             let hits = match side {
-                2 => bvh.intersect_rays::<4>(&tiled),
-                4 => bvh.intersect_rays::<16>(&tiled),
-                8 => bvh.intersect_rays::<64>(&tiled),
-                _ => bvh.intersect_rays::<256>(&tiled),
+                2 => accel.intersect_rays::<4>(&tiled),
+                4 => accel.intersect_rays::<16>(&tiled),
+                8 => accel.intersect_rays::<64>(&tiled),
+                _ => accel.intersect_rays::<256>(&tiled),
             };
             hits.iter().filter(|h| h.is_some()).count()
         });
         println!(
-            "{side:>2}x{side:<2} packets    {rate:7.2} Mrays/s  ({hits} hits)  {:.2}x single",
+            "{name:<10} {side:>2}x{side:<2} packets {rate:7.2} Mrays/s  ({hits} hits)  {:.2}x single",
             rate / single
         );
     }
+}
+
+fn main() -> Result<(), String> {
+    let tris: Vec<Triangle> = match std::env::args().nth(1) {
+        Some(path) if path != "-" => rt_geom::load_obj(&path)
+            .map_err(|e| e.to_string())?
+            .triangles(),
+        _ => rt_testkit::scenes::tessellated_sphere(200_000, Vec3::ZERO, 1.0),
+    };
+    let bounds = tris.iter().fold(Aabb::EMPTY, |b, t| b.union(t.bounds()));
+    let size = (512, 512);
+    let rays = rt_testkit::View::front(&bounds).camera_rays(size.0, size.1);
+    println!(
+        "{} triangles, {}x{} primary rays, 1 thread",
+        tris.len(),
+        size.0,
+        size.1
+    );
+    time_packing(&rays);
+    let only = std::env::args().nth(2);
+    let wanted = |name: &str| only.as_deref().is_none_or(|o| o == name);
+    if wanted("bvh") {
+        let bvh = Bvh::build(&tris, BvhParams::balanced()).map_err(|e| e.to_string())?;
+        report("bvh", &bvh, &rays, size);
+    }
+    let kd = || KdTree::build(&tris, KdParams::sah()).map_err(|e| e.to_string());
+    if wanted("kd") {
+        report("kd", &kd()?, &rays, size);
+    }
+    if wanted("kd-mlrta") {
+        report("kd-mlrta", &MlrtaKdTree::new(kd()?), &rays, size);
+    }
     Ok(())
+}
+
+#[allow(dead_code)]
+pub fn time_packing(rays: &[Ray]) {
+    let t = Instant::now();
+    let mut n = 0;
+    for c in rays.chunks(256) {
+        let p = rt_packet::RayPacket::<256>::new(c);
+        n += p.active_count();
+    }
+    println!(
+        "packing 256: {:.1} ns/ray ({n})",
+        t.elapsed().as_secs_f64() * 1e9 / rays.len() as f64
+    );
+    let t = Instant::now();
+    for c in rays.chunks(256) {
+        let p = rt_packet::RayPacket::<256>::new(c);
+        n += rt_packet::Beam::new(&p, 0..256).lanes();
+    }
+    println!(
+        "packing+beam 256: {:.1} ns/ray ({n})",
+        t.elapsed().as_secs_f64() * 1e9 / rays.len() as f64
+    );
 }

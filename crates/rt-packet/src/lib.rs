@@ -3,7 +3,11 @@
 //! | module | what it holds |
 //! |---|---|
 //! | [`packet`] | [`RayPacket`]: `N` rays in structure-of-arrays form with an active mask; [`tiles`] of an image |
-//! | [`bvh`] | [`PacketTraversal`] for rt's [`Bvh`](rt_accel_bvh::Bvh): first-active-ray descent (Wald, Boulos & Shirley 2007); [`PacketAccel`], the same behind a trait object |
+//! | [`api`] | [`PacketTraversal`] (`intersect_packet`, `occluded_packet`) and [`PacketAccel`], the same behind a trait object for groups of up to [`MAX_GROUP`] rays |
+//! | [`lanes`] | the kernels over blocks of 8 lanes: the slab test, and [`PacketPrimitive`] (watertight triangle test of 8 lanes at once) |
+//! | [`beam`] | [`Beam`]: a packet bounded by interval arithmetic, for culling and entry points |
+//! | [`bvh`] | packets through rt's [`Bvh`](rt_accel_bvh::Bvh): first-active-ray descent, beam culling (Wald, Boulos & Shirley 2007) |
+//! | [`kd`] | packets through [`KdTree`](rt_accel_kd::KdTree) split by direction octant (Wald, Slusallek, Benthin & Wagner 2001); [`MlrtaKdTree`], multi-level ray tracing (Reshetov, Soupikov & Hurley 2005) |
 //!
 //! Every lane's answer equals the single-ray answer of its ray, bit for bit (same box test,
 //! same kernel, same tie rule).
@@ -24,8 +28,17 @@
 //! }
 //! ```
 
+pub mod api;
+pub mod beam;
 pub mod bvh;
+#[cfg(test)]
+mod check;
+pub mod kd;
+pub mod lanes;
 pub mod packet;
 
-pub use bvh::{MAX_GROUP, PacketAccel, PacketTraversal};
+pub use api::{MAX_GROUP, PacketAccel, PacketTraversal};
+pub use beam::Beam;
+pub use kd::{EntryPoint, MlrtaKdTree};
+pub use lanes::PacketPrimitive;
 pub use packet::{RayPacket, TILE_SIDES, tiles};

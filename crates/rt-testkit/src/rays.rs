@@ -302,6 +302,9 @@ pub struct RaySets {
     pub primary: Vec<Ray>,
     pub shadow: Vec<Ray>,
     pub diffuse: Vec<Ray>,
+    /// The primary ray (pixel) each shadow and diffuse ray starts from: `shadow[k]` and
+    /// `diffuse[k]` leave the hit of `primary[from_pixel[k]]`.
+    pub from_pixel: Vec<usize>,
 }
 
 impl RaySets {
@@ -323,10 +326,12 @@ impl RaySets {
         let mut rng = Rng::new(seed);
         let mut shadow = Vec::new();
         let mut diffuse = Vec::new();
-        for ray in &primary {
+        let mut from_pixel = Vec::new();
+        for (pixel, ray) in primary.iter().enumerate() {
             let Some(hit) = reference.intersect(ray) else {
                 continue;
             };
+            from_pixel.push(pixel);
             let (p, n) = surface(ray, &hit, tris);
             shadow.push(Ray::segment(p, light - p, 1e-4, 1.0));
             let d = rng.cosine_hemisphere(n);
@@ -336,6 +341,7 @@ impl RaySets {
             primary,
             shadow,
             diffuse,
+            from_pixel,
         }
     }
 
@@ -349,6 +355,26 @@ impl RaySets {
     }
 
     pub const NAMES: [&'static str; 3] = ["primary", "shadow", "diffuse"];
+
+    /// Groups of pixel indices (image tiles, say) as groups of the shadow (or diffuse) rays
+    /// leaving those pixels; pixels whose primary ray missed have none, empty groups are left
+    /// out.
+    pub fn secondary_groups(&self, pixel_groups: &[Vec<usize>]) -> Vec<Vec<usize>> {
+        let mut of_pixel = vec![usize::MAX; self.primary.len()];
+        for (k, &p) in self.from_pixel.iter().enumerate() {
+            of_pixel[p] = k;
+        }
+        pixel_groups
+            .iter()
+            .map(|g| {
+                g.iter()
+                    .map(|&p| of_pixel[p])
+                    .filter(|&k| k != usize::MAX)
+                    .collect::<Vec<_>>()
+            })
+            .filter(|g| !g.is_empty())
+            .collect()
+    }
 
     /// All rays, tagged with their set, for the conformance comparison.
     pub fn tagged(&self) -> Vec<TestRay> {

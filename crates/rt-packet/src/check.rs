@@ -1,0 +1,82 @@
+//! Test helpers shared by the packet paths: every lane's answer against the structure's own
+//! single-ray answer.
+
+use crate::{PacketAccel, PacketTraversal};
+use rt_geom::{Accel, Ray, Triangle};
+use rt_testkit::rays::SamplePoints;
+
+/// The conformance suite's adversarial rays for `prims` (hits, misses, grazing, inside,
+/// limited intervals, invalid rays), in file order.
+pub fn conformance_rays<P: SamplePoints>(prims: &[P], per_family: usize, seed: u64) -> Vec<Ray> {
+    let reference = rt_geom::BruteForce::build(prims).unwrap();
+    rt_testkit::rays::conformance_rays(prims, &reference, per_family, seed)
+        .into_iter()
+        .map(|t| t.ray)
+        .collect()
+}
+
+/// Every lane of packets of `N` equals the single-ray answer, closest and any hit.
+pub fn lanes_equal_single_rays<const N: usize, T: PacketTraversal + Accel>(
+    accel: &T,
+    rays: &[Ray],
+    what: &str,
+) {
+    let hits = accel.intersect_rays::<N>(rays);
+    let blocked = accel.occluded_rays::<N>(rays);
+    for (k, r) in rays.iter().enumerate() {
+        assert_eq!(
+            hits[k],
+            accel.intersect(r),
+            "{what}, N = {N}, ray {k}: {r:?}"
+        );
+        assert_eq!(
+            blocked[k],
+            accel.occluded(r),
+            "{what}, N = {N}, ray {k}: {r:?}"
+        );
+    }
+}
+
+/// [`lanes_equal_single_rays`] for packets of 4, 8, 16, 64 and 256.
+pub fn all_sizes<T: PacketTraversal + Accel>(accel: &T, rays: &[Ray], what: &str) {
+    lanes_equal_single_rays::<4, T>(accel, rays, what);
+    lanes_equal_single_rays::<8, T>(accel, rays, what);
+    lanes_equal_single_rays::<16, T>(accel, rays, what);
+    lanes_equal_single_rays::<64, T>(accel, rays, what);
+    lanes_equal_single_rays::<256, T>(accel, rays, what);
+}
+
+/// A front camera's rays over `tris`, cut into tiles of every [`crate::TILE_SIDES`] size.
+pub fn camera_tiles<T: PacketTraversal + Accel>(accel: &T, tris: &[Triangle]) {
+    let bounds = tris
+        .iter()
+        .fold(rt_geom::Aabb::EMPTY, |b, t| b.union(t.bounds()));
+    let view = rt_testkit::View::front(&bounds);
+    let (w, h) = (48, 40);
+    let rays = view.camera_rays(w, h);
+    for side in crate::TILE_SIDES {
+        let tiled: Vec<Ray> = crate::tiles(w, h, side, side)
+            .concat()
+            .into_iter()
+            .map(|i| rays[i])
+            .collect();
+        all_sizes(accel, &tiled, &format!("{side}x{side} tiles"));
+    }
+}
+
+/// Groups of every size up to [`crate::MAX_GROUP`] through the trait object.
+pub fn groups<T: PacketAccel + Accel>(accel: &T, rays: &[Ray]) {
+    let dynamic: &dyn PacketAccel = accel;
+    for size in [1, 3, 4, 5, 8, 16, 17, 50, 64, 65, 200, 256] {
+        for group in rays.chunks(size) {
+            let mut hits = vec![None; group.len()];
+            let mut blocked = vec![false; group.len()];
+            dynamic.intersect_group(group, &mut hits);
+            dynamic.occluded_group(group, &mut blocked);
+            for (k, r) in group.iter().enumerate() {
+                assert_eq!(hits[k], accel.intersect(r), "group of {size}");
+                assert_eq!(blocked[k], accel.occluded(r), "group of {size}");
+            }
+        }
+    }
+}

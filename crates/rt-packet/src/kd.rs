@@ -1,0 +1,631 @@
+//! Packet traversal of [`KdTree`] (Wald, Slusallek, Benthin & Wagner 2001, "Interactive
+//! Rendering with Coherent Ray Tracing") and multi-level ray tracing (Reshetov, Soupikov &
+//! Hurley 2005, "Multi-Level Ray Tracing Algorithm"), [`MlrtaKdTree`].
+//!
+//! **Packets.** The lanes go through the tree a block of 8 at a time. Lanes whose directions
+//! share their signs on all three axes walk together (a block of mixed signs is split by
+//! octant, as Wald et al. split such packets): at an inner node every lane computes its own
+//! step at the plane ([`rt_accel_kd::traverse::step`], the single-ray rule, padding included),
+//! the near child (by the common signs) is visited by the lanes that reach it, and the far
+//! child is pushed with each lane's own interval. A lane leaves a pending cell as soon as its
+//! closest hit lies before the cell's entry, as a single ray does; a leaf tests its primitives
+//! against all lanes that reach it at once ([`PacketPrimitive`]).
+//!
+//! **Multi-level ray tracing.** Before the walk, the packet's rays are bounded as a beam
+//! ([`Beam`]), and the tree is searched for the deepest node that is a valid *entry point*:
+//! every non-empty leaf that any of the rays can reach lies below it. From the root down, a
+//! child is dropped when its subtree holds no primitive or when the beam cannot enter its cell
+//! (inverse frustum culling against the split planes); when both children stay, a bounded
+//! look-ahead checks whether the beam reaches a non-empty leaf in each. The lanes then start at
+//! the entry point, their intervals clipped to its cell, which skips the top of the tree for
+//! the whole packet. A packet whose quarters find deeper entry points than the whole (the
+//! beam straddles an object's silhouette) is subdivided, and each quarter is traced from its
+//! own entry point.
+//!
+//! **Exactness.** Every answer equals the single-ray one: the leaf test keeps the closest hit
+//! over all primitives tested, ties to the lower id ([`rt_geom::replaces`]), so a lane's
+//! answer depends only on *which* leaves it tests; each lane tests every leaf its single-ray
+//! walk would need (the same padded steps, and an entry-point cell that holds every non-empty
+//! leaf the ray can reach, by conservative interval arithmetic).
+
+use crate::api::{intersect_as_one_packet, occluded_as_one_packet};
+use crate::beam::Beam;
+use crate::lanes::{PacketPrimitive, active_mask, block, block_width, for_each_lane};
+use crate::{PacketAccel, PacketTraversal, RayPacket};
+use rt_accel_kd::{KdTree, MAX_DEPTH};
+use rt_geom::aabb::PAD;
+use rt_geom::{Aabb, Hit, Ray, replaces};
+
+/// Packets of this many lanes or more are split into quarters where that finds deeper entry
+/// points.
+pub const MLRTA_MIN_SPLIT: usize = 32;
+
+/// How many nodes the entry-point search may open to decide that the beam reaches a
+/// primitive on both sides of a plane (past it, it assumes so).
+pub const MLRTA_LOOKAHEAD: u32 = 2;
+
+/// A node to start from and its cell.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EntryPoint {
+    pub node: usize,
+    pub cell: Aabb,
+    /// Depth of `node` (the root is 0).
+    pub depth: u32,
+}
+
+/// The lanes of the block at `base` in `lanes`, traced from node `start` whose cell is `cell`.
+/// Each lane's interval starts as its ray clipped to the cell (the single-ray query clips to
+/// the root cell the same way); a lane whose closest hit so far lies before the cell skips it.
+#[allow(clippy::too_many_arguments)]
+fn trace_block<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
+    tree: &KdTree<P>,
+    p: &mut RayPacket<'_, N>,
+    best: &mut [Option<Hit>; N],
+    base: usize,
+    lanes: u32,
+    start: usize,
+    cell: &Aabb,
+    stack: &mut Stack<W>,
+) {
+    let mut t0 = [f32::INFINITY; W];
+    let mut t1 = [f32::NEG_INFINITY; W];
+    let mut live = 0u32;
+    for_each_lane(lanes, |l| {
+        // A lane whose closest hit lies before the cell skips it (a cell after the first).
+        let lane = base + l;
+        if let Some((a, b)) = cell.clip_ray(&p.ray(lane)) {
+            if best[lane].is_none() || a <= p.tmax[lane] {
+                (t0[l], t1[l]) = (a, b);
+                live |= 1 << l;
+            }
+        }
+    });
+    // Split by direction octant: lanes of one octant share the near child at every plane.
+    let mut octants = [0u32; W];
+    for (l, o) in octants.iter_mut().enumerate() {
+        for a in 0..3 {
+            *o |= (p.inv_dir[a][base + l].is_sign_negative() as u32) << a;
+        }
+    }
+    while live != 0 {
+        let oct = octants[live.trailing_zeros() as usize];
+        let mut group = 0u32;
+        for_each_lane(live, |l| group |= ((octants[l] == oct) as u32) << l);
+        live &= !group;
+        let (mut a, mut b) = ([f32::INFINITY; W], [f32::NEG_INFINITY; W]);
+        for_each_lane(group, |l| (a[l], b[l]) = (t0[l], t1[l]));
+        walk::<P, N, W, ANY_HIT>(tree, p, best, base, start, (a, b), oct, stack);
+    }
+}
+
+/// Pending far cells with each lane's interval (one per level at most: the depth cap bounds
+/// it), reused from block to block.
+type Stack<const W: usize> = Vec<(u32, [f32; W], [f32; W])>;
+
+#[allow(clippy::too_many_arguments)]
+/// One octant group of a block (the other lanes' intervals are empty) from node `start`.
+fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
+    tree: &KdTree<P>,
+    p: &mut RayPacket<'_, N>,
+    best: &mut [Option<Hit>; N],
+    base: usize,
+    start: usize,
+    (mut t0, mut t1): ([f32; W], [f32; W]),
+    octant: u32,
+    stack: &mut Stack<W>,
+) {
+    let (nodes, indices, prims) = (tree.nodes(), tree.indices(), tree.prims());
+    stack.clear();
+    let mut i = start;
+    loop {
+        let node = &nodes[i];
+        if !node.is_leaf() {
+            let axis = node.axis();
+            let split = node.split();
+            let negative = octant >> axis & 1 == 1;
+            let (below, above) = (i + 1, node.above());
+            let (near, far) = if negative {
+                (above, below)
+            } else {
+                (below, above)
+            };
+            let o = block::<N, W>(&p.origin[axis], base);
+            let inv = block::<N, W>(&p.inv_dir[axis], base);
+            let (mut n0, mut n1) = ([0.0f32; W], [0.0f32; W]);
+            let (mut f0, mut f1) = ([0.0f32; W], [0.0f32; W]);
+            if W == 8 {
+                let r = step8(split, negative, as8(o), as8(inv), as8(&t0), as8(&t1));
+                for (out, v) in [&mut n0, &mut n1, &mut f0, &mut f1].into_iter().zip(r) {
+                    out.copy_from_slice(&v);
+                }
+            } else {
+                for l in 0..W {
+                    let [a, b, c, d] = step_lane(split, negative, o[l], inv[l], t0[l], t1[l]);
+                    (n0[l], n1[l], f0[l], f1[l]) = (a, b, c, d);
+                }
+            }
+            let any_near = (0..W).any(|l| n0[l] <= n1[l]);
+            let any_far = (0..W).any(|l| f0[l] <= f1[l]);
+            if any_near {
+                if any_far {
+                    stack.push((far as u32, f0, f1));
+                }
+                (i, t0, t1) = (near, n0, n1);
+                continue;
+            }
+            if any_far {
+                (i, t0, t1) = (far, f0, f1);
+                continue;
+            }
+        } else {
+            let mut lanes = 0u32;
+            for l in 0..W {
+                lanes |= ((t0[l] <= t1[l] && p.active[base + l]) as u32) << l;
+            }
+            for &id in node.leaf_prims(indices) {
+                if lanes == 0 {
+                    break;
+                }
+                let hits = prims[id as usize].intersect_block::<N, W>(p, base, lanes);
+                for_each_lane(lanes, |l| {
+                    let Some(h) = hits[l] else { return };
+                    let lane = base + l;
+                    if ANY_HIT {
+                        best[lane] = Some(Hit::new(h, id));
+                        p.active[lane] = false;
+                        lanes &= !(1 << l);
+                    } else if replaces(h.t, id, best[lane].as_ref().map(Hit::key)) {
+                        best[lane] = Some(Hit::new(h, id));
+                        p.tmax[lane] = h.t;
+                    }
+                });
+            }
+        }
+        // The next pending cell that some lane enters before its closest hit.
+        loop {
+            let Some((n, mut a, b)) = stack.pop() else {
+                return;
+            };
+            let mut any = false;
+            for l in 0..W {
+                let lane = base + l;
+                let keep = p.active[lane]
+                    && a[l] <= b[l]
+                    && (best[lane].is_none() || a[l] <= p.tmax[lane]);
+                if !keep {
+                    a[l] = f32::INFINITY;
+                }
+                any |= keep;
+            }
+            if any {
+                (i, t0, t1) = (n as usize, a, b);
+                break;
+            }
+        }
+    }
+}
+
+/// `rt_accel_kd::traverse::step` for one lane over `[t0, t1]` at the plane `split`, as the
+/// intervals of the near and the far child (by the group's direction sign `negative`):
+/// `[near0, near1, far0, far1]`, an empty interval as `(inf, -inf)` (and an empty input
+/// interval gives two empty ones).
+///
+/// Without branches: after a crossing before `t0` (second child only), `lo` is below `t0`, so
+/// the second child's start `max(lo, t0)` is `t0` as it must be; `hi.min(t1)` and
+/// `lo.max(t0)` are comparisons (a NaN crossing, from a ray lying in the plane, gives the
+/// interval's ends). The child below the plane comes first when the origin is below it, or on
+/// it heading up (`rt_accel_kd::traverse::below_first`, with `1 / dir > 0` for `dir > 0`: they
+/// differ only for `dir = +0` at an origin on the plane, where both children get the whole
+/// interval).
+#[inline(always)]
+fn step_lane(split: f32, negative: bool, o: f32, inv: f32, t0: f32, t1: f32) -> [f32; 4] {
+    let ts = (split - o) * inv;
+    let lo = ts * (1.0 - PAD);
+    let hi = ts * (1.0 + PAD);
+    let first_only = (ts < 0.0) | (lo > t1);
+    let second_only = !first_only & (hi < t0);
+    let a0 = if second_only { f32::INFINITY } else { t0 };
+    let a1 = if first_only | !(hi < t1) { t1 } else { hi };
+    let a1 = if second_only { f32::NEG_INFINITY } else { a1 };
+    let b0 = if lo > t0 { lo } else { t0 };
+    let b0 = if first_only { f32::INFINITY } else { b0 };
+    let b1 = if first_only { f32::NEG_INFINITY } else { t1 };
+    let below = (o < split) | ((o == split) & (inv > 0.0));
+    if below != negative {
+        [a0, a1, b0, b1]
+    } else {
+        [b0, b1, a0, a1]
+    }
+}
+
+/// [`step_lane`] for 8 lanes at once (`wide`: AVX where the build has it, two SSE halves or
+/// scalar code elsewhere), the same operations lane by lane.
+#[inline(always)]
+fn step8(
+    split: f32,
+    negative: bool,
+    o: &[f32; 8],
+    inv: &[f32; 8],
+    t0: &[f32; 8],
+    t1: &[f32; 8],
+) -> [[f32; 8]; 4] {
+    use wide::{CmpEq, CmpGt, CmpLt, f32x8};
+    let (o, inv, t0, t1) = (
+        f32x8::new(*o),
+        f32x8::new(*inv),
+        f32x8::new(*t0),
+        f32x8::new(*t1),
+    );
+    let (zero, inf, ninf) = (
+        f32x8::ZERO,
+        f32x8::splat(f32::INFINITY),
+        f32x8::splat(f32::NEG_INFINITY),
+    );
+    let s = f32x8::splat(split);
+    let ts = (s - o) * inv;
+    let lo = ts * f32x8::splat(1.0 - PAD);
+    let hi = ts * f32x8::splat(1.0 + PAD);
+    let first_only = ts.cmp_lt(zero) | lo.cmp_gt(t1);
+    let second_only = !first_only & hi.cmp_lt(t0);
+    let a0 = second_only.blend(inf, t0);
+    let a1 = (first_only | !hi.cmp_lt(t1)).blend(t1, hi);
+    let a1 = second_only.blend(ninf, a1);
+    let b0 = lo.cmp_gt(t0).blend(lo, t0);
+    let b0 = first_only.blend(inf, b0);
+    let b1 = first_only.blend(ninf, t1);
+    let below = o.cmp_lt(s) | (o.cmp_eq(s) & inv.cmp_gt(zero));
+    let first_is_near = if negative { !below } else { below };
+    [
+        first_is_near.blend(a0, b0).to_array(),
+        first_is_near.blend(a1, b1).to_array(),
+        first_is_near.blend(b0, a0).to_array(),
+        first_is_near.blend(b1, a1).to_array(),
+    ]
+}
+
+/// A block of 8 lanes as an array of 8 (called where `W == 8`).
+#[inline(always)]
+fn as8<const W: usize>(v: &[f32; W]) -> &[f32; 8] {
+    v[..].try_into().expect("a block of 8 lanes")
+}
+
+/// Every block of lanes in `range` from `entry`.
+fn trace_from<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
+    tree: &KdTree<P>,
+    p: &mut RayPacket<'_, N>,
+    best: &mut [Option<Hit>; N],
+    range: std::ops::Range<usize>,
+    entry: (usize, &Aabb),
+) {
+    let mut stack = Stack::<W>::with_capacity(MAX_DEPTH as usize + 1);
+    for base in range.step_by(W) {
+        let lanes = active_mask::<N, W>(p, base);
+        if lanes != 0 {
+            let (node, cell) = entry;
+            trace_block::<P, N, W, ANY_HIT>(tree, p, best, base, lanes, node, cell, &mut stack);
+        }
+    }
+}
+
+/// Runs `$query::<P, N, W, ANY_HIT>` with the block width of `N`.
+macro_rules! with_block_width {
+    ($n:expr, $query:ident :: <$p:ty, $any:literal> ($($arg:expr),*)) => {
+        if block_width($n) == 8 {
+            $query::<$p, N, 8, $any>($($arg),*)
+        } else {
+            $query::<$p, N, 4, $any>($($arg),*)
+        }
+    };
+}
+
+/// Plain packet traversal: every block from the root.
+impl<P: PacketPrimitive> PacketTraversal for KdTree<P> {
+    fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [Option<Hit>; N] {
+        let mut best = [None; N];
+        if !self.nodes().is_empty() {
+            let root = (0, &self.bounds());
+            with_block_width!(
+                N,
+                trace_from::<P, false>(self, packet, &mut best, 0..N, root)
+            );
+        }
+        best
+    }
+
+    fn occluded_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [bool; N] {
+        let mut best = [None; N];
+        if !self.nodes().is_empty() {
+            let root = (0, &self.bounds());
+            with_block_width!(
+                N,
+                trace_from::<P, true>(self, packet, &mut best, 0..N, root)
+            );
+        }
+        best.map(|h| h.is_some())
+    }
+}
+
+impl<P: PacketPrimitive> PacketAccel for KdTree<P> {
+    fn intersect_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        intersect_as_one_packet(self, rays, out)
+    }
+
+    fn occluded_group(&self, rays: &[Ray], out: &mut [bool]) {
+        occluded_as_one_packet(self, rays, out)
+    }
+}
+
+/// A kd-tree traced by multi-level ray tracing: packets start at the entry point of their
+/// beam. Single rays ([`rt_geom::Accel`]) are the tree's own.
+#[derive(Clone, Debug)]
+pub struct MlrtaKdTree<P> {
+    tree: KdTree<P>,
+    /// Per node: whether its subtree references any primitive.
+    occupied: Vec<bool>,
+}
+
+impl<P: PacketPrimitive> MlrtaKdTree<P> {
+    pub fn new(tree: KdTree<P>) -> Self {
+        let nodes = tree.nodes();
+        let mut occupied = vec![false; nodes.len()];
+        // Children come after their parent in the depth-first layout.
+        for i in (0..nodes.len()).rev() {
+            let n = &nodes[i];
+            occupied[i] = if n.is_leaf() {
+                n.count() > 0
+            } else {
+                occupied[i + 1] || occupied[n.above()]
+            };
+        }
+        Self { tree, occupied }
+    }
+
+    pub fn tree(&self) -> &KdTree<P> {
+        &self.tree
+    }
+
+    /// The cells the beam's rays are traced from, in order: the entry point (the first
+    /// non-empty leaf the beam reaches, found by descending near child first), then the far
+    /// siblings passed on the way down, deepest first. Every non-empty leaf that any ray of the
+    /// beam can reach lies below one of them; children the beam cannot enter, and subtrees
+    /// without primitives, are left out. Empty when the beam reaches no primitive.
+    pub fn entry_points(&self, beam: &Beam) -> Vec<EntryPoint> {
+        let nodes = self.tree.nodes();
+        let root = EntryPoint {
+            node: 0,
+            cell: self.tree.bounds(),
+            depth: 0,
+        };
+        let mut fars = Vec::new();
+        if nodes.is_empty() || !self.reaches(beam, 0, &root.cell, &mut 0) {
+            return fars;
+        }
+        let mut at = Some(root);
+        while let Some(e) = at.take() {
+            let node = &nodes[e.node];
+            if node.is_leaf() {
+                fars.push(e);
+                break;
+            }
+            let axis = node.axis();
+            let (below, above) = split_cell(&e.cell, axis, node.split());
+            let child = |node, cell| EntryPoint {
+                node,
+                cell,
+                depth: e.depth + 1,
+            };
+            let (below, above) = (child(e.node + 1, below), child(node.above(), above));
+            let mut budget = MLRTA_LOOKAHEAD;
+            let b = self.reaches(beam, below.node, &below.cell, &mut budget);
+            let mut budget = MLRTA_LOOKAHEAD;
+            let a = self.reaches(beam, above.node, &above.cell, &mut budget);
+            at = match (b, a, beam.sign(axis)) {
+                (true, false, _) => Some(below),
+                (false, true, _) => Some(above),
+                // Both sides: the near one first, the far one after it.
+                (true, true, Some(negative)) => {
+                    let (near, far) = if negative {
+                        (above, below)
+                    } else {
+                        (below, above)
+                    };
+                    fars.push(far);
+                    Some(near)
+                }
+                // Both sides, but the rays go both ways: start here.
+                (true, true, None) => {
+                    fars.push(e);
+                    break;
+                }
+                // Neither: go on with the last far side passed.
+                (false, false, _) => fars.pop(),
+            };
+        }
+        fars.reverse();
+        fars
+    }
+
+    /// Whether the beam may reach a non-empty leaf below node `i` (cell `cell`); once
+    /// `budget` nodes have been opened, assumes it does.
+    fn reaches(&self, beam: &Beam, i: usize, cell: &Aabb, budget: &mut u32) -> bool {
+        if !self.occupied[i] || !beam.may_enter(&cell.min.to_array(), &cell.max.to_array()) {
+            return false;
+        }
+        let node = &self.tree.nodes()[i];
+        if node.is_leaf() || *budget == 0 {
+            return true;
+        }
+        *budget -= 1;
+        let (below, above) = split_cell(cell, node.axis(), node.split());
+        self.reaches(beam, i + 1, &below, budget)
+            || self.reaches(beam, node.above(), &above, budget)
+    }
+
+    /// The lanes of `range`, from the entry points of their beam, or quarter by quarter when
+    /// the quarters' entry points are deeper (the shallowest cell each must trace from).
+    fn trace_range<const N: usize, const W: usize, const ANY_HIT: bool>(
+        &self,
+        p: &mut RayPacket<'_, N>,
+        best: &mut [Option<Hit>; N],
+        range: std::ops::Range<usize>,
+    ) {
+        let entries = self.entry_points(&Beam::new(p, range.clone()));
+        let shallowest = |e: &[EntryPoint]| e.iter().map(|e| e.depth).min().unwrap_or(u32::MAX);
+        let len = range.len();
+        if len >= MLRTA_MIN_SPLIT && len % (4 * W) == 0 && !entries.is_empty() {
+            let quarters =
+                (0..4).map(|q| range.start + q * len / 4..range.start + (q + 1) * len / 4);
+            let depth = shallowest(&entries);
+            let deeper = quarters
+                .clone()
+                .any(|q| shallowest(&self.entry_points(&Beam::new(p, q))) > depth);
+            if deeper {
+                for q in quarters {
+                    self.trace_range::<N, W, ANY_HIT>(p, best, q);
+                }
+                return;
+            }
+        }
+        for e in &entries {
+            trace_from::<P, N, W, ANY_HIT>(&self.tree, p, best, range.clone(), (e.node, &e.cell));
+        }
+    }
+}
+
+/// The cells below and above a plane.
+fn split_cell(cell: &Aabb, axis: usize, split: f32) -> (Aabb, Aabb) {
+    let (mut below, mut above) = (*cell, *cell);
+    below.max[axis] = split;
+    above.min[axis] = split;
+    (below, above)
+}
+
+/// A helper with the `trace_range` signature of `with_block_width!`.
+fn mlrta<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
+    m: &MlrtaKdTree<P>,
+    p: &mut RayPacket<'_, N>,
+    best: &mut [Option<Hit>; N],
+) {
+    m.trace_range::<N, W, ANY_HIT>(p, best, 0..N);
+}
+
+impl<P: PacketPrimitive> PacketTraversal for MlrtaKdTree<P> {
+    fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [Option<Hit>; N] {
+        let mut best = [None; N];
+        with_block_width!(N, mlrta::<P, false>(self, packet, &mut best));
+        best
+    }
+
+    fn occluded_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [bool; N] {
+        let mut best = [None; N];
+        with_block_width!(N, mlrta::<P, true>(self, packet, &mut best));
+        best.map(|h| h.is_some())
+    }
+}
+
+impl<P: PacketPrimitive> PacketAccel for MlrtaKdTree<P> {
+    fn intersect_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        intersect_as_one_packet(self, rays, out)
+    }
+
+    fn occluded_group(&self, rays: &[Ray], out: &mut [bool]) {
+        occluded_as_one_packet(self, rays, out)
+    }
+}
+
+impl<P: PacketPrimitive> rt_geom::Accel for MlrtaKdTree<P> {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.tree.intersect(ray)
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        self.tree.occluded(ray)
+    }
+
+    fn stats(&self) -> rt_geom::AccelStats {
+        self.tree.stats()
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        self.tree.validate()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::check::{all_sizes, camera_tiles, conformance_rays, groups};
+    use rt_accel_kd::KdParams;
+    use rt_testkit::scenes;
+
+    #[test]
+    fn conformance_rays_in_packets_equal_single_rays() {
+        for scene in scenes::conformance_triangle_scenes() {
+            let rays = conformance_rays(&scene.prims, 60, 7);
+            for params in [KdParams::sah(), KdParams::midpoint()] {
+                let kd = KdTree::build(&scene.prims, params).unwrap();
+                all_sizes(&kd, &rays, &scene.name);
+                all_sizes(
+                    &MlrtaKdTree::new(kd),
+                    &rays,
+                    &format!("{} mlrta", scene.name),
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn camera_tiles_equal_single_rays() {
+        let tris = scenes::tessellated_sphere(5000, rt_geom::Vec3::splat(0.5), 0.4);
+        let kd = KdTree::build(&tris, KdParams::sah()).unwrap();
+        camera_tiles(&kd, &tris);
+        camera_tiles(&MlrtaKdTree::new(kd), &tris);
+    }
+
+    #[test]
+    fn groups_of_any_size_equal_single_rays() {
+        let tris = scenes::random_soup(3000, 9);
+        let kd = KdTree::build(&tris, KdParams::sah()).unwrap();
+        let rays = conformance_rays(&tris, 40, 5);
+        groups(&kd, &rays);
+        groups(&MlrtaKdTree::new(kd), &rays);
+    }
+
+    #[test]
+    fn mixed_shapes_and_empty() {
+        let scene = scenes::shape_scene("shapes");
+        let kd = KdTree::build(&scene.prims, KdParams::sah()).unwrap();
+        let rays = conformance_rays(&scene.prims, 60, 3);
+        all_sizes(&kd, &rays, "shapes");
+        all_sizes(&MlrtaKdTree::new(kd), &rays, "shapes mlrta");
+        let empty = KdTree::<rt_geom::Triangle>::build(&[], KdParams::sah()).unwrap();
+        assert_eq!(empty.intersect_rays::<4>(&rays[..3]), vec![None; 3]);
+        let empty = MlrtaKdTree::new(empty);
+        assert_eq!(empty.intersect_rays::<8>(&rays[..3]), vec![None; 3]);
+    }
+
+    #[test]
+    fn entry_points_go_deep_for_a_narrow_beam() {
+        // A 4x4 beam aimed at a small part of a big sphere starts in a leaf well below the
+        // root, with the far sides passed on the way down after it; a beam that misses
+        // everything has no entry point.
+        let tris = scenes::tessellated_sphere(20000, rt_geom::Vec3::ZERO, 1.0);
+        let m = MlrtaKdTree::new(KdTree::build(&tris, KdParams::sah()).unwrap());
+        let o = rt_geom::Vec3::new(0.0, 0.0, 3.0);
+        let aim = |dx: f32, dy: f32| {
+            let rays: Vec<Ray> = (0..16)
+                .map(|i| {
+                    let (x, y) = ((i % 4) as f32 * 1e-3, (i / 4) as f32 * 1e-3);
+                    Ray::new(o, rt_geom::Vec3::new(dx + x, dy + y, -1.0))
+                })
+                .collect();
+            let p = RayPacket::<16>::new(&rays);
+            m.entry_points(&Beam::new(&p, 0..16))
+        };
+        let e = aim(0.1, 0.1);
+        assert!(m.tree().nodes()[e[0].node].is_leaf());
+        assert!(e[0].depth >= 8, "entry point at depth {}", e[0].depth);
+        assert!(e.windows(2).all(|w| w[0].depth > w[1].depth), "{e:?}");
+        assert!(aim(5.0, 5.0).is_empty());
+    }
+}
