@@ -1,8 +1,9 @@
 //! Every registered structure renders the same image, bit for bit: the chess scene (triangles,
 //! every structure) and an NFF scene of spheres, cones and polygons (every structure that takes
-//! any shape). Plus the command line's render path and its error messages.
+//! any shape), and the same again with the eye rays traced through each packet path. Plus the
+//! command line's render path and its error messages.
 
-use rt_shade::{Image, RenderOptions, Scene, parse_nff, render};
+use rt_shade::{Image, RenderOptions, Scene, parse_nff, render, render_with_packets};
 use std::path::Path;
 use xtask::registry::REGISTRY;
 
@@ -26,7 +27,7 @@ fn same_image_everywhere(
     let reference = rt_geom::BruteForce::build(&scene.shapes).unwrap();
     let (want, want_stats) = image(scene, &reference, w, h);
     assert!(want_stats.eye_hits > 0 && want_stats.reflected > 0 && want_stats.refracted > 0);
-    let mut checked = 0;
+    let (mut checked, mut packet_paths) = (0, 0);
     for entry in REGISTRY.iter().filter(|e| include(e)) {
         let accel = entry
             .build_any(&scene.shapes)
@@ -45,8 +46,47 @@ fn same_image_everywhere(
         );
         assert_eq!(stats, want_stats, "{}: ray counts differ", entry.name);
         checked += 1;
+        // Eye rays through the packet path, one packet per tile: the same image again.
+        let (Some(build), Some(tris)) = (entry.packets, triangles(scene)) else {
+            continue;
+        };
+        let packets = build(&tris).unwrap_or_else(|e| panic!("{e}"));
+        let options = RenderOptions {
+            width: w,
+            height: h,
+            samples_per_axis: 2,
+            ..RenderOptions::default()
+        };
+        let primary = |rays: &[rt_geom::Ray], out: &mut [Option<rt_geom::Hit>]| {
+            packets.intersect_group(rays, out)
+        };
+        let with = |primary: Option<rt_shade::PrimaryPackets<'_>>| {
+            render_with_packets(scene, accel.as_ref(), primary, &options, &|_| {}).expect("renders")
+        };
+        let (single, packed) = (with(None), with(Some(&primary)));
+        assert!(
+            single.image.pixels == packed.image.pixels && single.stats == packed.stats,
+            "{}: eye rays in packets change the image",
+            entry.name
+        );
+        packet_paths += 1;
     }
     assert!(checked >= 10, "only {checked} structures checked");
+    if triangles(scene).is_some() {
+        assert!(
+            packet_paths >= 3,
+            "only {packet_paths} packet paths checked"
+        );
+    }
+}
+
+/// The scene's shapes when they are all triangles.
+fn triangles(scene: &Scene) -> Option<Vec<rt_geom::Triangle>> {
+    scene
+        .shapes
+        .iter()
+        .map(|s| s.as_triangle().copied())
+        .collect()
 }
 
 #[test]

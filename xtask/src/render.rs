@@ -3,7 +3,9 @@
 
 use crate::registry;
 use crate::run::{bar, pool, spinner};
-use rt_shade::{Camera, Projection, RayStats, RenderOptions, Scene, ShadeOptions};
+use rt_geom::{Accel, Hit, Ray, Triangle};
+use rt_packet::PacketAccel;
+use rt_shade::{Camera, PrimaryPackets, Projection, RayStats, RenderOptions, Scene, ShadeOptions};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -42,6 +44,10 @@ pub struct RenderArgs {
     /// Threads (0 = all cores).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// Trace eye rays one by one even when the structure has a packet path (by default each
+    /// 16x16 tile's eye rays go through it as one packet; the image is the same).
+    #[arg(long)]
+    pub no_packets: bool,
     /// PNG to write (default target/render/SCENE.png).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -81,6 +87,8 @@ pub struct RenderStats {
     pub height: u32,
     pub primitives: usize,
     pub build_seconds: f64,
+    /// Whether the eye rays went through the structure's packet path (one packet per tile).
+    pub eye_packets: bool,
 }
 
 /// A finished render: where the PNG went, and the statistics.
@@ -97,13 +105,18 @@ impl RenderSummary {
         let s = &self.stats;
         let rays = s.eye_rays + s.reflected + s.refracted + s.shadow;
         format!(
-            "{} {}x{} with {}: {} eye rays ({} hit), {} reflected, {} refracted, {} shadow; \
+            "{} {}x{} with {}: {} eye rays{} ({} hit), {} reflected, {} refracted, {} shadow; \
              build {:.3} s, trace {:.3} s ({:.2} Mrays/s) -> {}",
             s.scene,
             s.width,
             s.height,
             s.accel,
             s.eye_rays,
+            if s.eye_packets {
+                " in 16x16 packets"
+            } else {
+                ""
+            },
             s.eye_hits,
             s.reflected,
             s.refracted,
@@ -157,7 +170,33 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
         ))
     });
     let start = Instant::now();
-    let accel = pool.install(|| entry.build_any(&scene.shapes))?;
+    // Eye rays go through the structure's packet path when it has one (triangle scenes).
+    let triangles: Option<Vec<Triangle>> = scene
+        .shapes
+        .iter()
+        .map(|s| s.as_triangle().copied())
+        .collect();
+    let (single, packets): (Option<Box<dyn Accel>>, Option<Box<dyn PacketAccel>>) =
+        match (entry.packets, triangles) {
+            (Some(build), Some(tris)) if !args.no_packets => {
+                let packets = pool
+                    .install(|| build(&tris))
+                    .map_err(|e| format!("{}: {e}", entry.name))?;
+                // The packet path's structure answers single rays too, unless they belong to
+                // another entry.
+                let single = match entry.packet_only {
+                    Some(_) => Some(pool.install(|| entry.build_any(&scene.shapes))?),
+                    None => None,
+                };
+                (single, Some(packets))
+            }
+            _ => (Some(pool.install(|| entry.build_any(&scene.shapes))?), None),
+        };
+    let accel: &dyn Accel = match (&single, &packets) {
+        (Some(single), _) => single.as_ref(),
+        (None, Some(packets)) => packets.as_ref(),
+        (None, None) => unreachable!("one of the two is built"),
+    };
     let build_seconds = start.elapsed().as_secs_f64();
     if let Some(pb) = building {
         pb.finish_and_clear();
@@ -168,8 +207,21 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
     } else {
         bar(options.tiles(), format!("render {}", scene.name))
     };
+    let primary = |rays: &[Ray], out: &mut [Option<Hit>]| {
+        if let Some(p) = &packets {
+            p.intersect_group(rays, out);
+        }
+    };
     let rendered = pool
-        .install(|| rt_shade::render(&scene, accel.as_ref(), &options, &|n| progress.inc(n)))
+        .install(|| {
+            rt_shade::render_with_packets(
+                &scene,
+                accel,
+                packets.is_some().then_some(&primary as PrimaryPackets<'_>),
+                &options,
+                &|n| progress.inc(n),
+            )
+        })
         .map_err(|e| e.to_string())?;
     progress.finish_and_clear();
 
@@ -198,6 +250,7 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
         height,
         primitives: scene.shapes.len(),
         build_seconds,
+        eye_packets: packets.is_some(),
     };
     if let Some(path) = &args.stats {
         let json = serde_json::to_string_pretty(&stats).map_err(|e| e.to_string())?;

@@ -2,7 +2,7 @@
 //! [`PacketAccel`] (groups of any size up to [`MAX_GROUP`], behind a trait object).
 
 use crate::RayPacket;
-use rt_geom::{Hit, Ray};
+use rt_geom::{Accel, Hit, Ray};
 
 /// Packet queries on a BVH. Results are per lane, in the packet's order; inactive lanes miss.
 pub trait PacketTraversal {
@@ -34,7 +34,8 @@ pub trait PacketTraversal {
 
 /// Packet queries behind a trait object (the registry's packet paths): a group of up to 256
 /// rays is traced as one packet of the smallest size that holds it (4, 16, 64 or 256 lanes).
-pub trait PacketAccel: Send + Sync {
+/// The structure answers single rays too ([`Accel`]), with the same answers lane by lane.
+pub trait PacketAccel: Accel + Send + Sync {
     /// Closest hit of every ray of the group into `out` (same length, at most 256).
     fn intersect_group(&self, rays: &[Ray], out: &mut [Option<Hit>]);
     /// Whether each ray of the group is blocked.

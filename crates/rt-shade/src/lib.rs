@@ -44,7 +44,7 @@ pub use chess::chess;
 pub use material::Material;
 pub use nff::{load_nff, parse_nff};
 pub use obj::{load_obj_scene, parse_mtl};
-pub use render::{Image, RenderOptions, Rendered, render};
+pub use render::{Image, PrimaryPackets, RenderOptions, Rendered, render, render_with_packets};
 pub use scene::{PointLight, Scene, SceneError};
 pub use triangulate::triangulate;
 pub use whitted::{RayStats, ShadeOptions, Whitted};

@@ -5,7 +5,7 @@
 use crate::{RayStats, Scene, SceneError, ShadeOptions, Whitted};
 use glam::Vec3;
 use rayon::prelude::*;
-use rt_geom::Accel;
+use rt_geom::{Accel, Hit, Ray};
 use std::path::Path;
 use std::time::Instant;
 
@@ -104,11 +104,29 @@ pub struct Rendered {
     pub seconds: f64,
 }
 
+/// Closest hits of a group of eye rays at once (up to [`TILE`]² of them, a tile's pixels in
+/// row-major order): a packet path such as `rt_packet::PacketAccel::intersect_group`. It must
+/// answer what the structure's `intersect` answers, ray by ray.
+pub type PrimaryPackets<'a> = &'a (dyn Fn(&[Ray], &mut [Option<Hit>]) + Sync);
+
 /// Renders `scene` with `accel`, which must have been built over `scene.shapes` (or the same
 /// triangles in the same order). `progress` is called with 1 after each finished tile.
 pub fn render(
     scene: &Scene,
     accel: &dyn Accel,
+    options: &RenderOptions,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Rendered, SceneError> {
+    render_with_packets(scene, accel, None, options, progress)
+}
+
+/// [`render`], with the eye rays of each tile traced as packets by `primary` (groups of at
+/// most [`TILE`]² rays: one 16x16 packet per tile at one sample per pixel); every other ray
+/// goes through `accel`. The image is the same as [`render`]'s.
+pub fn render_with_packets(
+    scene: &Scene,
+    accel: &dyn Accel,
+    primary: Option<PrimaryPackets<'_>>,
     options: &RenderOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Rendered, SceneError> {
@@ -126,20 +144,41 @@ pub fn render(
         .par_iter()
         .map(|&(x0, y0)| {
             let mut stats = RayStats::default();
-            let mut out = Vec::with_capacity((TILE * TILE) as usize);
-            for y in y0..(y0 + TILE).min(h) {
-                for x in x0..(x0 + TILE).min(w) {
-                    let mut sum = Vec3::ZERO;
-                    for sy in 0..n {
-                        for sx in 0..n {
+            // The tile's eye rays, sample by sample (pixels row-major within each sample), so
+            // that each group of TILE^2 rays is one image tile.
+            let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
+            let mut rays = Vec::with_capacity(((x1 - x0) * (y1 - y0) * n * n) as usize);
+            for sy in 0..n {
+                for sx in 0..n {
+                    for y in y0..y1 {
+                        for x in x0..x1 {
                             let px = x as f32 + (sx as f32 + 0.5) / n as f32;
                             let py = y as f32 + (sy as f32 + 0.5) / n as f32;
                             let lens = lens_sample(x, y, sy * n + sx);
-                            sum += whitted.eye(&frame.ray(px, py, lens), &mut stats);
+                            rays.push(frame.ray(px, py, lens));
                         }
                     }
-                    out.push(sum / (n * n) as f32);
                 }
+            }
+            let hits: Vec<Option<Hit>> = match primary {
+                Some(packets) => {
+                    let mut hits = vec![None; rays.len()];
+                    let group = (TILE * TILE) as usize;
+                    for (r, h) in rays.chunks(group).zip(hits.chunks_mut(group)) {
+                        packets(r, h);
+                    }
+                    hits
+                }
+                None => rays.iter().map(|r| accel.intersect(r)).collect(),
+            };
+            let pixels = ((x1 - x0) * (y1 - y0)) as usize;
+            let mut out = vec![Vec3::ZERO; pixels];
+            // Summed in the order of the samples, as before packets: the same image.
+            for (k, (ray, hit)) in rays.iter().zip(hits).enumerate() {
+                out[k % pixels] += whitted.eye_with_hit(ray, hit, &mut stats);
+            }
+            for c in &mut out {
+                *c /= (n * n) as f32;
             }
             progress(1);
             (out, stats)

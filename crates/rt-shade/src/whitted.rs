@@ -111,8 +111,14 @@ impl<'a> Whitted<'a> {
 
     /// The colour seen along an eye ray.
     pub fn eye(&self, ray: &Ray, stats: &mut RayStats) -> Vec3 {
+        self.eye_with_hit(ray, self.accel.intersect(ray), stats)
+    }
+
+    /// The colour seen along an eye ray whose closest hit is known already (traced in a
+    /// packet): the same as [`Self::eye`] when `hit` is `accel.intersect(ray)`.
+    pub fn eye_with_hit(&self, ray: &Ray, hit: Option<Hit>, stats: &mut RayStats) -> Vec3 {
         stats.eye_rays += 1;
-        self.trace(ray, 1, Vec3::ONE, stats, true)
+        self.shade(ray, hit, 1, Vec3::ONE, stats, true)
     }
 
     /// The chain of refracted rays that follows `ray` through transmitting surfaces (each ray
@@ -142,8 +148,22 @@ impl<'a> Whitted<'a> {
         out
     }
 
-    fn trace(&self, ray: &Ray, depth: u32, weight: Vec3, stats: &mut RayStats, eye: bool) -> Vec3 {
-        let Some(hit) = self.accel.intersect(ray) else {
+    /// The colour along a secondary ray.
+    fn trace(&self, ray: &Ray, depth: u32, weight: Vec3, stats: &mut RayStats) -> Vec3 {
+        self.shade(ray, self.accel.intersect(ray), depth, weight, stats, false)
+    }
+
+    /// The colour along `ray`, whose closest hit is `hit`.
+    fn shade(
+        &self,
+        ray: &Ray,
+        hit: Option<Hit>,
+        depth: u32,
+        weight: Vec3,
+        stats: &mut RayStats,
+        eye: bool,
+    ) -> Vec3 {
+        let Some(hit) = hit else {
             return self.scene.background;
         };
         if eye {
@@ -203,7 +223,7 @@ impl<'a> Whitted<'a> {
                 stats.reflected += 1;
                 let r = mirror(d, &s);
                 let ray = Ray::new(self.leave(&s, r), r);
-                colour += kr * self.trace(&ray, depth + 1, w, stats, false);
+                colour += kr * self.trace(&ray, depth + 1, w, stats);
             }
         }
         if let Some(t) = refracted {
@@ -211,7 +231,7 @@ impl<'a> Whitted<'a> {
             if w.max_element() >= self.options.min_weight {
                 stats.refracted += 1;
                 let ray = Ray::new(self.leave(&s, t), t);
-                colour += kt * self.trace(&ray, depth + 1, w, stats, false);
+                colour += kt * self.trace(&ray, depth + 1, w, stats);
             }
         }
         colour
