@@ -1,6 +1,6 @@
 //! Primary rays of the standard camera, single rays against packets of every tile size, one
 //! thread, for rt's BVH, the SAH kd-tree and the kd-tree with multi-level ray tracing:
-//! `cargo run --release -p rt-packet --example packet_speed -- [MESH.obj|-] [bvh|kd|kd-mlrta]`
+//! `cargo run --release -p rt-packet --example packet_speed -- [MESH.obj|-] [bvh|kd|kd-mlrta] [SIDE]`
 //! (default: a tessellated sphere of 200k triangles, all three structures). `cargo xtask bench` measures the same
 //! on 2 threads beside obvhs.
 
@@ -28,7 +28,11 @@ fn report<T: Accel + PacketTraversal>(name: &str, accel: &T, rays: &[Ray], (w, h
         rays.iter().filter(|r| accel.intersect(r).is_some()).count()
     });
     println!("{name:<10} single rays  {single:7.2} Mrays/s  ({hits} hits)");
-    for side in TILE_SIDES {
+    let only: Option<usize> = std::env::args().nth(3).and_then(|s| s.parse().ok());
+    for side in TILE_SIDES
+        .into_iter()
+        .filter(|s| only.is_none_or(|o| o == *s))
+    {
         let tiled: Vec<Ray> = tiles(w, h, side, side)
             .concat()
             .into_iter()
@@ -66,7 +70,6 @@ fn main() -> Result<(), String> {
         size.0,
         size.1
     );
-    time_packing(&rays);
     let only = std::env::args().nth(2);
     let wanted = |name: &str| only.as_deref().is_none_or(|o| o == name);
     if wanted("bvh") {
@@ -81,27 +84,4 @@ fn main() -> Result<(), String> {
         report("kd-mlrta", &MlrtaKdTree::new(kd()?), &rays, size);
     }
     Ok(())
-}
-
-#[allow(dead_code)]
-pub fn time_packing(rays: &[Ray]) {
-    let t = Instant::now();
-    let mut n = 0;
-    for c in rays.chunks(256) {
-        let p = rt_packet::RayPacket::<256>::new(c);
-        n += p.active_count();
-    }
-    println!(
-        "packing 256: {:.1} ns/ray ({n})",
-        t.elapsed().as_secs_f64() * 1e9 / rays.len() as f64
-    );
-    let t = Instant::now();
-    for c in rays.chunks(256) {
-        let p = rt_packet::RayPacket::<256>::new(c);
-        n += rt_packet::Beam::new(&p, 0..256).lanes();
-    }
-    println!(
-        "packing+beam 256: {:.1} ns/ray ({n})",
-        t.elapsed().as_secs_f64() * 1e9 / rays.len() as f64
-    );
 }

@@ -28,6 +28,8 @@ pub struct Beam {
     slope: [(f32, f32); 3],
     /// Range of the distance travelled along the main axis over the lanes' intervals.
     travel: (f32, f32),
+    /// The largest `|d[k]|` over the lanes (travel per unit of `t`).
+    speed: f32,
     lanes: usize,
 }
 
@@ -74,6 +76,7 @@ impl Beam {
             origin: [none; 3],
             slope: [none; 3],
             travel: none,
+            speed: 0.0,
             lanes: count,
         };
         let grow = |r: &mut (f32, f32), v: f32| *r = (r.0.min(v), r.1.max(v));
@@ -90,8 +93,18 @@ impl Beam {
             }
             grow(&mut beam.travel, p.tmin[i] * len);
             grow(&mut beam.travel, p.tmax[i] * len);
+            beam.speed = beam.speed.max(len);
         }
         beam
+    }
+
+    /// Ends the beam where every lane's interval ends by `tmax` at the latest (their closest
+    /// hits so far): boxes beyond are culled from then on.
+    pub fn limit(&mut self, tmax: f32) {
+        // (A negative end would not bound lanes slower than the fastest: left alone.)
+        if tmax >= 0.0 || tmax == f32::NEG_INFINITY {
+            self.travel.1 = self.travel.1.min(tmax * self.speed);
+        }
     }
 
     /// The lanes' common direction sign along `axis` (`Some(true)`: all negative), if any.
@@ -142,10 +155,22 @@ impl Beam {
         }
         for a in (0..3).filter(|&a| a != k) {
             let (o_lo, o_hi) = self.origin[a];
-            let (d_lo, d_hi) = product(v, self.slope[a]);
-            let scale = [min[a], max[a], o_lo, o_hi, d_lo, d_hi]
-                .iter()
-                .fold(0.0f32, |m, x| m.max(x.abs()));
+            let (s_lo, s_hi) = self.slope[a];
+            // The range of v s over v in [v0, v1] (v >= 0 here: a beam ahead of its origins)
+            // and s in the slope range; both ends finite (the box is).
+            let (d_lo, d_hi) = if v.0 >= 0.0 {
+                (
+                    if s_lo >= 0.0 { v.0 * s_lo } else { v.1 * s_lo },
+                    if s_hi >= 0.0 { v.1 * s_hi } else { v.0 * s_hi },
+                )
+            } else {
+                product(v, self.slope[a])
+            };
+            let scale = min[a]
+                .abs()
+                .max(max[a].abs())
+                .max(o_lo.abs().max(o_hi.abs()))
+                .max(d_lo.abs().max(d_hi.abs()));
             let (lo, hi) = widen((o_lo + d_lo, o_hi + d_hi), scale);
             if hi < min[a] || lo > max[a] {
                 return false;

@@ -15,12 +15,12 @@
 //! ([`Beam`]), and the tree is searched for the deepest node that is a valid *entry point*:
 //! every non-empty leaf that any of the rays can reach lies below it. From the root down, a
 //! child is dropped when its subtree holds no primitive or when the beam cannot enter its cell
-//! (inverse frustum culling against the split planes); when both children stay, a bounded
-//! look-ahead checks whether the beam reaches a non-empty leaf in each. The lanes then start at
-//! the entry point, their intervals clipped to its cell, which skips the top of the tree for
-//! the whole packet. A packet whose quarters find deeper entry points than the whole (the
-//! beam straddles an object's silhouette) is subdivided, and each quarter is traced from its
-//! own entry point.
+//! (inverse frustum culling against the split planes); when both children stay, the near one
+//! is searched first and the far one is kept for later. The lanes then start at the entry
+//! point, their intervals clipped to its cell, which skips the top of the tree for the whole
+//! packet; the far sides kept follow, deepest first, each skipped by the whole beam once every
+//! ray's closest hit lies before it. A beam whose search keeps more than a few far sides (it
+//! straddles many planes) is subdivided into quarters, each with its own search.
 //!
 //! **Exactness.** Every answer equals the single-ray one: the leaf test keeps the closest hit
 //! over all primitives tested, ties to the lower id ([`rt_geom::replaces`]), so a lane's
@@ -30,7 +30,7 @@
 
 use crate::api::{intersect_as_one_packet, occluded_as_one_packet};
 use crate::beam::Beam;
-use crate::lanes::{PacketPrimitive, active_mask, block, block_width, for_each_lane};
+use crate::lanes::{PacketPrimitive, active_mask, block, block_width, clip_block, for_each_lane};
 use crate::{PacketAccel, PacketTraversal, RayPacket};
 use rt_accel_kd::{KdTree, MAX_DEPTH};
 use rt_geom::aabb::PAD;
@@ -40,9 +40,12 @@ use rt_geom::{Aabb, Hit, Ray, replaces};
 /// points.
 pub const MLRTA_MIN_SPLIT: usize = 32;
 
-/// How many nodes the entry-point search may open to decide that the beam reaches a
-/// primitive on both sides of a plane (past it, it assumes so).
-pub const MLRTA_LOOKAHEAD: u32 = 2;
+/// Beams of fewer rays start at the root: the search would cost more than it saves.
+pub const MLRTA_MIN_BEAM: usize = 16;
+
+/// Beams whose search passes more far sides than this (the beam straddles many planes: it is
+/// not coherent there) are split into quarters.
+pub const MLRTA_MAX_CELLS: usize = 4;
 
 /// A node to start from and its cell.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -67,19 +70,14 @@ fn trace_block<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT
     cell: &Aabb,
     stack: &mut Stack<W>,
 ) {
-    let mut t0 = [f32::INFINITY; W];
-    let mut t1 = [f32::NEG_INFINITY; W];
-    let mut live = 0u32;
-    for_each_lane(lanes, |l| {
-        // A lane whose closest hit lies before the cell skips it (a cell after the first).
-        let lane = base + l;
-        if let Some((a, b)) = cell.clip_ray(&p.ray(lane)) {
-            if best[lane].is_none() || a <= p.tmax[lane] {
-                (t0[l], t1[l]) = (a, b);
-                live |= 1 << l;
-            }
-        }
-    });
+    // Each lane's ray clipped to the cell, over `[tmin, tmax]` with `tmax` its closest hit so
+    // far: a lane whose hit lies before the cell skips it (a cell after the first).
+    let (t0, t1, entering) =
+        clip_block::<N, W>(&cell.min.to_array(), &cell.max.to_array(), p, base);
+    let mut live = lanes & entering;
+    if live == 0 {
+        return;
+    }
     // Split by direction octant: lanes of one octant share the near child at every plane.
     let mut octants = [0u32; W];
     for (l, o) in octants.iter_mut().enumerate() {
@@ -98,9 +96,35 @@ fn trace_block<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT
     }
 }
 
-/// Pending far cells with each lane's interval (one per level at most: the depth cap bounds
-/// it), reused from block to block.
-type Stack<const W: usize> = Vec<(u32, [f32; W], [f32; W])>;
+/// Pending far cells with each lane's interval: one per level at most, so the depth cap
+/// bounds it. Reused from block to block.
+struct Stack<const W: usize> {
+    items: [(u32, [f32; W], [f32; W]); MAX_DEPTH as usize + 1],
+    len: usize,
+}
+
+impl<const W: usize> Stack<W> {
+    fn new() -> Self {
+        Self {
+            items: [(0, [0.0; W], [0.0; W]); MAX_DEPTH as usize + 1],
+            len: 0,
+        }
+    }
+
+    fn clear(&mut self) {
+        self.len = 0;
+    }
+
+    fn push(&mut self, item: (u32, [f32; W], [f32; W])) {
+        self.items[self.len] = item;
+        self.len += 1;
+    }
+
+    fn pop(&mut self) -> Option<(u32, [f32; W], [f32; W])> {
+        self.len = self.len.checked_sub(1)?;
+        Some(self.items[self.len])
+    }
+}
 
 #[allow(clippy::too_many_arguments)]
 /// One octant group of a block (the other lanes' intervals are empty) from node `start`.
@@ -297,7 +321,7 @@ fn trace_from<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT:
     range: std::ops::Range<usize>,
     entry: (usize, &Aabb),
 ) {
-    let mut stack = Stack::<W>::with_capacity(MAX_DEPTH as usize + 1);
+    let mut stack = Stack::<W>::new();
     for base in range.step_by(W) {
         let lanes = active_mask::<N, W>(p, base);
         if lanes != 0 {
@@ -397,7 +421,7 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
             depth: 0,
         };
         let mut fars = Vec::new();
-        if nodes.is_empty() || !self.reaches(beam, 0, &root.cell, &mut 0) {
+        if nodes.is_empty() || !self.reaches(beam, 0, &root.cell) {
             return fars;
         }
         let mut at = Some(root);
@@ -415,10 +439,8 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
                 depth: e.depth + 1,
             };
             let (below, above) = (child(e.node + 1, below), child(node.above(), above));
-            let mut budget = MLRTA_LOOKAHEAD;
-            let b = self.reaches(beam, below.node, &below.cell, &mut budget);
-            let mut budget = MLRTA_LOOKAHEAD;
-            let a = self.reaches(beam, above.node, &above.cell, &mut budget);
+            let b = self.reaches(beam, below.node, &below.cell);
+            let a = self.reaches(beam, above.node, &above.cell);
             at = match (b, a, beam.sign(axis)) {
                 (true, false, _) => Some(below),
                 (false, true, _) => Some(above),
@@ -445,48 +467,49 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
         fars
     }
 
-    /// Whether the beam may reach a non-empty leaf below node `i` (cell `cell`); once
-    /// `budget` nodes have been opened, assumes it does.
-    fn reaches(&self, beam: &Beam, i: usize, cell: &Aabb, budget: &mut u32) -> bool {
-        if !self.occupied[i] || !beam.may_enter(&cell.min.to_array(), &cell.max.to_array()) {
-            return false;
-        }
-        let node = &self.tree.nodes()[i];
-        if node.is_leaf() || *budget == 0 {
-            return true;
-        }
-        *budget -= 1;
-        let (below, above) = split_cell(cell, node.axis(), node.split());
-        self.reaches(beam, i + 1, &below, budget)
-            || self.reaches(beam, node.above(), &above, budget)
+    /// Whether the beam may reach a primitive below node `i` (cell `cell`): the subtree holds
+    /// some, and the beam may enter the cell.
+    fn reaches(&self, beam: &Beam, i: usize, cell: &Aabb) -> bool {
+        self.occupied[i] && beam.may_enter(&cell.min.to_array(), &cell.max.to_array())
     }
 
     /// The lanes of `range`, from the entry points of their beam, or quarter by quarter when
-    /// the quarters' entry points are deeper (the shallowest cell each must trace from).
+    /// the beam is not coherent (its search passes more than [`MLRTA_MAX_CELLS`] far sides).
     fn trace_range<const N: usize, const W: usize, const ANY_HIT: bool>(
         &self,
         p: &mut RayPacket<'_, N>,
         best: &mut [Option<Hit>; N],
         range: std::ops::Range<usize>,
     ) {
-        let entries = self.entry_points(&Beam::new(p, range.clone()));
-        let shallowest = |e: &[EntryPoint]| e.iter().map(|e| e.depth).min().unwrap_or(u32::MAX);
-        let len = range.len();
-        if len >= MLRTA_MIN_SPLIT && len % (4 * W) == 0 && !entries.is_empty() {
-            let quarters =
-                (0..4).map(|q| range.start + q * len / 4..range.start + (q + 1) * len / 4);
-            let depth = shallowest(&entries);
-            let deeper = quarters
-                .clone()
-                .any(|q| shallowest(&self.entry_points(&Beam::new(p, q))) > depth);
-            if deeper {
-                for q in quarters {
-                    self.trace_range::<N, W, ANY_HIT>(p, best, q);
-                }
-                return;
+        if range.len() < MLRTA_MIN_BEAM {
+            let root = (0, &self.tree.bounds());
+            if !self.tree.nodes().is_empty() {
+                trace_from::<P, N, W, ANY_HIT>(&self.tree, p, best, range, root);
             }
+            return;
         }
-        for e in &entries {
+        let mut beam = Beam::new(p, range.clone());
+        let entries = self.entry_points(&beam);
+        let len = range.len();
+        if entries.len() > MLRTA_MAX_CELLS && len >= MLRTA_MIN_SPLIT && len % (4 * W) == 0 {
+            for q in 0..4 {
+                let quarter = range.start + q * len / 4..range.start + (q + 1) * len / 4;
+                self.trace_range::<N, W, ANY_HIT>(p, best, quarter);
+            }
+            return;
+        }
+        for (k, e) in entries.iter().enumerate() {
+            if k > 0 {
+                // Cells beyond every lane's closest hit so far are culled for the whole beam.
+                let reach = range
+                    .clone()
+                    .filter(|&i| p.active[i])
+                    .fold(f32::NEG_INFINITY, |m, i| m.max(p.tmax[i]));
+                beam.limit(reach);
+                if !beam.may_enter(&e.cell.min.to_array(), &e.cell.max.to_array()) {
+                    continue;
+                }
+            }
             trace_from::<P, N, W, ANY_HIT>(&self.tree, p, best, range.clone(), (e.node, &e.cell));
         }
     }

@@ -22,16 +22,16 @@ pub(crate) fn block<const N: usize, const W: usize>(v: &[f32; N], base: usize) -
         .expect("block inside the packet")
 }
 
-/// The lanes of the block at `base` that are active and enter the box `[min, max]` within
-/// their `[tmin, tmax]`: the single-ray traversal's padded slab test
-/// ([`rt_geom::Aabb::clip_ray`]) lane by lane.
+/// The slab test of the block's lanes against the box `[min, max]`, each lane over `[tmin,
+/// tmax]` of the packet: the unpadded entry and exit, computed as
+/// [`rt_geom::Aabb::clip_ray`] computes them.
 #[inline(always)]
-pub(crate) fn enter_mask<const N: usize, const W: usize>(
+fn slabs<const N: usize, const W: usize>(
     min: &[f32; 3],
     max: &[f32; 3],
     p: &RayPacket<'_, N>,
     base: usize,
-) -> u32 {
+) -> ([f32; W], [f32; W]) {
     let mut t0: [f32; W] = *block(&p.tmin, base);
     let mut t1: [f32; W] = *block(&p.tmax, base);
     for a in 0..3 {
@@ -50,6 +50,20 @@ pub(crate) fn enter_mask<const N: usize, const W: usize>(
             t1[l] = if tf < t1[l] { tf } else { t1[l] };
         }
     }
+    (t0, t1)
+}
+
+/// The lanes of the block at `base` that are active and enter the box `[min, max]` within
+/// their `[tmin, tmax]`: the single-ray traversal's padded slab test
+/// ([`rt_geom::Aabb::clip_ray`]) lane by lane.
+#[inline(always)]
+pub(crate) fn enter_mask<const N: usize, const W: usize>(
+    min: &[f32; 3],
+    max: &[f32; 3],
+    p: &RayPacket<'_, N>,
+    base: usize,
+) -> u32 {
+    let (t0, t1) = slabs::<N, W>(min, max, p, base);
     let active: &[bool; W] = p.active[base..base + W].try_into().expect("block");
     let mut mask = 0;
     for l in 0..W {
@@ -57,6 +71,30 @@ pub(crate) fn enter_mask<const N: usize, const W: usize>(
         mask |= (enters as u32) << l;
     }
     mask
+}
+
+/// [`rt_geom::Aabb::clip_ray`] of the block's lanes: the padded entry and exit of each lane,
+/// and the mask of the active lanes that enter.
+#[inline(always)]
+pub(crate) fn clip_block<const N: usize, const W: usize>(
+    min: &[f32; 3],
+    max: &[f32; 3],
+    p: &RayPacket<'_, N>,
+    base: usize,
+) -> ([f32; W], [f32; W], u32) {
+    let (mut t0, mut t1) = slabs::<N, W>(min, max, p, base);
+    let tmin: &[f32; W] = block(&p.tmin, base);
+    let active: &[bool; W] = p.active[base..base + W].try_into().expect("block");
+    let mut mask = 0;
+    for l in 0..W {
+        t0[l] = pad_down(t0[l]);
+        t1[l] = pad_up(t1[l]);
+        let enters = (t0[l] <= t1[l]) & active[l];
+        mask |= (enters as u32) << l;
+        // `t0.max(tmin)` of `clip_ray` (t0 is never NaN here).
+        t0[l] = if tmin[l] > t0[l] { tmin[l] } else { t0[l] };
+    }
+    (t0, t1, mask)
 }
 
 /// The active lanes of the block at `base`.
@@ -179,7 +217,7 @@ mod tests {
     }
 
     #[test]
-    fn box_mask_equals_clip_ray() {
+    fn block_clip_equals_clip_ray() {
         let b = rt_geom::Aabb::new(Vec3::ZERO, Vec3::ONE);
         let rays: Vec<Ray> = (0..16)
             .map(|i| {
@@ -192,10 +230,13 @@ mod tests {
             .collect();
         let p = RayPacket::<16>::new(&rays);
         for base in [0, 8] {
-            let m = enter_mask::<16, 8>(&b.min.to_array(), &b.max.to_array(), &p, base);
+            let (t0, t1, m) = clip_block::<16, 8>(&b.min.to_array(), &b.max.to_array(), &p, base);
             for l in 0..8 {
-                let expect = b.clip_ray(&rays[base + l]).is_some();
-                assert_eq!(m >> l & 1 == 1, expect, "lane {}", base + l);
+                let expect = b.clip_ray(&rays[base + l]);
+                assert_eq!(m >> l & 1 == 1, expect.is_some(), "lane {}", base + l);
+                if let Some((a, b)) = expect {
+                    assert_eq!((t0[l], t1[l]), (a, b), "lane {}", base + l);
+                }
             }
         }
     }
