@@ -47,54 +47,108 @@ fn product((u0, u1): (f32, f32), (s0, s1): (f32, f32)) -> (f32, f32) {
     )
 }
 
-/// `(lo, hi)` widened by [`MARGIN`] relative to `scale`.
-fn widen((lo, hi): (f32, f32), scale: f32) -> (f32, f32) {
-    let m = scale * MARGIN;
-    (lo - lo.abs() * MARGIN - m, hi + hi.abs() * MARGIN + m)
-}
-
 impl Beam {
     /// The beam of the active lanes in `lanes` of `p`. The main axis is the largest
     /// component of the lanes' summed directions, if all lanes share its sign.
     pub fn new<const N: usize>(p: &RayPacket<'_, N>, lanes: std::ops::Range<usize>) -> Self {
-        let mut sum = [0.0f32; 3];
-        let mut count = 0;
-        for i in lanes.clone().filter(|&i| p.active[i]) {
-            for (a, s) in sum.iter_mut().enumerate() {
-                *s += p.dir[a][i];
-            }
-            count += 1;
-        }
-        let k = (0..3)
-            .max_by(|&a, &b| sum[a].abs().total_cmp(&sum[b].abs()))
-            .expect("three axes");
-        let negative = sum[k] < 0.0;
         let none = (f32::INFINITY, f32::NEG_INFINITY);
         let mut beam = Self {
-            main: Some(k),
-            negative,
+            main: None,
+            negative: false,
             origin: [none; 3],
             slope: [none; 3],
             travel: none,
             speed: 0.0,
-            lanes: count,
+            lanes: p.active[lanes.clone()].iter().filter(|&&a| a).count(),
         };
-        let grow = |r: &mut (f32, f32), v: f32| *r = (r.0.min(v), r.1.max(v));
-        for i in lanes.filter(|&i| p.active[i]) {
-            let dk = p.dir[k][i];
-            if (dk < 0.0) != negative || dk == 0.0 {
-                beam.main = None;
-                return beam;
+        // The main axis: the largest direction component of a lane from the middle of the
+        // beam; every lane must share its sign (checked below).
+        let mid = (lanes.start + lanes.end) / 2;
+        let Some(rep) = (mid..lanes.end)
+            .chain(lanes.start..mid)
+            .find(|&i| p.active[i])
+        else {
+            return beam;
+        };
+        let k = (0..3)
+            .max_by(|&a, &b| p.dir[a][rep].abs().total_cmp(&p.dir[b][rep].abs()))
+            .expect("three axes");
+        let negative = p.dir[k][rep] < 0.0;
+        beam.negative = negative;
+        // One pass over the lanes, 8 at a time (`wide`). |1 / d[k]|: slopes d / |d[k]| by a
+        // product (within an ulp of the quotient, far inside the beam's margin). Active lanes
+        // hold no NaN (their direction along k is not zero), inactive ones are blended out.
+        use wide::{CmpEq, f32x8};
+        let (inf, ninf) = (f32x8::splat(f32::INFINITY), f32x8::splat(f32::NEG_INFINITY));
+        let (mut lo8, mut hi8) = ([inf; 8], [ninf; 8]);
+        let mut speed8 = f32x8::ZERO;
+        let (mut dk_lo8, mut dk_hi8) = (inf, ninf);
+        let mut i = lanes.start;
+        while i + 8 <= lanes.end {
+            let ld = |v: &[f32; N]| f32x8::new(v[i..i + 8].try_into().expect("8 lanes"));
+            let on: [f32; 8] = std::array::from_fn(|l| p.active[i + l] as u8 as f32);
+            let on = f32x8::new(on).cmp_eq(f32x8::ONE);
+            let rcp = ld(&p.inv_dir[k]).abs();
+            let speed = ld(&p.dir[k]).abs();
+            let v = [
+                ld(&p.origin[0]),
+                ld(&p.origin[1]),
+                ld(&p.origin[2]),
+                ld(&p.dir[0]) * rcp,
+                ld(&p.dir[1]) * rcp,
+                ld(&p.dir[2]) * rcp,
+                ld(&p.tmin) * speed,
+                ld(&p.tmax) * speed,
+            ];
+            for j in 0..8 {
+                lo8[j] = lo8[j].min(on.blend(v[j], inf));
+                hi8[j] = hi8[j].max(on.blend(v[j], ninf));
             }
-            let len = dk.abs();
-            for a in 0..3 {
-                grow(&mut beam.origin[a], p.origin[a][i]);
-                grow(&mut beam.slope[a], p.dir[a][i] / len);
-            }
-            grow(&mut beam.travel, p.tmin[i] * len);
-            grow(&mut beam.travel, p.tmax[i] * len);
-            beam.speed = beam.speed.max(len);
+            speed8 = speed8.max(on.blend(speed, f32x8::ZERO));
+            dk_lo8 = dk_lo8.min(on.blend(ld(&p.dir[k]), inf));
+            dk_hi8 = dk_hi8.max(on.blend(ld(&p.dir[k]), ninf));
+            i += 8;
         }
+        let fold =
+            |v: f32x8, f: fn(f32, f32) -> f32, init: f32| v.to_array().into_iter().fold(init, f);
+        let mut lo: [f32; 8] = lo8.map(|v| fold(v, f32::min, f32::INFINITY));
+        let mut hi: [f32; 8] = hi8.map(|v| fold(v, f32::max, f32::NEG_INFINITY));
+        beam.speed = fold(speed8, f32::max, 0.0);
+        let mut dk = (
+            fold(dk_lo8, f32::min, f32::INFINITY),
+            fold(dk_hi8, f32::max, f32::NEG_INFINITY),
+        );
+        // The lanes past the last block of 8.
+        for i in (i..lanes.end).filter(|&i| p.active[i]) {
+            let rcp = p.inv_dir[k][i].abs();
+            let speed = p.dir[k][i].abs();
+            let v = [
+                p.origin[0][i],
+                p.origin[1][i],
+                p.origin[2][i],
+                p.dir[0][i] * rcp,
+                p.dir[1][i] * rcp,
+                p.dir[2][i] * rcp,
+                p.tmin[i] * speed,
+                p.tmax[i] * speed,
+            ];
+            for j in 0..8 {
+                lo[j] = lo[j].min(v[j]);
+                hi[j] = hi[j].max(v[j]);
+            }
+            beam.speed = beam.speed.max(speed);
+            dk = (dk.0.min(p.dir[k][i]), dk.1.max(p.dir[k][i]));
+        }
+        // One sign along k over all lanes (no zero component), or no main axis.
+        if !(if negative { dk.1 < 0.0 } else { dk.0 > 0.0 }) {
+            return beam;
+        }
+        beam.main = Some(k);
+        for a in 0..3 {
+            beam.origin[a] = (lo[a], hi[a]);
+            beam.slope[a] = (lo[3 + a], hi[3 + a]);
+        }
+        beam.travel = (lo[6], hi[7]);
         beam
     }
 
@@ -135,22 +189,21 @@ impl Beam {
         let Some(k) = self.main else {
             return true;
         };
-        // The travel at which the beam can be inside the box's slab along k.
+        // The travel at which the beam can be inside the box's slab along k. Margins: MARGIN
+        // times a sum of the magnitudes involved (which bounds each of them).
         let (o_lo, o_hi) = self.origin[k];
-        let slab = if self.negative {
+        let (s0, s1) = if self.negative {
             (o_lo - max[k], o_hi - min[k])
         } else {
             (min[k] - o_hi, max[k] - o_lo)
         };
-        let scale = min[k]
-            .abs()
-            .max(max[k].abs())
-            .max(o_lo.abs())
-            .max(o_hi.abs());
-        let slab = widen(slab, scale);
-        let travel = widen(self.travel, 0.0);
-        let v = (slab.0.max(travel.0), slab.1.min(travel.1));
-        if !(v.0 <= v.1) {
+        let m = 2.0 * MARGIN * (min[k].abs() + max[k].abs() + o_lo.abs() + o_hi.abs());
+        let (t0, t1) = self.travel;
+        let t0 = t0 - t0.abs() * MARGIN;
+        let t1 = t1 + t1.abs() * MARGIN;
+        let v0 = if s0 - m > t0 { s0 - m } else { t0 };
+        let v1 = if s1 + m < t1 { s1 + m } else { t1 };
+        if !(v0 <= v1) {
             return false;
         }
         for a in (0..3).filter(|&a| a != k) {
@@ -158,21 +211,18 @@ impl Beam {
             let (s_lo, s_hi) = self.slope[a];
             // The range of v s over v in [v0, v1] (v >= 0 here: a beam ahead of its origins)
             // and s in the slope range; both ends finite (the box is).
-            let (d_lo, d_hi) = if v.0 >= 0.0 {
+            let (d_lo, d_hi) = if v0 >= 0.0 {
                 (
-                    if s_lo >= 0.0 { v.0 * s_lo } else { v.1 * s_lo },
-                    if s_hi >= 0.0 { v.1 * s_hi } else { v.0 * s_hi },
+                    if s_lo >= 0.0 { v0 * s_lo } else { v1 * s_lo },
+                    if s_hi >= 0.0 { v1 * s_hi } else { v0 * s_hi },
                 )
             } else {
-                product(v, self.slope[a])
+                product((v0, v1), self.slope[a])
             };
-            let scale = min[a]
-                .abs()
-                .max(max[a].abs())
-                .max(o_lo.abs().max(o_hi.abs()))
-                .max(d_lo.abs().max(d_hi.abs()));
-            let (lo, hi) = widen((o_lo + d_lo, o_hi + d_hi), scale);
-            if hi < min[a] || lo > max[a] {
+            let m = 2.0
+                * MARGIN
+                * (min[a].abs() + max[a].abs() + o_lo.abs() + o_hi.abs() + d_lo.abs() + d_hi.abs());
+            if o_hi + d_hi + m < min[a] || o_lo + d_lo - m > max[a] {
                 return false;
             }
         }

@@ -51,14 +51,19 @@ fn lane_enters<const N: usize>(node: &BvhNode, p: &RayPacket<'_, N>, i: usize) -
 fn entering_range<const N: usize, const W: usize>(
     node: &BvhNode,
     p: &RayPacket<'_, N>,
-    beam: Option<&Beam>,
+    beam: &mut Option<Beam>,
     (from, to): (usize, usize),
 ) -> Option<(usize, usize)> {
     let first = (from..=to).find(|&i| p.active[i])?;
     let first = if lane_enters(node, p, first) {
         first
     } else {
-        if beam.is_some_and(|b| !b.may_enter(&node.min, &node.max)) {
+        // Interval culling pays off for large packets only; the beam is made when first needed.
+        if N >= 64
+            && !beam
+                .get_or_insert_with(|| Beam::new(p, 0..N))
+                .may_enter(&node.min, &node.max)
+        {
             return None;
         }
         scan::<N, W>(node, p, first + 1..=to, false)?
@@ -161,8 +166,7 @@ fn traverse<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: b
         return;
     }
     let (prims, ids) = (bvh.prims(), bvh.ids());
-    // Interval culling pays off for large packets only.
-    let beam = (N >= 64).then(|| Beam::new(p, 0..N));
+    let mut beam = None;
     // Pending far children with the first and last lanes that entered their parent.
     let mut stack = [(0u32, 0u16, 0u16); MAX_DEPTH + 1];
     let mut sp = 0;
@@ -175,7 +179,7 @@ fn traverse<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: b
         })
     }) {
         let node = &nodes[index];
-        let Some((first, last)) = entering_range::<N, W>(node, p, beam.as_ref(), (from, to)) else {
+        let Some((first, last)) = entering_range::<N, W>(node, p, &mut beam, (from, to)) else {
             continue;
         };
         if node.is_leaf() {

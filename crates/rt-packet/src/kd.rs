@@ -43,9 +43,10 @@ pub const MLRTA_MIN_SPLIT: usize = 32;
 /// Beams of fewer rays start at the root: the search would cost more than it saves.
 pub const MLRTA_MIN_BEAM: usize = 16;
 
-/// Beams whose search passes more far sides than this (the beam straddles many planes: it is
-/// not coherent there) are split into quarters.
-pub const MLRTA_MAX_CELLS: usize = 4;
+/// Beams whose search keeps more far sides than this (the beam straddles many planes: it is
+/// not coherent there) are split into quarters; so are beams whose rays go both ways across a
+/// plane they straddle (the search stops above the leaves).
+pub const MLRTA_MAX_CELLS: usize = 12;
 
 /// A node to start from and its cell.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -98,32 +99,11 @@ fn trace_block<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT
 
 /// Pending far cells with each lane's interval: one per level at most, so the depth cap
 /// bounds it. Reused from block to block.
-struct Stack<const W: usize> {
-    items: [(u32, [f32; W], [f32; W]); MAX_DEPTH as usize + 1],
-    len: usize,
-}
+type Stack<const W: usize> = Vec<(u32, [f32; W], [f32; W])>;
 
-impl<const W: usize> Stack<W> {
-    fn new() -> Self {
-        Self {
-            items: [(0, [0.0; W], [0.0; W]); MAX_DEPTH as usize + 1],
-            len: 0,
-        }
-    }
-
-    fn clear(&mut self) {
-        self.len = 0;
-    }
-
-    fn push(&mut self, item: (u32, [f32; W], [f32; W])) {
-        self.items[self.len] = item;
-        self.len += 1;
-    }
-
-    fn pop(&mut self) -> Option<(u32, [f32; W], [f32; W])> {
-        self.len = self.len.checked_sub(1)?;
-        Some(self.items[self.len])
-    }
+/// An empty [`Stack`] with room for the deepest tree (one per query, reused by every block).
+fn new_stack<const W: usize>() -> Stack<W> {
+    Vec::with_capacity(MAX_DEPTH as usize + 1)
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -157,10 +137,19 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
             let inv = block::<N, W>(&p.inv_dir[axis], base);
             let (mut n0, mut n1) = ([0.0f32; W], [0.0f32; W]);
             let (mut f0, mut f1) = ([0.0f32; W], [0.0f32; W]);
-            if W == 8 {
-                let r = step8(split, negative, as8(o), as8(inv), as8(&t0), as8(&t1));
-                for (out, v) in [&mut n0, &mut n1, &mut f0, &mut f1].into_iter().zip(r) {
-                    out.copy_from_slice(&v);
+            if W % 8 == 0 {
+                for h in (0..W).step_by(8) {
+                    let r = step8(
+                        split,
+                        negative,
+                        as8(&o[h..]),
+                        as8(&inv[h..]),
+                        as8(&t0[h..]),
+                        as8(&t1[h..]),
+                    );
+                    for (out, v) in [&mut n0, &mut n1, &mut f0, &mut f1].into_iter().zip(r) {
+                        out[h..h + 8].copy_from_slice(&v);
+                    }
                 }
             } else {
                 for l in 0..W {
@@ -307,10 +296,10 @@ fn step8(
     ]
 }
 
-/// A block of 8 lanes as an array of 8 (called where `W == 8`).
+/// The first 8 lanes of a slice (of a block of a multiple of 8 lanes).
 #[inline(always)]
-fn as8<const W: usize>(v: &[f32; W]) -> &[f32; 8] {
-    v[..].try_into().expect("a block of 8 lanes")
+fn as8(v: &[f32]) -> &[f32; 8] {
+    v[..8].try_into().expect("8 lanes")
 }
 
 /// Every block of lanes in `range` from `entry`.
@@ -320,13 +309,13 @@ fn trace_from<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT:
     best: &mut [Option<Hit>; N],
     range: std::ops::Range<usize>,
     entry: (usize, &Aabb),
+    stack: &mut Stack<W>,
 ) {
-    let mut stack = Stack::<W>::new();
     for base in range.step_by(W) {
         let lanes = active_mask::<N, W>(p, base);
         if lanes != 0 {
             let (node, cell) = entry;
-            trace_block::<P, N, W, ANY_HIT>(tree, p, best, base, lanes, node, cell, &mut stack);
+            trace_block::<P, N, W, ANY_HIT>(tree, p, best, base, lanes, node, cell, stack);
         }
     }
 }
@@ -334,13 +323,18 @@ fn trace_from<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT:
 /// Runs `$query::<P, N, W, ANY_HIT>` with the block width of `N`.
 macro_rules! with_block_width {
     ($n:expr, $query:ident :: <$p:ty, $any:literal> ($($arg:expr),*)) => {
-        if block_width($n) == 8 {
+        if $n % KD_BLOCK == 0 {
+            $query::<$p, N, KD_BLOCK, $any>($($arg),*)
+        } else if block_width($n) == 8 {
             $query::<$p, N, 8, $any>($($arg),*)
         } else {
             $query::<$p, N, 4, $any>($($arg),*)
         }
     };
 }
+
+/// Lanes that walk the kd-tree together (packets of 16 lanes and more).
+pub const KD_BLOCK: usize = 16;
 
 /// Plain packet traversal: every block from the root.
 impl<P: PacketPrimitive> PacketTraversal for KdTree<P> {
@@ -350,7 +344,7 @@ impl<P: PacketPrimitive> PacketTraversal for KdTree<P> {
             let root = (0, &self.bounds());
             with_block_width!(
                 N,
-                trace_from::<P, false>(self, packet, &mut best, 0..N, root)
+                trace_from::<P, false>(self, packet, &mut best, 0..N, root, &mut new_stack())
             );
         }
         best
@@ -362,7 +356,7 @@ impl<P: PacketPrimitive> PacketTraversal for KdTree<P> {
             let root = (0, &self.bounds());
             with_block_width!(
                 N,
-                trace_from::<P, true>(self, packet, &mut best, 0..N, root)
+                trace_from::<P, true>(self, packet, &mut best, 0..N, root, &mut new_stack())
             );
         }
         best.map(|h| h.is_some())
@@ -474,27 +468,32 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
     }
 
     /// The lanes of `range`, from the entry points of their beam, or quarter by quarter when
-    /// the beam is not coherent (its search passes more than [`MLRTA_MAX_CELLS`] far sides).
+    /// the beam is not coherent (see [`MLRTA_MAX_CELLS`]).
     fn trace_range<const N: usize, const W: usize, const ANY_HIT: bool>(
         &self,
         p: &mut RayPacket<'_, N>,
         best: &mut [Option<Hit>; N],
         range: std::ops::Range<usize>,
+        stack: &mut Stack<W>,
     ) {
         if range.len() < MLRTA_MIN_BEAM {
             let root = (0, &self.tree.bounds());
             if !self.tree.nodes().is_empty() {
-                trace_from::<P, N, W, ANY_HIT>(&self.tree, p, best, range, root);
+                trace_from::<P, N, W, ANY_HIT>(&self.tree, p, best, range, root, stack);
             }
             return;
         }
         let mut beam = Beam::new(p, range.clone());
         let entries = self.entry_points(&beam);
         let len = range.len();
-        if entries.len() > MLRTA_MAX_CELLS && len >= MLRTA_MIN_SPLIT && len % (4 * W) == 0 {
+        let incoherent = entries.len() > MLRTA_MAX_CELLS
+            || entries
+                .first()
+                .is_some_and(|e| !self.tree.nodes()[e.node].is_leaf());
+        if incoherent && len >= MLRTA_MIN_SPLIT && len % (4 * W) == 0 {
             for q in 0..4 {
                 let quarter = range.start + q * len / 4..range.start + (q + 1) * len / 4;
-                self.trace_range::<N, W, ANY_HIT>(p, best, quarter);
+                self.trace_range::<N, W, ANY_HIT>(p, best, quarter, stack);
             }
             return;
         }
@@ -510,7 +509,8 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
                     continue;
                 }
             }
-            trace_from::<P, N, W, ANY_HIT>(&self.tree, p, best, range.clone(), (e.node, &e.cell));
+            let entry = (e.node, &e.cell);
+            trace_from::<P, N, W, ANY_HIT>(&self.tree, p, best, range.clone(), entry, stack);
         }
     }
 }
@@ -529,7 +529,7 @@ fn mlrta<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool
     p: &mut RayPacket<'_, N>,
     best: &mut [Option<Hit>; N],
 ) {
-    m.trace_range::<N, W, ANY_HIT>(p, best, 0..N);
+    m.trace_range::<N, W, ANY_HIT>(p, best, 0..N, &mut new_stack());
 }
 
 impl<P: PacketPrimitive> PacketTraversal for MlrtaKdTree<P> {

@@ -49,16 +49,13 @@ impl<'a, const N: usize> RayPacket<'a, N> {
         };
         for (i, r) in rays.iter().enumerate() {
             let (o, d, inv) = (r.origin(), r.dir(), r.inv_dir());
+            let rows = r.watertight_rows();
             for a in 0..3 {
                 p.origin[a][i] = o[a];
                 p.dir[a][i] = d[a];
                 p.inv_dir[a][i] = inv[a];
-            }
-            let rows = r.watertight_rows();
-            for (k, row) in rows[..2].iter().enumerate() {
-                for a in 0..3 {
-                    p.shear[3 * k + a][i] = row[a];
-                }
+                p.shear[a][i] = rows[0][a];
+                p.shear[3 + a][i] = rows[1][a];
             }
             p.tmin[i] = r.tmin;
             p.tmax[i] = r.tmax;
