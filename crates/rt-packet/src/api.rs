@@ -73,20 +73,14 @@ macro_rules! as_one_packet {
     }};
 }
 
-/// [`PacketAccel::intersect_group`] of any [`PacketTraversal`].
-pub(crate) fn intersect_as_one_packet<T: PacketTraversal>(
-    accel: &T,
-    rays: &[Ray],
-    out: &mut [Option<Hit>],
-) {
-    as_one_packet!(rays, out, |p| accel.intersect_packet(p))
-}
+/// Every structure with packet traversal is a packet path: a group is traced as one packet of
+/// the smallest size that holds it.
+impl<T: PacketTraversal + Accel + Send + Sync> PacketAccel for T {
+    fn intersect_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        as_one_packet!(rays, out, |p| self.intersect_packet(p))
+    }
 
-/// [`PacketAccel::occluded_group`] of any [`PacketTraversal`].
-pub(crate) fn occluded_as_one_packet<T: PacketTraversal>(
-    accel: &T,
-    rays: &[Ray],
-    out: &mut [bool],
-) {
-    as_one_packet!(rays, out, |p| accel.occluded_packet(p))
+    fn occluded_group(&self, rays: &[Ray], out: &mut [bool]) {
+        as_one_packet!(rays, out, |p| self.occluded_packet(p))
+    }
 }

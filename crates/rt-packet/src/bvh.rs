@@ -14,13 +14,12 @@
 //! primitive against the block's entering lanes ([`PacketPrimitive`]: for triangles, the
 //! watertight edge functions of all lanes at once).
 
-use crate::api::{intersect_as_one_packet, occluded_as_one_packet};
 use crate::beam::Beam;
-use crate::lanes::{PacketPrimitive, block_width, enter_mask, for_each_lane};
-use crate::{PacketAccel, PacketTraversal, RayPacket};
+use crate::lanes::{PacketPrimitive, block_width, enter_mask, test_block};
+use crate::{PacketTraversal, RayPacket};
 use rt_accel_bvh::{Bvh, BvhNode, MAX_DEPTH};
+use rt_geom::Hit;
 use rt_geom::aabb::{pad_down, pad_up};
-use rt_geom::{Hit, Ray, replaces};
 
 /// Whether lane `i` of `p` enters `node`'s box within its `[tmin, tmax]` (the single-ray
 /// traversal's padded slab test; NaN from an origin on a slab plane leaves the interval as is).
@@ -122,16 +121,6 @@ fn scan<const N: usize, const W: usize>(
     None
 }
 
-impl<P: PacketPrimitive> PacketAccel for Bvh<P> {
-    fn intersect_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        intersect_as_one_packet(self, rays, out)
-    }
-
-    fn occluded_group(&self, rays: &[Ray], out: &mut [bool]) {
-        occluded_as_one_packet(self, rays, out)
-    }
-}
-
 impl<P: PacketPrimitive> PacketTraversal for Bvh<P> {
     fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [Option<Hit>; N] {
         let mut best: [Option<Hit>; N] = [None; N];
@@ -185,26 +174,11 @@ fn traverse<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: b
         if node.is_leaf() {
             let range = node.offset as usize..(node.offset + node.count()) as usize;
             for base in (first / W..=last / W).map(|b| b * W) {
-                let mut lanes = enter_mask::<N, W>(&node.min, &node.max, p, base);
-                for i in range.clone() {
-                    if lanes == 0 {
-                        break;
-                    }
-                    let hits = prims[i].intersect_block::<N, W>(p, base, lanes);
-                    let id = ids[i];
-                    for_each_lane(lanes, |l| {
-                        let Some(h) = hits[l] else { return };
-                        let lane = base + l;
-                        if ANY_HIT {
-                            best[lane] = Some(Hit::new(h, id));
-                            p.active[lane] = false;
-                            lanes &= !(1 << l);
-                        } else if replaces(h.t, id, best[lane].as_ref().map(Hit::key)) {
-                            best[lane] = Some(Hit::new(h, id));
-                            p.tmax[lane] = h.t;
-                        }
-                    });
-                }
+                let lanes = enter_mask::<N, W>(&node.min, &node.max, p, base);
+                let leaf = prims[range.clone()]
+                    .iter()
+                    .zip(ids[range.clone()].iter().copied());
+                test_block::<P, N, W, ANY_HIT>(leaf, p, best, base, lanes);
             }
             continue;
         }

@@ -28,13 +28,14 @@
 //! walk would need (the same padded steps, and an entry-point cell that holds every non-empty
 //! leaf the ray can reach, by conservative interval arithmetic).
 
-use crate::api::{intersect_as_one_packet, occluded_as_one_packet};
 use crate::beam::Beam;
-use crate::lanes::{PacketPrimitive, active_mask, block, block_width, clip_block, for_each_lane};
-use crate::{PacketAccel, PacketTraversal, RayPacket};
+use crate::lanes::{
+    PacketPrimitive, active_mask, block, block_width, clip_block, for_each_lane, test_block,
+};
+use crate::{PacketTraversal, RayPacket};
 use rt_accel_kd::{KdTree, MAX_DEPTH};
 use rt_geom::aabb::PAD;
-use rt_geom::{Aabb, Hit, Ray, replaces};
+use rt_geom::{Aabb, Hit, Ray};
 
 /// Packets of this many lanes or more are split into quarters where that finds deeper entry
 /// points.
@@ -175,24 +176,11 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
             for l in 0..W {
                 lanes |= ((t0[l] <= t1[l] && p.active[base + l]) as u32) << l;
             }
-            for &id in node.leaf_prims(indices) {
-                if lanes == 0 {
-                    break;
-                }
-                let hits = prims[id as usize].intersect_block::<N, W>(p, base, lanes);
-                for_each_lane(lanes, |l| {
-                    let Some(h) = hits[l] else { return };
-                    let lane = base + l;
-                    if ANY_HIT {
-                        best[lane] = Some(Hit::new(h, id));
-                        p.active[lane] = false;
-                        lanes &= !(1 << l);
-                    } else if replaces(h.t, id, best[lane].as_ref().map(Hit::key)) {
-                        best[lane] = Some(Hit::new(h, id));
-                        p.tmax[lane] = h.t;
-                    }
-                });
-            }
+            let leaf = node
+                .leaf_prims(indices)
+                .iter()
+                .map(|&id| (&prims[id as usize], id));
+            test_block::<P, N, W, ANY_HIT>(leaf, p, best, base, lanes);
         }
         // The next pending cell that some lane enters before its closest hit.
         loop {
@@ -360,16 +348,6 @@ impl<P: PacketPrimitive> PacketTraversal for KdTree<P> {
             );
         }
         best.map(|h| h.is_some())
-    }
-}
-
-impl<P: PacketPrimitive> PacketAccel for KdTree<P> {
-    fn intersect_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        intersect_as_one_packet(self, rays, out)
-    }
-
-    fn occluded_group(&self, rays: &[Ray], out: &mut [bool]) {
-        occluded_as_one_packet(self, rays, out)
     }
 }
 
@@ -543,16 +521,6 @@ impl<P: PacketPrimitive> PacketTraversal for MlrtaKdTree<P> {
         let mut best = [None; N];
         with_block_width!(N, mlrta::<P, true>(self, packet, &mut best));
         best.map(|h| h.is_some())
-    }
-}
-
-impl<P: PacketPrimitive> PacketAccel for MlrtaKdTree<P> {
-    fn intersect_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        intersect_as_one_packet(self, rays, out)
-    }
-
-    fn occluded_group(&self, rays: &[Ray], out: &mut [bool]) {
-        occluded_as_one_packet(self, rays, out)
     }
 }
 

@@ -7,7 +7,7 @@
 
 use crate::RayPacket;
 use rt_geom::aabb::{pad_down, pad_up};
-use rt_geom::{Cone, PrimHit, Primitive, Shape, Sphere, Triangle, Vec3};
+use rt_geom::{Cone, Hit, PrimHit, Primitive, Shape, Sphere, Triangle, Vec3, replaces};
 
 /// The block width for packets of `N` lanes.
 pub(crate) const fn block_width(n: usize) -> usize {
@@ -122,6 +122,41 @@ pub trait PacketPrimitive: Primitive {
         let mut out = [None; W];
         for_each_lane(mask, |l| out[l] = self.intersect(&p.ray(base + l)));
         out
+    }
+}
+
+/// The lane version of [`rt_geom::test_primitives`]: every primitive (with its id) against the
+/// lanes in `lanes` of the block at `base`, each lane over `[tmin, tmax]` with `tmax` its
+/// closest hit so far. Closest hit: a hit replaces the lane's best by the tie rule
+/// ([`replaces`]) and shrinks its `tmax`. With `ANY_HIT`, a lane that hits anything is done
+/// (made inactive).
+#[inline(always)]
+pub(crate) fn test_block<'a, P, const N: usize, const W: usize, const ANY_HIT: bool>(
+    prims: impl Iterator<Item = (&'a P, u32)>,
+    p: &mut RayPacket<'_, N>,
+    best: &mut [Option<Hit>; N],
+    base: usize,
+    mut lanes: u32,
+) where
+    P: PacketPrimitive + 'a,
+{
+    for (prim, id) in prims {
+        if lanes == 0 {
+            break;
+        }
+        let hits = prim.intersect_block::<N, W>(p, base, lanes);
+        for_each_lane(lanes, |l| {
+            let Some(h) = hits[l] else { return };
+            let lane = base + l;
+            if ANY_HIT {
+                best[lane] = Some(Hit::new(h, id));
+                p.active[lane] = false;
+                lanes &= !(1 << l);
+            } else if replaces(h.t, id, best[lane].as_ref().map(Hit::key)) {
+                best[lane] = Some(Hit::new(h, id));
+                p.tmax[lane] = h.t;
+            }
+        });
     }
 }
 
