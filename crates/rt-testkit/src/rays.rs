@@ -411,3 +411,33 @@ pub fn light_position(scene: &str, bounds: &Aabb) -> Vec3 {
         c + Vec3::new(-0.6, 1.2, 0.9) * e.length()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn secondary_rays_group_by_the_pixels_they_leave() {
+        let tris = crate::scenes::tessellated_sphere(2000, Vec3::ZERO, 1.0);
+        let reference = rt_geom::BruteForce::build(&tris).unwrap();
+        let sets = RaySets::generate("sphere", &tris, &reference, 16, 16, 1);
+        assert_eq!(sets.from_pixel.len(), sets.shadow.len());
+        assert_eq!(sets.from_pixel.len(), sets.diffuse.len());
+        // Each shadow ray leaves the hit of its pixel's primary ray.
+        for (k, &pixel) in sets.from_pixel.iter().enumerate() {
+            let hit = reference.intersect(&sets.primary[pixel]).expect("a hit pixel");
+            let p = sets.primary[pixel].at(hit.t);
+            assert!((sets.shadow[k].origin() - p).length() < 1e-3, "ray {k}");
+        }
+        // Tiles of pixels become groups of the shadow rays of their hit pixels, in order; tiles
+        // that miss everything give no group.
+        let tiles: Vec<Vec<usize>> = (0..4)
+            .map(|t| (t * 64..(t + 1) * 64).collect())
+            .chain([vec![0]])
+            .collect();
+        let groups = sets.secondary_groups(&tiles);
+        let all: Vec<usize> = groups.concat();
+        assert_eq!(all, (0..sets.shadow.len()).collect::<Vec<_>>());
+        assert!(groups.iter().all(|g| !g.is_empty()));
+    }
+}
