@@ -2,10 +2,10 @@
 //! Using Dynamic Bounding Volume Hierarchies"): the packet descends together, each node is
 //! entered when some active lane hits its box, and the *first active ray* is tracked: lanes
 //! before the first one that hits a node cannot hit its children, so the search in a subtree
-//! starts there (and, symmetrically, the last one: lanes after it are never tried below). Children are visited near first by that ray's direction on the split axis.
-//! When the first active ray misses a node, packets of 64 lanes and more first try an
-//! interval-arithmetic test over the whole packet, which culls the node at once when no lane
-//! can enter it.
+//! starts there (and, symmetrically, the last one: lanes after it are never tried below).
+//! Children are visited near first by that ray's direction on the split axis. When the first
+//! active ray misses a node, packets of 64 lanes and more first try their [`Beam`] (interval
+//! arithmetic over the whole packet), which culls the node at once when no lane can enter it.
 //!
 //! Per lane, the box test is the single-ray traversal's (padded slab test against the lane's
 //! current closest hit), the primitive kernel is the same and ties go to the lower id
@@ -157,7 +157,7 @@ fn traverse<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: b
     let (prims, ids) = (bvh.prims(), bvh.ids());
     let mut beam = None;
     // Pending far children with the first and last lanes that entered their parent.
-    let mut stack = [(0u32, 0u16, 0u16); MAX_DEPTH + 1];
+    let mut stack = [(0u32, 0u32, 0u32); MAX_DEPTH + 1];
     let mut sp = 0;
     let mut next = Some((0usize, 0usize, N - 1));
     while let Some((index, from, to)) = next.take().or_else(|| {
@@ -189,7 +189,7 @@ fn traverse<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: b
         } else {
             (a, b)
         };
-        stack[sp] = (far as u32, first as u16, last as u16);
+        stack[sp] = (far as u32, first as u32, last as u32);
         sp += 1;
         next = Some((near, first, last));
     }

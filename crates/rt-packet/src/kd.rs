@@ -37,8 +37,8 @@ use rt_accel_kd::{KdTree, MAX_DEPTH};
 use rt_geom::aabb::PAD;
 use rt_geom::{Aabb, Hit, Ray};
 
-/// Packets of this many lanes or more are split into quarters where that finds deeper entry
-/// points.
+/// Beams of this many rays or more may be split into quarters where they are not coherent
+/// (see [`MLRTA_MAX_CELLS`]).
 pub const MLRTA_MIN_SPLIT: usize = 32;
 
 /// Beams of fewer rays start at the root: the search would cost more than it saves.
@@ -99,7 +99,7 @@ fn trace_block<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT
 }
 
 /// Pending far cells with each lane's interval: one per level at most, so the depth cap
-/// bounds it. Reused from block to block.
+/// bounds it (the capacity reserved). Reused from block to block.
 type Stack<const W: usize> = Vec<(u32, [f32; W], [f32; W])>;
 
 /// An empty [`Stack`] with room for the deepest tree (one per query, reused by every block).
@@ -107,8 +107,8 @@ fn new_stack<const W: usize>() -> Stack<W> {
     Vec::with_capacity(MAX_DEPTH as usize + 1)
 }
 
-#[allow(clippy::too_many_arguments)]
 /// One octant group of a block (the other lanes' intervals are empty) from node `start`.
+#[allow(clippy::too_many_arguments)]
 fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
     tree: &KdTree<P>,
     p: &mut RayPacket<'_, N>,

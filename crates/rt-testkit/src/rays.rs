@@ -425,7 +425,9 @@ mod tests {
         assert_eq!(sets.from_pixel.len(), sets.diffuse.len());
         // Each shadow ray leaves the hit of its pixel's primary ray.
         for (k, &pixel) in sets.from_pixel.iter().enumerate() {
-            let hit = reference.intersect(&sets.primary[pixel]).expect("a hit pixel");
+            let hit = reference
+                .intersect(&sets.primary[pixel])
+                .expect("a hit pixel");
             let p = sets.primary[pixel].at(hit.t);
             assert!((sets.shadow[k].origin() - p).length() < 1e-3, "ray {k}");
         }
