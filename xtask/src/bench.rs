@@ -160,9 +160,9 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
                         sah_cost: stats.sah_cost,
                     }
                 };
-            // Structures with a packet path: primary rays as image tiles, and the shadow rays
-            // of those tiles' pixels toward the light, too (`primary-WxH`, `shadow-WxH`
-            // records beside the single-ray ones).
+            // Structures with a packet path: primary rays as image tiles, and the shadow and
+            // diffuse rays of those tiles' pixels (`primary-WxH`, `shadow-WxH`, `diffuse-WxH`
+            // records beside the single-ray ones; incoherent groups fall back to single rays).
             if let Some(build_packets) = entry.packets {
                 let packets = build_pool
                     .install(|| build_packets(&tris))
@@ -178,6 +178,7 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
                     for (set, rays, groups) in [
                         ("primary", &sets.primary, &tiles),
                         ("shadow", &sets.shadow, &shadow_tiles),
+                        ("diffuse", &sets.diffuse, &shadow_tiles),
                     ] {
                         let occluded = set == "shadow";
                         for (threads, pool) in &pools {

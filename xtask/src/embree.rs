@@ -298,7 +298,7 @@ fn packet8(rays: &[Ray]) -> (Valid8, RtcRay8) {
 /// `rtcIntersect8` / `rtcOccluded8` over groups of 8 rays (4x2 pixel tiles with
 /// `trace --packet 4x2`): Embree's own packet path, for the packet comparisons.
 impl rt_packet::PacketAccel for EmbreeScene {
-    fn intersect_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+    fn intersect_packet_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
         assert_eq!(rays.len(), out.len());
         for (rays, out) in rays.chunks(8).zip(out.chunks_mut(8)) {
             let (valid, ray) = packet8(rays);
@@ -332,13 +332,13 @@ impl rt_packet::PacketAccel for EmbreeScene {
         }
     }
 
-    fn occluded_group(&self, rays: &[Ray], out: &mut [bool]) {
+    fn occluded_packet_group(&self, rays: &[Ray], out: &mut [bool]) {
         assert_eq!(rays.len(), out.len());
         for (rays, out) in rays.chunks(8).zip(out.chunks_mut(8)) {
             let (valid, mut ray) = packet8(rays);
             if self.prims > 0 {
                 let mut context = Self::context();
-                // SAFETY: as in `intersect_group`; occluded lanes get `tfar = -inf`.
+                // SAFETY: as in `intersect_packet_group`; occluded lanes get `tfar = -inf`.
                 unsafe {
                     rtcOccluded8(
                         valid.0.as_ptr(),
@@ -459,8 +459,8 @@ mod tests {
             .collect();
         let mut hits = vec![None; rays.len()];
         let mut blocked = vec![false; rays.len()];
-        rt_packet::PacketAccel::intersect_group(&scene, &rays, &mut hits);
-        rt_packet::PacketAccel::occluded_group(&scene, &rays, &mut blocked);
+        rt_packet::PacketAccel::intersect_packet_group(&scene, &rays, &mut hits);
+        rt_packet::PacketAccel::occluded_packet_group(&scene, &rays, &mut blocked);
         for (k, r) in rays.iter().enumerate() {
             assert_eq!(hits[k], scene.intersect(r), "ray {k}");
             assert_eq!(blocked[k], scene.occluded(r), "ray {k}");

@@ -171,8 +171,8 @@ fn packet_report(
             let group: Vec<rt_geom::Ray> = rays[g.clone()].iter().map(|t| t.ray).collect();
             let mut hits = vec![None; group.len()];
             let mut blocked = vec![false; group.len()];
-            packets.intersect_group(&group, &mut hits);
-            packets.occluded_group(&group, &mut blocked);
+            packets.intersect_packet_group(&group, &mut hits);
+            packets.occluded_packet_group(&group, &mut blocked);
             let mut report = Report {
                 scene: scene.to_string(),
                 rays: group.len(),

@@ -445,10 +445,20 @@ fn bench_records_packet_paths_beside_single_rays() {
     };
     assert_eq!(
         rays_of("bvh"),
-        ["primary-8x8", "shadow-8x8", "primary", "shadow", "diffuse"]
+        [
+            "primary-8x8",
+            "shadow-8x8",
+            "diffuse-8x8",
+            "primary",
+            "shadow",
+            "diffuse"
+        ]
     );
     // A packet path over another entry's structure: packets only.
-    assert_eq!(rays_of("kd-mlrta"), ["primary-8x8", "shadow-8x8"]);
+    assert_eq!(
+        rays_of("kd-mlrta"),
+        ["primary-8x8", "shadow-8x8", "diffuse-8x8"]
+    );
     let find = |accel: &str, rays: &str| {
         records
             .iter()
@@ -461,6 +471,7 @@ fn bench_records_packet_paths_beside_single_rays() {
         ("bvh", "shadow"),
         ("kd-mlrta", "primary"),
         ("kd-mlrta", "shadow"),
+        ("kd-mlrta", "diffuse"),
     ] {
         let packet = find(accel, &format!("{set}-8x8"));
         assert_eq!(packet["hits"], find("bvh", set)["hits"], "{accel} {set}");

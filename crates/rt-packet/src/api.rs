@@ -4,7 +4,7 @@
 use crate::RayPacket;
 use rt_geom::{Accel, Hit, Ray};
 
-/// Packet queries on a BVH. Results are per lane, in the packet's order; inactive lanes miss.
+/// Packet queries. Results are per lane, in the packet's order; inactive lanes miss.
 pub trait PacketTraversal {
     /// Closest hit of every lane.
     fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [Option<Hit>; N];
@@ -33,13 +33,40 @@ pub trait PacketTraversal {
 }
 
 /// Packet queries behind a trait object (the registry's packet paths): a group of up to 256
-/// rays is traced as one packet of the smallest size that holds it (4, 16, 64 or 256 lanes).
-/// The structure answers single rays too ([`Accel`]), with the same answers lane by lane.
+/// rays is traced as one packet of the smallest size that holds it (4, 16, 64 or 256 lanes),
+/// unless it is incoherent ([`is_coherent`]): then ray by ray, so that incoherent rays (diffuse
+/// bounces) lose nothing against single rays. The structure answers single rays too
+/// ([`Accel`]), with the same answers lane by lane.
 pub trait PacketAccel: Accel + Send + Sync {
-    /// Closest hit of every ray of the group into `out` (same length, at most 256).
-    fn intersect_group(&self, rays: &[Ray], out: &mut [Option<Hit>]);
-    /// Whether each ray of the group is blocked.
-    fn occluded_group(&self, rays: &[Ray], out: &mut [bool]);
+    /// Closest hit of every ray of the group into `out` (same length, at most 256), always as
+    /// one packet (what `verify` checks).
+    fn intersect_packet_group(&self, rays: &[Ray], out: &mut [Option<Hit>]);
+    /// Whether each ray of the group is blocked, always as one packet.
+    fn occluded_packet_group(&self, rays: &[Ray], out: &mut [bool]);
+
+    /// Closest hit of every ray of the group: as one packet when the group is coherent, ray by
+    /// ray otherwise.
+    fn intersect_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        if is_coherent(rays) {
+            self.intersect_packet_group(rays, out);
+        } else {
+            for (r, o) in rays.iter().zip(out) {
+                *o = self.intersect(r);
+            }
+        }
+    }
+
+    /// Whether each ray of the group is blocked: as one packet when the group is coherent, ray
+    /// by ray otherwise.
+    fn occluded_group(&self, rays: &[Ray], out: &mut [bool]) {
+        if is_coherent(rays) {
+            self.occluded_packet_group(rays, out);
+        } else {
+            for (r, o) in rays.iter().zip(out) {
+                *o = self.occluded(r);
+            }
+        }
+    }
 }
 
 /// Largest group [`PacketAccel`] traces as one packet.
@@ -73,14 +100,57 @@ macro_rules! as_one_packet {
     }};
 }
 
-/// Every structure with packet traversal is a packet path: a group is traced as one packet of
-/// the smallest size that holds it.
+/// Whether a group of rays is worth a packet: their directions fall in at most two octants
+/// (a camera tile does, unless it straddles both of the image's centre lines; diffuse bounces
+/// spread over all eight). Invalid rays are ignored.
+pub fn is_coherent(rays: &[Ray]) -> bool {
+    let mut seen = 0u8;
+    for r in rays.iter().filter(|r| r.is_valid()) {
+        let d = r.dir();
+        let octant = (d.x < 0.0) as u8 | ((d.y < 0.0) as u8) << 1 | ((d.z < 0.0) as u8) << 2;
+        seen |= 1 << octant;
+    }
+    seen.count_ones() <= 2
+}
+
+/// Every structure with packet traversal is a packet path: a coherent group is traced as one
+/// packet of the smallest size that holds it, an incoherent one ray by ray.
 impl<T: PacketTraversal + Accel + Send + Sync> PacketAccel for T {
-    fn intersect_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+    fn intersect_packet_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
         as_one_packet!(rays, out, |p| self.intersect_packet(p))
     }
 
-    fn occluded_group(&self, rays: &[Ray], out: &mut [bool]) {
+    fn occluded_packet_group(&self, rays: &[Ray], out: &mut [bool]) {
         as_one_packet!(rays, out, |p| self.occluded_packet(p))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rt_geom::Vec3;
+
+    #[test]
+    fn coherence_counts_octants() {
+        let ray = |x: f32, y: f32, z: f32| Ray::new(Vec3::ZERO, Vec3::new(x, y, z));
+        let tile = [
+            ray(0.1, 0.2, -1.0),
+            ray(0.2, 0.2, -1.0),
+            ray(-0.1, 0.2, -1.0),
+        ];
+        assert!(is_coherent(&tile));
+        let spread: Vec<Ray> = (0..8)
+            .map(|o| {
+                let s = |b: u32| if o >> b & 1 == 1 { -1.0 } else { 1.0 };
+                ray(s(0), s(1), s(2))
+            })
+            .collect();
+        assert!(!is_coherent(&spread));
+        // Invalid rays do not count.
+        let mut with_invalid = tile.to_vec();
+        with_invalid.push(ray(0.0, 0.0, 0.0));
+        with_invalid.push(Ray::new(Vec3::ZERO, Vec3::new(f32::NAN, 1.0, 1.0)));
+        assert!(is_coherent(&with_invalid));
+        assert!(is_coherent(&[]));
     }
 }

@@ -71,6 +71,13 @@ pub fn groups<T: PacketAccel + Accel>(accel: &T, rays: &[Ray]) {
         for group in rays.chunks(size) {
             let mut hits = vec![None; group.len()];
             let mut blocked = vec![false; group.len()];
+            // Forced packets, and packets or single rays by coherence.
+            dynamic.intersect_packet_group(group, &mut hits);
+            dynamic.occluded_packet_group(group, &mut blocked);
+            for (k, r) in group.iter().enumerate() {
+                assert_eq!(hits[k], accel.intersect(r), "group of {size}");
+                assert_eq!(blocked[k], accel.occluded(r), "group of {size}");
+            }
             dynamic.intersect_group(group, &mut hits);
             dynamic.occluded_group(group, &mut blocked);
             for (k, r) in group.iter().enumerate() {

@@ -37,7 +37,7 @@ pub mod kd;
 pub mod lanes;
 pub mod packet;
 
-pub use api::{MAX_GROUP, PacketAccel, PacketTraversal};
+pub use api::{MAX_GROUP, PacketAccel, PacketTraversal, is_coherent};
 pub use beam::Beam;
 pub use kd::{EntryPoint, MlrtaKdTree};
 pub use lanes::PacketPrimitive;
