@@ -178,6 +178,11 @@ fn index_md(
         if opts.quick { 3 } else { 5 }
     );
     let _ = writeln!(s, "## Verdict per scene\n");
+    let _ = writeln!(
+        s,
+        "Packet lines: the fastest packet path and tile size on the same rays, against the same \
+         structure's single rays.\n"
+    );
     let mut scenes: Vec<&str> = records.iter().map(|r| r.scene.as_str()).collect();
     scenes.dedup();
     let groups = by_scene(records, threads);
@@ -211,6 +216,9 @@ fn index_md(
                 best.ratio_vs_obvhs
                     .map_or(String::new(), |x| format!(", {x:.2}x obvhs")),
             );
+            if let Some(line) = packet_verdict(records, scene, set, threads) {
+                let _ = writeln!(s, "{line}");
+            }
         }
         let _ = writeln!(s);
     }
@@ -718,6 +726,36 @@ fn plot_sweep(path: &Path, sweep: &[SweepRecord], family: &str) -> Result<(), St
     })
 }
 
+/// The fastest packet record of `set` on `scene` (`primary-16x16`, ...), against the same
+/// structure's single rays (for a packet path over another entry's structure, that entry's).
+fn packet_verdict(records: &[Record], scene: &str, set: &str, threads: usize) -> Option<String> {
+    let prefix = format!("{set}-");
+    let best = records
+        .iter()
+        .filter(|r| r.scene == scene && r.threads == threads && r.rays.starts_with(&prefix))
+        .max_by(|a, b| a.mrays_s.total_cmp(&b.mrays_s))?;
+    let single_of = crate::registry::find(&best.accel)
+        .and_then(|e| e.packet_only)
+        .unwrap_or(&best.accel);
+    let single = records
+        .iter()
+        .find(|r| r.scene == scene && r.threads == threads && r.rays == set && r.accel == single_of)
+        .map_or(String::new(), |r| {
+            format!(
+                ", {:.2}x its single rays",
+                best.mrays_s / r.mrays_s.max(1e-9)
+            )
+        });
+    Some(format!(
+        "- **{set} packets**: `{}` {} at {:.2} Mrays/s{single}{}",
+        best.accel,
+        &best.rays[prefix.len()..],
+        best.mrays_s,
+        best.ratio_vs_obvhs
+            .map_or(String::new(), |x| format!(", {x:.2}x obvhs")),
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -749,6 +787,11 @@ mod tests {
                 records.push(record("kd", scene, set, 6.0, 300.0));
                 records.push(record("obvhs", scene, set, 2.0, 500.0));
             }
+            // Packet paths: a structure's own, and one over kd's single rays.
+            records.push(record("bvh", scene, "primary", 4.0, 10.0));
+            records.push(record("bvh", scene, "primary-16x16", 10.0, 10.0));
+            records.push(record("kd-mlrta", scene, "primary-16x16", 9.0, 300.0));
+            records.push(record("kd-mlrta", scene, "shadow-8x8", 12.0, 300.0));
         }
         let mut sweep = Vec::new();
         for family in sweep::FAMILIES {
@@ -812,6 +855,19 @@ mod tests {
             text.contains("- **primary**: `bvh8` at 8.00 Mrays/s, 1.33x the next (kd)"),
             "{text}"
         );
+        assert!(
+            text.contains(
+                "- **primary packets**: `bvh` 16x16 at 10.00 Mrays/s, 2.50x its single rays"
+            ),
+            "{text}"
+        );
+        assert!(
+            text.contains(
+                "- **shadow packets**: `kd-mlrta` 8x8 at 12.00 Mrays/s, 2.00x its single rays"
+            ),
+            "{text}"
+        );
+        assert!(!text.contains("**diffuse packets**"), "{text}");
         assert!(text.contains("| soup | grid | 0.33 | 1.00 |"), "{text}");
         assert!(
             text.contains("- **balls**: `bvh8` renders fastest, 2.00x `kd`"),
