@@ -250,12 +250,14 @@ const BASE: &[AccelEntry] = &[
         "bvh4",
         "rt BVH4 collapsed from the balanced BVH2 (largest child opened first), 4 boxes per test",
         |p| boxed(Bvh4::build(p, BvhParams::balanced())),
-    ),
+    )
+    .with_packets(|p| packets_of(Bvh4::build(p, BvhParams::balanced()))),
     generic!(
         "bvh8",
         "rt BVH8 collapsed from the balanced BVH2 (largest child opened first), 8 boxes per test",
         |p| boxed(Bvh8::build(p, BvhParams::balanced())),
-    ),
+    )
+    .with_packets(|p| packets_of(Bvh8::build(p, BvhParams::balanced()))),
     own(
         "bvh4-tri",
         "rt BVH4 over SoA triangles, four watertight triangle tests at once (balanced build)",
@@ -293,7 +295,8 @@ const BASE: &[AccelEntry] = &[
         "bvh8-spatial",
         "rt BVH8 collapsed from the spatial-split BVH2",
         |p| boxed(Bvh8::build(p, BvhParams::spatial())),
-    ),
+    )
+    .with_packets(|p| packets_of(Bvh8::build(p, BvhParams::spatial()))),
     generic!(
         "bvh-midpoint",
         "rt BVH2, naive: largest centroid extent split at its middle, leaves of up to 4",

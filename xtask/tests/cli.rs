@@ -362,11 +362,11 @@ fn packets_trace_the_same_hit_file() {
     assert!(o.status.success(), "{}", stderr(&o));
     let o = xtask(&["accels", "--packet"]);
     let names: Vec<String> = stdout(&o).lines().map(str::to_string).collect();
-    for name in ["bvh", "kd", "kd-mlrta"] {
+    for name in ["bvh", "bvh4", "bvh8", "kd", "kd-mlrta"] {
         assert!(names.contains(&name.to_string()), "{names:?}");
     }
     assert!(!names.contains(&"grid".to_string()), "{names:?}");
-    for accel in ["bvh", "kd", "kd-mlrta"] {
+    for accel in ["bvh", "bvh8", "kd", "kd-mlrta"] {
         let trace = |extra: &[&str], out: &str| {
             let hits = dir.path(out);
             let mut args = vec![

@@ -171,6 +171,16 @@ impl<const N: usize> WideTree<N> {
         &self.nodes
     }
 
+    /// The box of the whole tree (rays that miss it miss everything).
+    pub fn root_bounds(&self) -> Aabb {
+        self.root_bounds
+    }
+
+    /// `Some((first, count))` when the whole tree is one leaf (and `nodes()` is empty).
+    pub fn root_leaf(&self) -> Option<(u32, u32)> {
+        self.root_leaf
+    }
+
     pub fn depth(&self) -> usize {
         self.depth
     }

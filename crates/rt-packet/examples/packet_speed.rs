@@ -1,10 +1,10 @@
 //! Primary rays of the standard camera, single rays against packets of every tile size, one
 //! thread, for rt's BVH, the SAH kd-tree and the kd-tree with multi-level ray tracing:
-//! `cargo run --release -p rt-packet --example packet_speed -- [MESH.obj|-] [bvh|kd|kd-mlrta] [SIDE]`
+//! `cargo run --release -p rt-packet --example packet_speed -- [MESH.obj|-] [bvh|bvh8|kd|kd-mlrta] [SIDE]`
 //! (default: a tessellated sphere of 200k triangles, all three structures). `cargo xtask bench` measures the same
 //! on 2 threads beside obvhs.
 
-use rt_accel_bvh::{Bvh, BvhParams};
+use rt_accel_bvh::{Bvh, Bvh8, BvhParams};
 use rt_accel_kd::{KdParams, KdTree};
 use rt_geom::{Aabb, Accel, Ray, Triangle, Vec3};
 use rt_packet::{MlrtaKdTree, PacketTraversal, TILE_SIDES, tiles};
@@ -75,6 +75,10 @@ fn main() -> Result<(), String> {
     if wanted("bvh") {
         let bvh = Bvh::build(&tris, BvhParams::balanced()).map_err(|e| e.to_string())?;
         report("bvh", &bvh, &rays, size);
+    }
+    if wanted("bvh8") {
+        let bvh8 = Bvh8::build(&tris, BvhParams::balanced()).map_err(|e| e.to_string())?;
+        report("bvh8", &bvh8, &rays, size);
     }
     let kd = || KdTree::build(&tris, KdParams::sah()).map_err(|e| e.to_string());
     if wanted("kd") {

@@ -17,29 +17,42 @@
 use crate::beam::Beam;
 use crate::lanes::{PacketPrimitive, block_width, enter_mask, test_block};
 use crate::{PacketTraversal, RayPacket};
-use rt_accel_bvh::{Bvh, BvhNode, MAX_DEPTH};
+use rt_accel_bvh::{Bvh, MAX_DEPTH};
 use rt_geom::Hit;
 use rt_geom::aabb::{pad_down, pad_up};
 
 /// Whether lane `i` of `p` enters `node`'s box within its `[tmin, tmax]` (the single-ray
 /// traversal's padded slab test; NaN from an origin on a slab plane leaves the interval as is).
 #[inline(always)]
-fn lane_enters<const N: usize>(node: &BvhNode, p: &RayPacket<'_, N>, i: usize) -> bool {
+pub(crate) fn lane_enters<const N: usize>(b: Bounds<'_>, p: &RayPacket<'_, N>, i: usize) -> bool {
+    lane_entry(b, p, i).is_some()
+}
+
+/// A box as `(min, max)` arrays.
+pub(crate) type Bounds<'a> = (&'a [f32; 3], &'a [f32; 3]);
+
+/// Lane `i`'s padded entry into the box `b` when it enters (the single-ray slab test).
+#[inline(always)]
+pub(crate) fn lane_entry<const N: usize>(
+    (min, max): Bounds<'_>,
+    p: &RayPacket<'_, N>,
+    i: usize,
+) -> Option<f32> {
     let mut t0 = p.tmin[i];
     let mut t1 = p.tmax[i];
     for a in 0..3 {
         let inv = p.inv_dir[a][i];
         let (near, far) = if inv.is_sign_negative() {
-            (node.max[a], node.min[a])
+            (max[a], min[a])
         } else {
-            (node.min[a], node.max[a])
+            (min[a], max[a])
         };
         let tn = (near - p.origin[a][i]) * inv;
         let tf = (far - p.origin[a][i]) * inv;
         t0 = if tn > t0 { tn } else { t0 };
         t1 = if tf < t1 { tf } else { t1 };
     }
-    pad_down(t0) <= pad_up(t1)
+    (pad_down(t0) <= pad_up(t1)).then_some(pad_down(t0))
 }
 
 /// The first and the last active lane in `lanes` (inclusive) that enter `node`, if any: the
@@ -47,8 +60,8 @@ fn lane_enters<const N: usize>(node: &BvhNode, p: &RayPacket<'_, N>, i: usize) -
 /// whole packet before the following lanes are tried a block at a time; the last lane is
 /// found the same way from the other end.
 #[inline(always)]
-fn entering_range<const N: usize, const W: usize>(
-    node: &BvhNode,
+pub(crate) fn entering_range<const N: usize, const W: usize>(
+    node: Bounds<'_>,
     p: &RayPacket<'_, N>,
     beam: &mut Option<Beam>,
     (from, to): (usize, usize),
@@ -61,7 +74,7 @@ fn entering_range<const N: usize, const W: usize>(
         if N >= 64
             && !beam
                 .get_or_insert_with(|| Beam::new(p, 0..N))
-                .may_enter(&node.min, &node.max)
+                .may_enter(node.0, node.1)
         {
             return None;
         }
@@ -78,7 +91,7 @@ fn entering_range<const N: usize, const W: usize>(
 /// block of lanes at a time.
 #[inline(always)]
 fn scan<const N: usize, const W: usize>(
-    node: &BvhNode,
+    (min, max): Bounds<'_>,
     p: &RayPacket<'_, N>,
     lanes: std::ops::RangeInclusive<usize>,
     backwards: bool,
@@ -102,7 +115,7 @@ fn scan<const N: usize, const W: usize>(
         !(below | above)
     };
     let blocks = (lo / W..=hi / W).map(|b| b * W);
-    let mask = |base| enter_mask::<N, W>(&node.min, &node.max, p, base) & inside(base);
+    let mask = |base| enter_mask::<N, W>(min, max, p, base) & inside(base);
     if backwards {
         for base in blocks.rev() {
             let m = mask(base);
@@ -168,7 +181,9 @@ fn traverse<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: b
         })
     }) {
         let node = &nodes[index];
-        let Some((first, last)) = entering_range::<N, W>(node, p, &mut beam, (from, to)) else {
+        let Some((first, last)) =
+            entering_range::<N, W>((&node.min, &node.max), p, &mut beam, (from, to))
+        else {
             continue;
         };
         if node.is_leaf() {

@@ -7,6 +7,7 @@
 //! | [`lanes`] | the kernels over blocks of 8 lanes: the slab test, and [`PacketPrimitive`] (watertight triangle test of 8 lanes at once) |
 //! | [`beam`] | [`Beam`]: a packet bounded by interval arithmetic, for culling and entry points |
 //! | [`bvh`] | packets through rt's [`Bvh`](rt_accel_bvh::Bvh): first-active-ray descent, beam culling (Wald, Boulos & Shirley 2007) |
+//! | [`wide`] | packets through the wide BVHs ([`Bvh4`](rt_accel_bvh::Bvh4), [`Bvh8`](rt_accel_bvh::Bvh8)): the same descent over all children of a node |
 //! | [`kd`] | packets through [`KdTree`](rt_accel_kd::KdTree) split by direction octant (Wald, Slusallek, Benthin & Wagner 2001); [`MlrtaKdTree`], multi-level ray tracing (Reshetov, Soupikov & Hurley 2005) |
 //!
 //! Every lane's answer equals the single-ray answer of its ray, bit for bit (same box test,
@@ -36,6 +37,7 @@ mod check;
 pub mod kd;
 pub mod lanes;
 pub mod packet;
+pub mod wide;
 
 pub use api::{MAX_GROUP, PacketAccel, PacketTraversal, is_coherent};
 pub use beam::Beam;

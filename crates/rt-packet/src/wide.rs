@@ -1,0 +1,186 @@
+//! Packet traversal of the wide BVHs ([`WideBvh`]: `Bvh4`, `Bvh8`), the same first-active-ray
+//! descent as [`crate::bvh`] over a wide node's children: each child gets its own range of
+//! entering lanes (the parent's range narrowed by the first and last lanes that enter the
+//! child's box, the beam culling a child no lane can enter), and the children entered are
+//! visited nearest first by the entry of their first lane. Leaves are tested a block of lanes
+//! at a time, as in the binary tree, with the same tie rule: every lane's answer equals the
+//! wide BVH's single-ray answer.
+
+use crate::beam::Beam;
+use crate::bvh::{Bounds, entering_range, lane_entry};
+use crate::lanes::{PacketPrimitive, block_width, enter_mask, test_block};
+use crate::{PacketTraversal, RayPacket};
+use rt_accel_bvh::{WideBvh, WideNode};
+use rt_geom::Hit;
+
+/// A pending child: `(parent node, child slot, first lane, last lane)`, the lanes those in the
+/// parent's range that entered the child's box when it was pushed.
+type Pending = (u32, u32, u32, u32);
+
+/// The box of child `c` of a wide node, as arrays.
+#[inline(always)]
+fn child_box<const K: usize>(node: &WideNode<K>, c: usize) -> ([f32; 3], [f32; 3]) {
+    (
+        [node.min[0][c], node.min[1][c], node.min[2][c]],
+        [node.max[0][c], node.max[1][c], node.max[2][c]],
+    )
+}
+
+/// Tests the primitives `first..first + count` against the lanes in `[lo, hi]` that enter the
+/// box `b`, a block at a time.
+#[inline(always)]
+fn leaf<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
+    (prims, ids): (&[P], &[u32]),
+    (first, count): (u32, u32),
+    b: Bounds<'_>,
+    p: &mut RayPacket<'_, N>,
+    best: &mut [Option<Hit>; N],
+    (lo, hi): (usize, usize),
+) {
+    let range = first as usize..(first + count) as usize;
+    for base in (lo / W..=hi / W).map(|k| k * W) {
+        let lanes = enter_mask::<N, W>(b.0, b.1, p, base);
+        let leaf = prims[range.clone()]
+            .iter()
+            .zip(ids[range.clone()].iter().copied());
+        test_block::<P, N, W, ANY_HIT>(leaf, p, best, base, lanes);
+    }
+}
+
+/// Pushes the children of node `index` that some lane in `[from, to]` enters, far to near
+/// by the entry of their first lane (so the nearest is visited next).
+#[inline(always)]
+fn expand<const K: usize, const N: usize, const W: usize>(
+    nodes: &[WideNode<K>],
+    index: u32,
+    p: &RayPacket<'_, N>,
+    beam: &mut Option<Beam>,
+    (from, to): (usize, usize),
+    stack: &mut Vec<Pending>,
+) {
+    let node = &nodes[index as usize];
+    let mut entered = [(0.0f32, (0u32, 0u32, 0u32, 0u32)); K];
+    let mut n = 0;
+    for c in (0..K).filter(|&c| node.is_used(c)) {
+        let (min, max) = child_box(node, c);
+        let Some((lo, hi)) = entering_range::<N, W>((&min, &max), p, beam, (from, to)) else {
+            continue;
+        };
+        let entry = lane_entry((&min, &max), p, lo).unwrap_or(f32::INFINITY);
+        entered[n] = (entry, (index, c as u32, lo as u32, hi as u32));
+        n += 1;
+    }
+    entered[..n].sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+    stack.extend(entered[..n].iter().map(|e| e.1));
+}
+
+/// The one traversal behind both queries, over blocks of `W` lanes, for `K`-wide nodes.
+fn traverse<
+    P: PacketPrimitive,
+    const K: usize,
+    const N: usize,
+    const W: usize,
+    const ANY_HIT: bool,
+>(
+    bvh: &WideBvh<P, K>,
+    p: &mut RayPacket<'_, N>,
+    best: &mut [Option<Hit>; N],
+) {
+    let tree = bvh.tree();
+    let prims = (bvh.prims(), bvh.ids());
+    let Some(first) = (0..N).find(|&i| p.active[i]) else {
+        return;
+    };
+    let last = (first..N).rev().find(|&i| p.active[i]).unwrap_or(first);
+    if let Some(root) = tree.root_leaf() {
+        let b = tree.root_bounds();
+        let (min, max) = (b.min.to_array(), b.max.to_array());
+        leaf::<P, N, W, ANY_HIT>(prims, root, (&min, &max), p, best, (first, last));
+        return;
+    }
+    let nodes = tree.nodes();
+    if nodes.is_empty() {
+        return;
+    }
+    let mut beam = None;
+    // At most K - 1 pending siblings per level, plus the children of the deepest node.
+    let mut stack: Vec<Pending> = Vec::with_capacity((K - 1) * (tree.depth() + 1) + K);
+    expand::<K, N, W>(nodes, 0, p, &mut beam, (first, last), &mut stack);
+    while let Some((parent, c, lo, hi)) = stack.pop() {
+        let node = &nodes[parent as usize];
+        let c = c as usize;
+        let lanes = (lo as usize, hi as usize);
+        if node.count[c] > 0 {
+            let (min, max) = child_box(node, c);
+            let range = (node.child[c], node.count[c]);
+            leaf::<P, N, W, ANY_HIT>(prims, range, (&min, &max), p, best, lanes);
+        } else {
+            expand::<K, N, W>(nodes, node.child[c], p, &mut beam, lanes, &mut stack);
+        }
+    }
+}
+
+impl<P: PacketPrimitive, const K: usize> PacketTraversal for WideBvh<P, K> {
+    fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [Option<Hit>; N] {
+        let mut best = [None; N];
+        if block_width(N) == 8 {
+            traverse::<P, K, N, 8, false>(self, packet, &mut best);
+        } else {
+            traverse::<P, K, N, 4, false>(self, packet, &mut best);
+        }
+        best
+    }
+
+    fn occluded_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [bool; N] {
+        let mut best = [None; N];
+        if block_width(N) == 8 {
+            traverse::<P, K, N, 8, true>(self, packet, &mut best);
+        } else {
+            traverse::<P, K, N, 4, true>(self, packet, &mut best);
+        }
+        best.map(|h| h.is_some())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::check::{all_sizes, camera_tiles, conformance_rays, groups};
+    use rt_accel_bvh::{Bvh4, Bvh8, BvhParams};
+    use rt_testkit::scenes;
+
+    #[test]
+    fn conformance_rays_in_packets_equal_single_rays() {
+        for scene in scenes::conformance_triangle_scenes() {
+            let rays = conformance_rays(&scene.prims, 60, 7);
+            let bvh8 = Bvh8::build(&scene.prims, BvhParams::balanced()).unwrap();
+            all_sizes(&bvh8, &rays, &format!("{} bvh8", scene.name));
+            let bvh4 = Bvh4::build(&scene.prims, BvhParams::spatial()).unwrap();
+            all_sizes(&bvh4, &rays, &format!("{} bvh4", scene.name));
+        }
+    }
+
+    #[test]
+    fn camera_tiles_groups_shapes_and_empty_equal_single_rays() {
+        let tris = scenes::tessellated_sphere(5000, rt_geom::Vec3::splat(0.5), 0.4);
+        let bvh8 = Bvh8::build(&tris, BvhParams::balanced()).unwrap();
+        camera_tiles(&bvh8, &tris);
+        let soup = scenes::random_soup(3000, 9);
+        groups(
+            &Bvh8::build(&soup, BvhParams::fast()).unwrap(),
+            &conformance_rays(&soup, 40, 5),
+        );
+        let scene = scenes::shape_scene("shapes");
+        let rays = conformance_rays(&scene.prims, 60, 3);
+        all_sizes(
+            &Bvh8::build(&scene.prims, BvhParams::balanced()).unwrap(),
+            &rays,
+            "shapes",
+        );
+        // One leaf at the root, and nothing at all.
+        let one = Bvh8::build(&tris[..3], BvhParams::balanced()).unwrap();
+        all_sizes(&one, &conformance_rays(&tris[..3], 30, 1), "root leaf");
+        let empty = Bvh8::<rt_geom::Triangle>::build(&[], BvhParams::balanced()).unwrap();
+        assert_eq!(empty.intersect_rays::<4>(&rays[..3]), vec![None; 3]);
+    }
+}
