@@ -15,7 +15,7 @@
 //! watertight edge functions of all lanes at once).
 
 use crate::beam::Beam;
-use crate::lanes::{PacketPrimitive, block_width, enter_mask, test_block};
+use crate::lanes::{PacketPrimitive, enter_mask, test_block};
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_bvh::{Bvh, MAX_DEPTH};
 use rt_geom::Hit;
@@ -87,6 +87,27 @@ pub(crate) fn entering_range<const N: usize, const W: usize>(
     Some((first, scan::<N, W>(node, p, first..=last - 1, true)?))
 }
 
+/// Tests the primitives `first..first + count` (leaf order, with their ids) against the lanes
+/// in `[lo, hi]` that enter the box `b`, a block at a time.
+#[inline(always)]
+pub(crate) fn test_leaf<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
+    (prims, ids): (&[P], &[u32]),
+    (first, count): (u32, u32),
+    b: Bounds<'_>,
+    p: &mut RayPacket<'_, N>,
+    best: &mut [Option<Hit>; N],
+    (lo, hi): (usize, usize),
+) {
+    let range = first as usize..(first + count) as usize;
+    for base in (lo / W..=hi / W).map(|k| k * W) {
+        let lanes = enter_mask::<N, W>(b.0, b.1, p, base);
+        let leaf = prims[range.clone()]
+            .iter()
+            .zip(ids[range.clone()].iter().copied());
+        test_block::<P, N, W, ANY_HIT>(leaf, p, best, base, lanes);
+    }
+}
+
 /// The first (or with `backwards`, the last) lane in `lanes` that enters `node`, testing a
 /// block of lanes at a time.
 #[inline(always)]
@@ -137,21 +158,13 @@ fn scan<const N: usize, const W: usize>(
 impl<P: PacketPrimitive> PacketTraversal for Bvh<P> {
     fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [Option<Hit>; N] {
         let mut best: [Option<Hit>; N] = [None; N];
-        if block_width(N) == 8 {
-            traverse::<P, N, 8, false>(self, packet, &mut best);
-        } else {
-            traverse::<P, N, 4, false>(self, packet, &mut best);
-        }
+        by_block_width!(N, W => traverse::<P, N, W, false>(self, packet, &mut best));
         best
     }
 
     fn occluded_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [bool; N] {
         let mut best: [Option<Hit>; N] = [None; N];
-        if block_width(N) == 8 {
-            traverse::<P, N, 8, true>(self, packet, &mut best);
-        } else {
-            traverse::<P, N, 4, true>(self, packet, &mut best);
-        }
+        by_block_width!(N, W => traverse::<P, N, W, true>(self, packet, &mut best));
         best.map(|h| h.is_some())
     }
 }
@@ -187,14 +200,9 @@ fn traverse<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: b
             continue;
         };
         if node.is_leaf() {
-            let range = node.offset as usize..(node.offset + node.count()) as usize;
-            for base in (first / W..=last / W).map(|b| b * W) {
-                let lanes = enter_mask::<N, W>(&node.min, &node.max, p, base);
-                let leaf = prims[range.clone()]
-                    .iter()
-                    .zip(ids[range.clone()].iter().copied());
-                test_block::<P, N, W, ANY_HIT>(leaf, p, best, base, lanes);
-            }
+            let leaf = (node.offset, node.count());
+            let b = (&node.min, &node.max);
+            test_leaf::<P, N, W, ANY_HIT>((prims, ids), leaf, b, p, best, (first, last));
             continue;
         }
         // Near child first, by the first entering lane's direction on the split axis.

@@ -29,6 +29,20 @@
 //! }
 //! ```
 
+/// Runs `$body` with `$w` a `const` of the block width for packets of `$n` lanes (8, or 4 for
+/// packets that are not a multiple of 8), so that one generic traversal serves both.
+macro_rules! by_block_width {
+    ($n:expr, $w:ident => $body:expr) => {
+        if crate::lanes::block_width($n) == 8 {
+            const $w: usize = 8;
+            $body
+        } else {
+            const $w: usize = 4;
+            $body
+        }
+    };
+}
+
 pub mod api;
 pub mod beam;
 pub mod bvh;

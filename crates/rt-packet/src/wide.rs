@@ -7,8 +7,8 @@
 //! wide BVH's single-ray answer.
 
 use crate::beam::Beam;
-use crate::bvh::{Bounds, entering_range, lane_entry};
-use crate::lanes::{PacketPrimitive, block_width, enter_mask, test_block};
+use crate::bvh::{entering_range, lane_entry, test_leaf};
+use crate::lanes::PacketPrimitive;
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_bvh::{WideBvh, WideNode};
 use rt_geom::Hit;
@@ -24,27 +24,6 @@ fn child_box<const K: usize>(node: &WideNode<K>, c: usize) -> ([f32; 3], [f32; 3
         [node.min[0][c], node.min[1][c], node.min[2][c]],
         [node.max[0][c], node.max[1][c], node.max[2][c]],
     )
-}
-
-/// Tests the primitives `first..first + count` against the lanes in `[lo, hi]` that enter the
-/// box `b`, a block at a time.
-#[inline(always)]
-fn leaf<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
-    (prims, ids): (&[P], &[u32]),
-    (first, count): (u32, u32),
-    b: Bounds<'_>,
-    p: &mut RayPacket<'_, N>,
-    best: &mut [Option<Hit>; N],
-    (lo, hi): (usize, usize),
-) {
-    let range = first as usize..(first + count) as usize;
-    for base in (lo / W..=hi / W).map(|k| k * W) {
-        let lanes = enter_mask::<N, W>(b.0, b.1, p, base);
-        let leaf = prims[range.clone()]
-            .iter()
-            .zip(ids[range.clone()].iter().copied());
-        test_block::<P, N, W, ANY_HIT>(leaf, p, best, base, lanes);
-    }
 }
 
 /// Pushes the children of node `index` that some lane in `[from, to]` enters, far to near
@@ -95,7 +74,7 @@ fn traverse<
     if let Some(root) = tree.root_leaf() {
         let b = tree.root_bounds();
         let (min, max) = (b.min.to_array(), b.max.to_array());
-        leaf::<P, N, W, ANY_HIT>(prims, root, (&min, &max), p, best, (first, last));
+        test_leaf::<P, N, W, ANY_HIT>(prims, root, (&min, &max), p, best, (first, last));
         return;
     }
     let nodes = tree.nodes();
@@ -113,7 +92,7 @@ fn traverse<
         if node.count[c] > 0 {
             let (min, max) = child_box(node, c);
             let range = (node.child[c], node.count[c]);
-            leaf::<P, N, W, ANY_HIT>(prims, range, (&min, &max), p, best, lanes);
+            test_leaf::<P, N, W, ANY_HIT>(prims, range, (&min, &max), p, best, lanes);
         } else {
             expand::<K, N, W>(nodes, node.child[c], p, &mut beam, lanes, &mut stack);
         }
@@ -123,21 +102,13 @@ fn traverse<
 impl<P: PacketPrimitive, const K: usize> PacketTraversal for WideBvh<P, K> {
     fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [Option<Hit>; N] {
         let mut best = [None; N];
-        if block_width(N) == 8 {
-            traverse::<P, K, N, 8, false>(self, packet, &mut best);
-        } else {
-            traverse::<P, K, N, 4, false>(self, packet, &mut best);
-        }
+        by_block_width!(N, W => traverse::<P, K, N, W, false>(self, packet, &mut best));
         best
     }
 
     fn occluded_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [bool; N] {
         let mut best = [None; N];
-        if block_width(N) == 8 {
-            traverse::<P, K, N, 8, true>(self, packet, &mut best);
-        } else {
-            traverse::<P, K, N, 4, true>(self, packet, &mut best);
-        }
+        by_block_width!(N, W => traverse::<P, K, N, W, true>(self, packet, &mut best));
         best.map(|h| h.is_some())
     }
 }
