@@ -1,22 +1,31 @@
-//! Builds the octree over an OBJ mesh and prints build time and `stats()`.
+//! Builds the octree over an OBJ mesh and prints build time and `stats()` for several leaf
+//! sizes; with `--trace`, also the single-thread speed of both walks on the mesh's standard
+//! primary, shadow and diffuse rays (median of 5).
 //!
-//! `cargo run --release -p rt-accel-octree --example oct_stats -- path/to/mesh.obj`
-use rt_accel_octree::{Octree, OctreeParams};
-use rt_geom::{Accel, load_obj};
+//! `cargo run --release -p rt-accel-octree --example oct_stats -- path/to/mesh.obj [--trace [SIDE [parametric|recursive]]]`
+use rt_accel_octree::{Octree, OctreeParams, OctreeTraversal};
+use rt_geom::{Accel, Triangle, load_obj};
+use rt_testkit::RaySets;
 use std::time::Instant;
 
 fn main() {
-    let Some(path) = std::env::args().nth(1) else {
-        eprintln!("usage: oct_stats MESH.obj");
+    let args: Vec<String> = std::env::args().collect();
+    let Some(path) = args.get(1) else {
+        eprintln!("usage: oct_stats MESH.obj [--trace [SIDE]]");
         std::process::exit(2);
     };
-    let tris = match load_obj(&path) {
+    let tris: Vec<Triangle> = match load_obj(path) {
         Ok(m) => m.triangles(),
         Err(e) => {
             eprintln!("{e}");
             std::process::exit(1);
         }
     };
+    if args.get(2).map(String::as_str) == Some("--trace") {
+        let side = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(512);
+        trace(path, &tris, side, args.get(4).map(String::as_str));
+        return;
+    }
     for max_prims in [2, 4, 10, 20] {
         let params = OctreeParams {
             max_prims,
@@ -30,6 +39,71 @@ fn main() {
                 t.stats()
             ),
             Err(e) => println!("{e}"),
+        }
+    }
+}
+
+/// `only`: "parametric" or "recursive" (default both); `OCT_REPS` repetitions (default 5).
+fn trace(path: &str, tris: &[Triangle], side: usize, only: Option<&str>) {
+    let reps: usize = std::env::var("OCT_REPS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(5);
+    let scene = std::path::Path::new(path)
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("");
+    let start = Instant::now();
+    let tree = Octree::build(tris, OctreeParams::standard()).expect("mesh builds");
+    println!(
+        "build {:.1} ms  {}",
+        start.elapsed().as_secs_f64() * 1e3,
+        tree.stats()
+    );
+    let sets = RaySets::generate(scene, tris, &tree, side, side, 7);
+    walks(&tree, &sets, only, reps);
+}
+
+/// Both walks (or `only` one) over the three ray sets; a function of its own so that
+/// `valgrind --toggle-collect='*walks*'` counts the walks alone.
+#[inline(never)]
+fn walks(tree: &Octree<Triangle>, sets: &RaySets, only: Option<&str>, reps: usize) {
+    let trees: Vec<Octree<Triangle>> = [OctreeTraversal::Parametric, OctreeTraversal::Recursive]
+        .into_iter()
+        .filter(|w| only.is_none_or(|o| format!("{w:?}").eq_ignore_ascii_case(o)))
+        .map(|w| tree.clone().with_traversal(w))
+        .collect();
+    for (name, rays) in [
+        ("primary", &sets.primary),
+        ("shadow", &sets.shadow),
+        ("diffuse", &sets.diffuse),
+    ] {
+        // The walks take turns, so that a change of machine speed touches both alike.
+        let mut times = vec![Vec::new(); trees.len()];
+        for _ in 0..reps {
+            for (tree, times) in trees.iter().zip(&mut times) {
+                let t = Instant::now();
+                let n = if name == "shadow" {
+                    rays.iter().filter(|r| tree.occluded(r)).count()
+                } else {
+                    rays.iter().filter(|r| tree.intersect(r).is_some()).count()
+                };
+                std::hint::black_box(n);
+                times.push(t.elapsed().as_secs_f64());
+            }
+        }
+        let rates: Vec<f64> = times
+            .iter_mut()
+            .map(|t| {
+                t.sort_by(f64::total_cmp);
+                rays.len() as f64 / t[reps / 2] / 1e6
+            })
+            .collect();
+        for (tree, rate) in trees.iter().zip(&rates) {
+            println!("{:?} {name:<8} {rate:7.2} Mrays/s", tree.params().traversal);
+        }
+        if let [a, b] = rates[..] {
+            println!("parametric / recursive {name}: {:.2}x", a / b);
         }
     }
 }

@@ -2,15 +2,32 @@
 //! eight octants; each primitive goes to every octant it really overlaps (clipped to the
 //! octant, not just boxed), empty octants are not stored.
 
-use crate::node::{OctNode, octant};
+use crate::node::{FULL_CELL, OctNode, octant, quantize_content};
 use crate::params::OctreeParams;
 use rayon::prelude::*;
 use rt_geom::{Aabb, Primitive};
 
 pub(crate) enum BuildNode {
-    Leaf(Vec<u32>),
-    /// The eight octants; `None` for an empty one.
-    Inner(Box<[Option<BuildNode>; 8]>),
+    /// Primitives and their content box (clipped to the cell).
+    Leaf(Vec<u32>, Aabb),
+    /// The eight octants (`None` for an empty one) and the union of their content boxes.
+    Inner(Box<[Option<BuildNode>; 8]>, Aabb),
+}
+
+impl BuildNode {
+    fn content(&self) -> Aabb {
+        match self {
+            BuildNode::Leaf(_, c) | BuildNode::Inner(_, c) => *c,
+        }
+    }
+}
+
+/// A leaf, with the union of its primitives clipped to its cell.
+fn leaf<P: Primitive>(ctx: &Ctx<P>, ids: Vec<u32>, bounds: &Aabb) -> BuildNode {
+    let content = ids.iter().fold(Aabb::EMPTY, |c, &id| {
+        c.union(ctx.prims[id as usize].clipped_bounds(bounds))
+    });
+    BuildNode::Leaf(ids, content.intersection(*bounds))
 }
 
 pub(crate) struct Ctx<'a, P> {
@@ -52,7 +69,7 @@ pub(crate) fn build<P: Primitive>(
     let n = ids.len();
     let splittable = bounds.extent().max_element() > 0.0;
     if n <= ctx.params.max_prims as usize || depth >= ctx.params.max_depth || !splittable {
-        return BuildNode::Leaf(ids);
+        return leaf(ctx, ids, &bounds);
     }
     let lists = distribute(ctx, &ids, &bounds);
     let total: usize = lists.iter().map(Vec::len).sum();
@@ -61,7 +78,7 @@ pub(crate) fn build<P: Primitive>(
     // seven are empty space cut away (a scene in one corner of its cube), bounded by the depth.
     let occupied = lists.iter().filter(|l| !l.is_empty()).count();
     if total > budget || (occupied > 1 && lists.iter().all(|l| l.is_empty() || l.len() == n)) {
-        return BuildNode::Leaf(ids);
+        return leaf(ctx, ids, &bounds);
     }
     drop(ids);
     // Each octant's share of the budget: at least its count, the shares adding up to it.
@@ -83,28 +100,39 @@ pub(crate) fn build<P: Primitive>(
         lists.into_iter().enumerate().map(make).collect()
     };
     let children: [Option<BuildNode>; 8] = children.try_into().unwrap_or_else(|_| unreachable!());
-    BuildNode::Inner(Box::new(children))
+    let content = children
+        .iter()
+        .flatten()
+        .fold(Aabb::EMPTY, |c, child| c.union(child.content()));
+    BuildNode::Inner(Box::new(children), content)
 }
 
-/// Writes `node` into `nodes[slot]`, its octants contiguously after the current end.
+/// Writes `node` (whose cell is `cell`) into `nodes[slot]`, its octants contiguously after
+/// the current end.
 pub(crate) fn flatten(
     node: &BuildNode,
+    cell: &Aabb,
     slot: usize,
     nodes: &mut Vec<OctNode>,
     indices: &mut Vec<u32>,
 ) {
+    let content = quantize_content(cell, &node.content());
     match node {
-        BuildNode::Leaf(ids) => {
-            nodes[slot] = OctNode::leaf(indices.len() as u32, ids.len() as u32);
+        BuildNode::Leaf(ids, _) => {
+            nodes[slot] = OctNode::leaf(indices.len() as u32, ids.len() as u32, content);
             indices.extend_from_slice(ids);
         }
-        BuildNode::Inner(children) => {
+        BuildNode::Inner(children, _) => {
             let first = nodes.len();
             let mask = (0..8).fold(0u8, |m, i| m | ((children[i].is_some() as u8) << i));
-            nodes.resize(first + mask.count_ones() as usize, OctNode::leaf(0, 0));
-            nodes[slot] = OctNode::inner(first as u32, mask);
-            for (k, child) in children.iter().flatten().enumerate() {
-                flatten(child, first + k, nodes, indices);
+            nodes.resize(
+                first + mask.count_ones() as usize,
+                OctNode::leaf(0, 0, FULL_CELL),
+            );
+            nodes[slot] = OctNode::inner(first as u32, mask, content);
+            let octants = (0..8).filter_map(|i| Some((i, children[i].as_ref()?)));
+            for (k, (i, child)) in octants.enumerate() {
+                flatten(child, &octant(cell, i), first + k, nodes, indices);
             }
         }
     }

@@ -2,7 +2,7 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`node`] | [`OctNode`], 8 bytes: child mask + first child, or a leaf's range (layout there) |
+//! | [`node`] | [`OctNode`], 16 bytes: child mask + first child, or a leaf's range, and a quantized content box (layout there) |
 //! | [`params`] | [`OctreeParams`], [`OctreeTraversal`] |
 //! | `build` | split at the centre while a node holds more than `max_prims`; primitives clipped to each octant |
 //! | `traverse` | the seeds' recursive nearest-first walk, and the parametric walk of Revelles et al. |
@@ -64,8 +64,8 @@ impl<P: Primitive> Octree<P> {
             let n = prims.len();
             let budget = ((params.reference_budget as f64 * n as f64) as usize).max(n);
             let root = build::build(&ctx, (0..n as u32).collect(), bounds, 0, budget);
-            nodes.push(OctNode::leaf(0, 0));
-            build::flatten(&root, 0, &mut nodes, &mut indices);
+            nodes.push(OctNode::leaf(0, 0, node::FULL_CELL));
+            build::flatten(&root, &bounds, 0, &mut nodes, &mut indices);
         }
         Ok(Self {
             nodes,
@@ -151,7 +151,8 @@ impl<P: Primitive> Accel for Octree<P> {
     }
 
     /// Children after their parent and in range; every leaf within the index array; every
-    /// referenced primitive overlapping its leaf's box; every primitive referenced.
+    /// referenced primitive overlapping its leaf's box, and inside the leaf's content box
+    /// where it is inside the cell; every primitive referenced.
     fn validate(&self) -> Result<(), String> {
         if self.nodes.is_empty() {
             return if self.prims.is_empty() {
@@ -190,6 +191,13 @@ impl<P: Primitive> Accel for Octree<P> {
                             "primitive {p} is in leaf {i} but not in its box"
                         ));
                     }
+                    Some(prim)
+                        if !holds(&n.content_box(b), &prim.clipped_bounds(b).intersection(*b)) =>
+                    {
+                        err.get_or_insert(format!(
+                            "primitive {p} reaches outside the content box of leaf {i}"
+                        ));
+                    }
                     Some(_) => seen[p as usize] = true,
                 }
             }
@@ -202,6 +210,11 @@ impl<P: Primitive> Accel for Octree<P> {
         }
         rt_geom::all_referenced(&seen)
     }
+}
+
+/// `outer` holds `inner` (an empty `inner` is held by anything).
+fn holds(outer: &Aabb, inner: &Aabb) -> bool {
+    inner.is_empty() || (outer.min.cmple(inner.min).all() && outer.max.cmpge(inner.max).all())
 }
 
 #[cfg(test)]

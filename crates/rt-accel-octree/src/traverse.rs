@@ -1,26 +1,34 @@
-//! Both walks. Each octant's box is the same `octant()` of its parent that the build used.
+//! Both walks. Each octant's box is the same `octant()` of its parent that the build used,
+//! and both skip an octant whose content box (the node's min/max information, see
+//! [`crate::node`]) the ray does not enter, or enters beyond the closest hit.
 //!
-//! - `recursive`: the seeds' walk. At an inner node, every non-empty octant the ray enters
-//!   (the padded box test) is collected with its entry distance, and they are visited nearest
-//!   first; octants entered beyond the closest hit are skipped.
+//! - `recursive`: the seeds' walk. At an inner node, every non-empty octant whose content box
+//!   the ray enters (the padded box test) is collected with its entry distance, the list is
+//!   sorted, and the octants are visited nearest first; octants entered beyond the closest
+//!   hit are skipped.
 //! - `parametric` (Revelles, Ureña & Lastra 2000): per axis, the distances to the node's near
-//!   and far planes and to its centre plane. The first octant follows from the plane the ray
-//!   enters through (the largest near distance): an axis's upper half is taken if the ray has
-//!   crossed its centre plane before entering. The next octant is across the plane of the
-//!   smallest exit distance; leaving through a far plane leaves the node. Octants are numbered
-//!   in the mirrored frame where every direction is positive, and XOR-ed with the direction
-//!   mask to find the real one. The distances are computed afresh at each node (not averaged
-//!   from the parent's), NaN (a ray lying in a plane) counts as "inside the slab", and each
-//!   octant's interval is padded like the box test before it is compared with the closest
-//!   hit.
+//!   and far planes and to its centre plane, in the mirrored frame where every direction is
+//!   positive (octant numbers XOR-ed with the direction mask give the real ones). Each
+//!   octant's interval follows from these nine parameters, not from a box test: along an
+//!   axis it is `[near, mid]` or `[mid, far]`. Revelles' walk steps from the first octant
+//!   (from the entry plane) to the next (across the smallest exit) with data-dependent
+//!   branches; here the eight intervals are evaluated at once in SIMD lanes and the
+//!   octants whose interval is non-empty are the ones the sequence visits, ordered as the
+//!   sequence orders them (each step crosses one more centre plane). The distances are
+//!   computed afresh at each node from the cell's coordinates (not averaged from the
+//!   parent's, so they are exactly the build's planes), NaN (a ray lying in a plane) counts
+//!   as "inside the slab", and each interval is padded like the box test. No sorting, and
+//!   the walk is iterative with an explicit stack.
 //!
 //! Both walks keep a per-ray mailbox of the last 8 primitives tested: a primitive listed in
 //! several leaves along the ray is tested once.
 
+use crate::MAX_DEPTH;
 use crate::Octree;
-use crate::node::octant;
-use rt_geom::aabb::{pad_down, pad_up};
+use crate::node::{OctNode, octant};
+use rt_geom::aabb::PAD;
 use rt_geom::{Aabb, Hit, Mailbox, Primitive, Ray, test_primitives};
+use wide::{CmpGe, CmpLe, CmpNe, f32x8};
 
 struct Walk<'a, P> {
     tree: &'a Octree<P>,
@@ -28,6 +36,8 @@ struct Walk<'a, P> {
     inv: [f32; 3],
     /// Bit `a` set: the ray runs towards -a (octant bits mirrored).
     mirror: usize,
+    /// Per axis, the lanes (mirrored octants) in the upper half along it.
+    upper_half: [f32x8; 3],
     ray: Ray,
     best: Option<Hit>,
     /// Primitives listed in several leaves are tested once per ray.
@@ -48,7 +58,8 @@ impl<P: Primitive> Walk<'_, P> {
     /// True when a pending part of the ray entered at `t` cannot hold a closer hit.
     #[inline]
     fn beyond(&self, t: f32) -> bool {
-        self.best.is_some_and(|h| t > h.t) || t > self.ray.tmax
+        // `test_primitives` lowers `ray.tmax` to every hit it keeps.
+        t > self.ray.tmax
     }
 
     fn recursive<const ANY_HIT: bool>(&mut self, i: usize, bounds: &Aabb) -> bool {
@@ -61,7 +72,8 @@ impl<P: Primitive> Walk<'_, P> {
         for o in 0..8 {
             if let Some(child) = node.child(o) {
                 let b = octant(bounds, o);
-                if let Some((t0, _)) = b.clip_ray(&self.ray) {
+                let content = self.tree.nodes[child].content_box(&b);
+                if let Some((t0, _)) = content.clip_ray(&self.ray) {
                     entered[count] = (t0, child, b);
                     count += 1;
                 }
@@ -80,22 +92,23 @@ impl<P: Primitive> Walk<'_, P> {
         false
     }
 
-    /// `(near, mid, far)` distances along each axis, in the mirrored frame.
-    #[inline]
-    fn planes(&self, b: &Aabb) -> [[f32; 3]; 3] {
-        let c = b.center();
+    /// `(near, mid, far)` distances to the planes of the box `lo..hi` along each axis, in the
+    /// mirrored frame. The centre is computed as [`Aabb::center`] does, so the planes are
+    /// exactly those of the build's [`octant`] boxes.
+    #[inline(always)]
+    fn planes(&self, cell: &Aabb) -> [[f32; 3]; 3] {
+        let (lo, hi) = (&cell.min, &cell.max);
         std::array::from_fn(|a| {
-            let (lo, hi) = if self.mirror >> a & 1 == 1 {
-                (b.max[a], b.min[a])
+            let (near, far) = if self.mirror >> a & 1 == 1 {
+                (hi[a], lo[a])
             } else {
-                (b.min[a], b.max[a])
+                (lo[a], hi[a])
             };
+            let c = (lo[a] + hi[a]) * 0.5;
             let t = |x: f32| (x - self.origin[a]) * self.inv[a];
             // NaN: the ray lies in that plane; for the slab it is inside, and it never
             // crosses the centre plane.
-            let near = t(lo);
-            let far = t(hi);
-            let mid = t(c[a]);
+            let (near, mid, far) = (t(near), t(c), t(far));
             [
                 if near.is_nan() {
                     f32::NEG_INFINITY
@@ -108,51 +121,143 @@ impl<P: Primitive> Walk<'_, P> {
         })
     }
 
-    fn parametric<const ANY_HIT: bool>(&mut self, i: usize, bounds: &Aabb) -> bool {
-        let node = self.tree.nodes[i];
-        if node.is_leaf() {
-            return self.leaf::<ANY_HIT>(i);
-        }
-        let p = self.planes(bounds);
-        // The axis of the entry plane, and the first octant (mirrored numbering).
-        let entry = (0..3)
-            .max_by(|&a, &b| p[a][0].total_cmp(&p[b][0]))
-            .unwrap_or(0);
-        let t_enter = p[entry][0];
-        let j0 = p
-            .iter()
-            .enumerate()
-            .filter(|&(a, pa)| a != entry && pa[1] < t_enter)
-            .fold(0usize, |j, (a, _)| j | 1 << a);
-        let mut j = j0;
-        loop {
-            // This octant's interval along each axis: [near, mid] or [mid, far].
-            let lower = |a: usize| if j >> a & 1 == 1 { p[a][1] } else { p[a][0] };
-            let upper = |a: usize| if j >> a & 1 == 1 { p[a][2] } else { p[a][1] };
-            let t0 = pad_down(lower(0).max(lower(1)).max(lower(2)));
-            let t1 = pad_up(upper(0).min(upper(1)).min(upper(2)));
-            if self.beyond(t0) {
-                return false;
+    /// The parametric walk, iterative: at an inner node the octants the ray enters are found
+    /// at once ([`Walk::entered_octants`]) and pushed far to near; the nearest comes up
+    /// next. A cell entered beyond the closest hit is dropped when it comes up. Each inner
+    /// node adds at most seven cells to the stack beyond the one walked next, so
+    /// `7 * MAX_DEPTH + 1` entries always suffice.
+    fn parametric<const ANY_HIT: bool>(&mut self) -> bool {
+        let tree = self.tree;
+        let mut stack = [Pending::ZERO; STACK];
+        stack[0] = Pending {
+            cell: tree.bounds,
+            node: 0,
+            t_enter: f32::NEG_INFINITY,
+        };
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let cur = stack[top];
+            if self.beyond(cur.t_enter) {
+                continue;
             }
-            let real = j ^ self.mirror;
-            if t1 >= self.ray.tmin {
-                if let Some(child) = node.child(real) {
-                    if self.parametric::<ANY_HIT>(child, &octant(bounds, real)) {
-                        return true;
-                    }
+            let node = tree.nodes[cur.node as usize];
+            if node.is_leaf() {
+                if self.leaf::<ANY_HIT>(cur.node as usize) {
+                    return true;
+                }
+                continue;
+            }
+            let (entered, t0) = self.entered_octants(&node, &cur.cell);
+            // Far to near: the sequence order reversed.
+            for &j in SEQUENCE_ORDER.iter().rev() {
+                if entered >> j & 1 == 0 {
+                    continue;
+                }
+                let real = j as usize ^ self.mirror;
+                let Some(child) = node.child(real) else {
+                    continue;
+                };
+                // Entered only if the ray meets what the octant holds.
+                let b = octant(&cur.cell, real);
+                let content = tree.nodes[child].content_box(&b);
+                if let Some((t_content, _)) = content.clip_ray(&self.ray) {
+                    stack[top] = Pending {
+                        cell: b,
+                        node: child as u32,
+                        t_enter: t0[j as usize].max(t_content),
+                    };
+                    top += 1;
                 }
             }
-            // Across the plane the ray leaves through first; a far plane ends the node.
-            let exit = (0..3)
-                .min_by(|&a, &b| upper(a).total_cmp(&upper(b)))
-                .unwrap_or(0);
-            if j >> exit & 1 == 1 {
-                return false;
-            }
-            j |= 1 << exit;
         }
+        false
+    }
+
+    /// Revelles et al.'s octant intervals, for the eight octants of an inner node at once
+    /// (one 8-lane pass; lane `j` is octant `j` of the mirrored frame): along axis `a` the
+    /// octant spans `[near, mid]`, or `[mid, far]` when bit `a` of `j` is set; its interval
+    /// is the largest lower end to the smallest upper end, padded like the box test. Returns
+    /// the mirrored octants whose padded interval is non-empty and meets
+    /// `[tmin, tmax]` (bit `j`), with their padded entry distances.
+    ///
+    /// These are the octants of Revelles' sequence (first octant from the entry plane, the
+    /// next across the plane of the smallest exit), found without its data-dependent steps;
+    /// along the sequence each octant sets one more bit of `j` than the last, which is why
+    /// [`SEQUENCE_ORDER`] (by the number of bits set) visits them nearest first.
+    #[inline(always)]
+    fn entered_octants(&self, node: &OctNode, cell: &Aabb) -> (u8, [f32; 8]) {
+        let p = self.planes(cell);
+        let lane = |a: usize, upper: bool| {
+            let (below, above) = if upper {
+                (p[a][1], p[a][2])
+            } else {
+                (p[a][0], p[a][1])
+            };
+            self.upper_half[a].blend(f32x8::splat(above), f32x8::splat(below))
+        };
+        let t0 = lane(0, false).max(lane(1, false)).max(lane(2, false));
+        let t1 = lane(0, true).min(lane(1, true)).min(lane(2, true));
+        let pad = f32x8::splat(PAD);
+        let t0 = t0 - t0.abs() * pad;
+        let t1 = t1 + t1.abs() * pad;
+        let ok = t0.cmp_le(t1)
+            & t1.cmp_ge(f32x8::splat(self.ray.tmin))
+            & t0.cmp_le(f32x8::splat(self.ray.tmax));
+        let entered = ok.move_mask() as u8 & mirror_mask(node.mask(), self.mirror);
+        (entered, t0.to_array())
     }
 }
+
+/// Mirrored octants in the order Revelles' sequence meets them: by the number of centre
+/// planes crossed.
+const SEQUENCE_ORDER: [u8; 8] = [0, 1, 2, 4, 3, 5, 6, 7];
+
+/// `mask` (bit `i`: real octant `i`) renumbered to mirrored octants `i ^ mirror`.
+#[inline(always)]
+fn mirror_mask(mut mask: u8, mirror: usize) -> u8 {
+    if mirror & 1 != 0 {
+        mask = (mask & 0x55) << 1 | (mask & 0xaa) >> 1;
+    }
+    if mirror & 2 != 0 {
+        mask = (mask & 0x33) << 2 | (mask & 0xcc) >> 2;
+    }
+    if mirror & 4 != 0 {
+        mask = mask.rotate_left(4);
+    }
+    mask
+}
+
+/// Lane `j` of axis `a` is non-zero when bit `a` of `j` is set.
+const UPPER_HALF: [[f32; 8]; 3] = [
+    [0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0],
+    [0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 1.0],
+    [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0],
+];
+
+/// A cell waiting on the parametric walk's stack.
+#[derive(Clone, Copy)]
+struct Pending {
+    cell: Aabb,
+    node: u32,
+    /// Padded entry distance of the cell (`-inf` for the root).
+    t_enter: f32,
+}
+
+impl Pending {
+    /// All zeros (the stack is cleared with one `memset`).
+    const ZERO: Self = Self {
+        cell: Aabb {
+            min: rt_geom::Vec3::ZERO,
+            max: rt_geom::Vec3::ZERO,
+        },
+        node: 0,
+        t_enter: 0.0,
+    };
+}
+
+/// Stack entries the parametric walk may need: seven per level and the root.
+const STACK: usize = 7 * MAX_DEPTH as usize + 1;
 
 impl<P: Primitive> Octree<P> {
     pub(crate) fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
@@ -166,13 +271,14 @@ impl<P: Primitive> Octree<P> {
             origin: ray.origin().to_array(),
             inv: ray.inv_dir().to_array(),
             mirror: (0..3).fold(0, |m, a| m | ((dir[a].is_sign_negative() as usize) << a)),
+            upper_half: UPPER_HALF.map(f32x8::from).map(|l| l.cmp_ne(f32x8::ZERO)),
             ray: *ray,
             best: None,
             mailbox: Mailbox::default(),
         };
         match self.params.traversal {
             crate::OctreeTraversal::Recursive => walk.recursive::<ANY_HIT>(0, &self.bounds),
-            crate::OctreeTraversal::Parametric => walk.parametric::<ANY_HIT>(0, &self.bounds),
+            crate::OctreeTraversal::Parametric => walk.parametric::<ANY_HIT>(),
         };
         walk.best
     }
