@@ -54,7 +54,14 @@ fn trace(path: &str, tris: &[Triangle], side: usize, only: Option<&str>) {
         .and_then(|s| s.to_str())
         .unwrap_or("");
     let start = Instant::now();
-    let tree = Octree::build(tris, OctreeParams::standard()).expect("mesh builds");
+    let params = OctreeParams {
+        max_prims: std::env::var("OCT_MAX_PRIMS")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(OctreeParams::standard().max_prims),
+        ..OctreeParams::standard()
+    };
+    let tree = Octree::build(tris, params).expect("mesh builds");
     println!(
         "build {:.1} ms  {}",
         start.elapsed().as_secs_f64() * 1e3,

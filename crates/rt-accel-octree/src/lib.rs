@@ -243,6 +243,17 @@ mod tests {
             max_depth: 2,
             ..OctreeParams::standard()
         },
+        deepest: OctreeParams {
+            max_prims: 1,
+            max_depth: MAX_DEPTH,
+            ..OctreeParams::standard()
+        },
+        deepest_recursive: OctreeParams {
+            max_prims: 1,
+            max_depth: MAX_DEPTH,
+            traversal: OctreeTraversal::Recursive,
+            ..OctreeParams::standard()
+        },
     });
 
     #[test]

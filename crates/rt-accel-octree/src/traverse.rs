@@ -124,9 +124,9 @@ impl<P: Primitive> Walk<'_, P> {
     /// The parametric walk, iterative: at an inner node the octants the ray enters are found
     /// at once ([`Walk::entered_octants`]) and pushed far to near; the nearest comes up
     /// next. A cell entered beyond the closest hit is dropped when it comes up. Each inner
-    /// node adds at most seven cells to the stack beyond the one walked next, so
-    /// `7 * MAX_DEPTH + 1` entries always suffice.
-    fn parametric<const ANY_HIT: bool>(&mut self) -> bool {
+    /// node adds at most seven cells to the stack beyond the one walked next, so `STACK =
+    /// 7 * depth + 1` entries suffice for a tree of that depth (see [`stack_size`]).
+    fn parametric<const ANY_HIT: bool, const STACK: usize>(&mut self) -> bool {
         let tree = self.tree;
         let mut stack = [Pending::ZERO; STACK];
         stack[0] = Pending {
@@ -149,11 +149,12 @@ impl<P: Primitive> Walk<'_, P> {
                 continue;
             }
             let (entered, t0) = self.entered_octants(&node, &cur.cell);
-            // Far to near: the sequence order reversed.
-            for &j in SEQUENCE_ORDER.iter().rev() {
-                if entered >> j & 1 == 0 {
-                    continue;
-                }
+            // Far to near: the sequence order reversed, one step per octant entered.
+            let mut pending = in_sequence_order(entered);
+            while pending != 0 {
+                let k = 7 - pending.leading_zeros() as usize;
+                pending &= !(1 << k);
+                let j = SEQUENCE_ORDER[k];
                 let real = j as usize ^ self.mirror;
                 let Some(child) = node.child(real) else {
                     continue;
@@ -213,6 +214,12 @@ impl<P: Primitive> Walk<'_, P> {
 /// planes crossed.
 const SEQUENCE_ORDER: [u8; 8] = [0, 1, 2, 4, 3, 5, 6, 7];
 
+/// Bit `k` of the result is bit `SEQUENCE_ORDER[k]` of `mask` (octants 3 and 4 trade places).
+#[inline(always)]
+fn in_sequence_order(mask: u8) -> u8 {
+    mask & 0b1110_0111 | (mask & 0b1000) << 1 | (mask & 0b1_0000) >> 1
+}
+
 /// `mask` (bit `i`: real octant `i`) renumbered to mirrored octants `i ^ mirror`.
 #[inline(always)]
 fn mirror_mask(mut mask: u8, mirror: usize) -> u8 {
@@ -256,8 +263,11 @@ impl Pending {
     };
 }
 
-/// Stack entries the parametric walk may need: seven per level and the root.
-const STACK: usize = 7 * MAX_DEPTH as usize + 1;
+/// Stack entries the parametric walk needs in a tree of depth at most `depth`: seven per
+/// level and the root. Three sizes are compiled (clearing a stack per ray is not free).
+const fn stack_size(depth: u32) -> usize {
+    7 * depth as usize + 1
+}
 
 impl<P: Primitive> Octree<P> {
     pub(crate) fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
@@ -278,7 +288,11 @@ impl<P: Primitive> Octree<P> {
         };
         match self.params.traversal {
             crate::OctreeTraversal::Recursive => walk.recursive::<ANY_HIT>(0, &self.bounds),
-            crate::OctreeTraversal::Parametric => walk.parametric::<ANY_HIT>(),
+            crate::OctreeTraversal::Parametric => match self.params.max_depth {
+                0..=8 => walk.parametric::<ANY_HIT, { stack_size(8) }>(),
+                9..=16 => walk.parametric::<ANY_HIT, { stack_size(16) }>(),
+                _ => walk.parametric::<ANY_HIT, { stack_size(MAX_DEPTH) }>(),
+            },
         };
         walk.best
     }
