@@ -4,7 +4,8 @@
 //!
 //! Exactness with brute force rests on three rules:
 //! - the cell walls are the level's planes ([`Level::plane`]) and each exit distance is
-//!   computed afresh from them (no accumulated `t += delta`);
+//!   computed afresh from them (no accumulated `t += delta`), once per wall: after a step
+//!   only the axis stepped along gets a new one (Amanatides & Woo's `tMax` array);
 //! - the entry cell is found from the entry point and, if that point lies within rounding of
 //!   the wall behind it, the walk starts one cell earlier (an extra cell costs a few tests; a
 //!   cell skipped would lose hits);
@@ -44,6 +45,24 @@ impl<P: Primitive> Walk<'_, P> {
         })
     }
 
+    /// The distance at which the ray crosses the wall ahead of cell `i` along axis `a`,
+    /// computed from the level's plane (never accumulated); +inf when that wall is the
+    /// level's own box. Walls of the level's box are not walls to step across: the interval
+    /// [t0, t1] (padded) already ends there, and a ray that grazes the box (or a flat level)
+    /// may still cross inner walls along the other axes before t1.
+    #[inline(always)]
+    fn next_wall(&self, lv: &crate::level::Level, a: usize, i: u32) -> f32 {
+        let wall = if self.dir[a] > 0.0 && i + 1 < lv.res[a] {
+            lv.plane(a, i + 1)
+        } else if self.dir[a] < 0.0 && i > 0 {
+            lv.plane(a, i)
+        } else {
+            return f32::INFINITY;
+        };
+        // NaN (a wall through the origin, infinite 1/dir) counts as leaving at once.
+        ((wall - self.origin[a]) * self.inv[a]).max(f32::NEG_INFINITY)
+    }
+
     /// Walks level `l` over `[t0, t1]`; true when `ANY_HIT` found a hit.
     fn level<const ANY_HIT: bool, const MAILBOXES: bool>(
         &mut self,
@@ -65,25 +84,15 @@ impl<P: Primitive> Walk<'_, P> {
             }
             *slot = i;
         }
+        // Per axis, the distance at which the ray leaves through the next wall ahead (+inf
+        // when there is none); only the axis just stepped along is computed again.
+        let mut next: [f32; 3] = std::array::from_fn(|a| self.next_wall(lv, a, idx[a]));
         let mut entry = t0;
         loop {
-            // The wall the ray leaves through first.
+            // The wall the ray leaves through first (the first of equal distances).
             let mut exit = f32::INFINITY;
             let mut axis = 3;
-            #[allow(clippy::needless_range_loop)] // `a` indexes five arrays
-            for a in 0..3 {
-                // Walls of the level's own box are not walls to step across: the interval
-                // [t0, t1] (padded) already ends there, and a ray that grazes the box (or a
-                // flat level) may still cross inner walls along the other axes before t1.
-                let wall = if self.dir[a] > 0.0 && idx[a] + 1 < lv.res[a] {
-                    lv.plane(a, idx[a] + 1)
-                } else if self.dir[a] < 0.0 && idx[a] > 0 {
-                    lv.plane(a, idx[a])
-                } else {
-                    continue;
-                };
-                // NaN (a wall through the origin, infinite 1/dir) counts as leaving at once.
-                let t = ((wall - self.origin[a]) * self.inv[a]).max(f32::NEG_INFINITY);
+            for (a, &t) in next.iter().enumerate() {
                 if t < exit {
                     exit = t;
                     axis = a;
@@ -123,6 +132,7 @@ impl<P: Primitive> Walk<'_, P> {
             } else {
                 idx[axis] -= 1;
             }
+            next[axis] = self.next_wall(lv, axis, idx[axis]);
             entry = pad_down(exit);
         }
     }
