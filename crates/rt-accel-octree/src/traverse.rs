@@ -124,11 +124,23 @@ impl<P: Primitive> Walk<'_, P> {
     /// The parametric walk, iterative: at an inner node the octants the ray enters are found
     /// at once ([`Walk::entered_octants`]) and pushed far to near; the nearest comes up
     /// next. A cell entered beyond the closest hit is dropped when it comes up. Each inner
-    /// node adds at most seven cells to the stack beyond the one walked next, so `STACK =
-    /// 7 * depth + 1` entries suffice for a tree of that depth (see [`stack_size`]).
-    fn parametric<const ANY_HIT: bool, const STACK: usize>(&mut self) -> bool {
+    /// node adds at most seven cells to the stack beyond the one walked next, so `7 * depth
+    /// + 1` entries suffice for a tree of that depth ([`stack_size`]); the stack is the
+    /// thread's own, reused from ray to ray.
+    fn parametric<const ANY_HIT: bool>(&mut self) -> bool {
+        STACK.with(|stack| {
+            let mut stack = stack.borrow_mut();
+            let need = stack_size(self.tree.params.max_depth);
+            if stack.len() < need {
+                stack.resize(need, Pending::ZERO);
+            }
+            self.parametric_on::<ANY_HIT>(&mut stack)
+        })
+    }
+
+    /// [`Walk::parametric`] on a stack of at least [`stack_size`] entries.
+    fn parametric_on<const ANY_HIT: bool>(&mut self, stack: &mut [Pending]) -> bool {
         let tree = self.tree;
-        let mut stack = [Pending::ZERO; STACK];
         stack[0] = Pending {
             cell: tree.bounds,
             node: 0,
@@ -264,9 +276,14 @@ impl Pending {
 }
 
 /// Stack entries the parametric walk needs in a tree of depth at most `depth`: seven per
-/// level and the root. Three sizes are compiled (clearing a stack per ray is not free).
-const fn stack_size(depth: u32) -> usize {
-    7 * depth as usize + 1
+/// level and the root.
+fn stack_size(depth: u32) -> usize {
+    7 * depth.min(MAX_DEPTH) as usize + 1
+}
+
+thread_local! {
+    /// Walk stacks are reused per thread: no allocation and no clearing per ray.
+    static STACK: std::cell::RefCell<Vec<Pending>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 impl<P: Primitive> Octree<P> {
@@ -288,11 +305,7 @@ impl<P: Primitive> Octree<P> {
         };
         match self.params.traversal {
             crate::OctreeTraversal::Recursive => walk.recursive::<ANY_HIT>(0, &self.bounds),
-            crate::OctreeTraversal::Parametric => match self.params.max_depth {
-                0..=8 => walk.parametric::<ANY_HIT, { stack_size(8) }>(),
-                9..=16 => walk.parametric::<ANY_HIT, { stack_size(16) }>(),
-                _ => walk.parametric::<ANY_HIT, { stack_size(MAX_DEPTH) }>(),
-            },
+            crate::OctreeTraversal::Parametric => walk.parametric::<ANY_HIT>(),
         };
         walk.best
     }
