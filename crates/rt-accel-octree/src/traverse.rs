@@ -124,9 +124,9 @@ impl<P: Primitive> Walk<'_, P> {
     /// The parametric walk, iterative: at an inner node the octants the ray enters are found
     /// at once ([`Walk::entered_octants`]) and pushed far to near; the nearest comes up
     /// next. A cell entered beyond the closest hit is dropped when it comes up. Each inner
-    /// node adds at most seven cells to the stack beyond the one walked next, so `7 * depth
-    /// + 1` entries suffice for a tree of that depth ([`stack_size`]); the stack is the
-    /// thread's own, reused from ray to ray.
+    /// node adds at most seven cells to the stack beyond the one walked next, so
+    /// `7 * depth + 1` entries suffice for a tree of that depth ([`stack_size`]); the stack
+    /// is the thread's own, reused from ray to ray.
     fn parametric<const ANY_HIT: bool>(&mut self) -> bool {
         STACK.with(|stack| {
             let mut stack = stack.borrow_mut();
