@@ -3,7 +3,7 @@
 
 use crate::obvhs_accel::{ObvhsBvh2, ObvhsCwBvh};
 use rt_accel_bvh::{
-    BvList, BvListParams, Bvh, Bvh4, Bvh8, BvhBuilder, BvhParams, TriBvh4, TriBvh8,
+    BvList, BvListParams, Bvh, Bvh4, Bvh8, BvhBuilder, BvhParams, CompressedBvh8, TriBvh4, TriBvh8,
 };
 use rt_accel_grid::{Grid, GridParams};
 use rt_accel_kd::{BspParams, BspTree, KdParams, KdTraversal, KdTree};
@@ -297,6 +297,16 @@ const BASE: &[AccelEntry] = &[
         |p| boxed(Bvh8::build(p, BvhParams::spatial())),
     )
     .with_packets(|p| packets_of(Bvh8::build(p, BvhParams::spatial()))),
+    generic!(
+        "bvh8c",
+        "rt BVH8 with child boxes quantized to 8 bits per plane (128-byte nodes, half of bvh8's), balanced build",
+        |p| boxed(CompressedBvh8::build(p, BvhParams::balanced())),
+    ),
+    generic!(
+        "bvh8c-spatial",
+        "rt BVH8 with quantized child boxes, from the spatial-split BVH2",
+        |p| boxed(CompressedBvh8::build(p, BvhParams::spatial())),
+    ),
     generic!(
         "bvh-midpoint",
         "rt BVH2, naive: largest centroid extent split at its middle, leaves of up to 4",

@@ -10,6 +10,7 @@
 //! | `stats` | `stats()` and `validate()` |
 //! | `refit` | [`Bvh::refit`] after vertices move |
 //! | [`wide`] | [`Bvh4`], [`Bvh8`]: collapsed wide BVHs, all children tested at once ([`WideTree`]) |
+//! | [`compressed`] | [`CompressedBvh8`]: the 8-wide BVH with child boxes quantized to 8 bits per plane, 128-byte nodes ([`CompressedNode`]) |
 //! | [`tri`] | [`TriBvh4`], [`TriBvh8`]: wide BVHs over triangles stored as SoA, four tested at once |
 //!
 //! ```
@@ -28,6 +29,7 @@
 
 mod build;
 pub mod bvlist;
+pub mod compressed;
 pub mod node;
 pub mod params;
 mod refit;
@@ -37,6 +39,7 @@ pub mod tri;
 pub mod wide;
 
 pub use bvlist::{BvList, BvListParams, Grouping};
+pub use compressed::{CompressedBvh8, CompressedNode};
 pub use node::BvhNode;
 pub use params::{BvhBuilder, BvhParams, MAX_DEPTH};
 pub use tri::{TriBvh, TriBvh4, TriBvh8, TriangleSoa};

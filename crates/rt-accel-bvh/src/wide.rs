@@ -129,22 +129,41 @@ impl<P: Primitive, const N: usize> WideBvh<P, N> {
 
     fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
         self.tree.traverse::<ANY_HIT>(ray, |first, count, r, best| {
-            let first = first as usize;
-            for i in first..first + count as usize {
-                if let Some(h) = self.prims[i].intersect(r) {
-                    if ANY_HIT {
-                        *best = Some((h, self.ids[i]));
-                        return true;
-                    }
-                    if replaces(h.t, self.ids[i], best.map(|(b, id)| (b.t, id))) {
-                        *best = Some((h, self.ids[i]));
-                        r.tmax = h.t;
-                    }
-                }
-            }
-            false
+            test_leaf::<P, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
         })
     }
+
+    /// The parts: topology, leaf-ordered primitives, their ids, the primitive count, params.
+    pub(crate) fn into_parts(self) -> (WideTree<N>, Vec<P>, Vec<u32>, usize, BvhParams) {
+        (self.tree, self.prims, self.ids, self.count, self.params)
+    }
+}
+
+/// Tests the leaf-ordered primitives `first..first + count` (closest hit, or any hit),
+/// keeping the hit with the caller's id.
+#[inline(always)]
+pub(crate) fn test_leaf<P: Primitive, const ANY_HIT: bool>(
+    prims: &[P],
+    ids: &[u32],
+    first: u32,
+    count: u32,
+    r: &mut Ray,
+    best: &mut Option<(PrimHit, u32)>,
+) -> bool {
+    let first = first as usize;
+    for i in first..first + count as usize {
+        if let Some(h) = prims[i].intersect(r) {
+            if ANY_HIT {
+                *best = Some((h, ids[i]));
+                return true;
+            }
+            if replaces(h.t, ids[i], best.map(|(b, id)| (b.t, id))) {
+                *best = Some((h, ids[i]));
+                r.tmax = h.t;
+            }
+        }
+    }
+    false
 }
 
 impl<const N: usize> WideTree<N> {
@@ -192,69 +211,16 @@ impl<const N: usize> WideTree<N> {
     pub fn traverse<const ANY_HIT: bool>(
         &self,
         ray: &Ray,
-        mut leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<(PrimHit, u32)>) -> bool,
+        leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<(PrimHit, u32)>) -> bool,
     ) -> Option<Hit> {
-        if !ray.is_valid() {
-            return None;
-        }
-        let mut r = *ray;
-        self.root_bounds.clip_ray(&r)?;
-        let mut best = None;
-        if let Some((first, count)) = self.root_leaf {
-            leaf(first, count, &mut r, &mut best);
-            return best.map(|(h, id)| Hit::new(h, id));
-        }
-        if self.nodes.is_empty() {
-            return None;
-        }
-        let o = ray.origin().to_array();
-        let inv = ray.inv_dir().to_array();
-        let neg = inv.map(f32::is_sign_negative);
-        STACK.with(|cell| {
-            let mut stack = cell.borrow_mut();
-            // At most N - 1 pending siblings per level.
-            let need = (N - 1) * (self.depth + 1) + N;
-            if stack.len() < need {
-                stack.resize(need, (0, 0, 0.0));
-            }
-            let mut sp = 0usize;
-            let mut next = (0u32, 0u32, r.tmin);
-            loop {
-                let (child, count, entry) = next;
-                if entry <= r.tmax {
-                    if count > 0 {
-                        if leaf(child, count, &mut r, &mut best) {
-                            return;
-                        }
-                    } else {
-                        let node = &self.nodes[child as usize];
-                        let t = entries(node, &o, &inv, &neg, r.tmin, r.tmax);
-                        // Push hit lanes far to near (insertion by entry, descending).
-                        let base = sp;
-                        for (lane, &te) in t.iter().enumerate() {
-                            if te.is_nan() {
-                                continue;
-                            }
-                            let item = (node.child[lane], node.count[lane], te);
-                            let mut k = sp;
-                            // Any-hit queries stop at the first hit anywhere: no ordering.
-                            while !ANY_HIT && k > base && stack[k - 1].2 < te {
-                                stack[k] = stack[k - 1];
-                                k -= 1;
-                            }
-                            stack[k] = item;
-                            sp += 1;
-                        }
-                    }
-                }
-                if sp == 0 {
-                    return;
-                }
-                sp -= 1;
-                next = stack[sp];
-            }
-        });
-        best.map(|(h, id)| Hit::new(h, id))
+        traverse_nodes::<_, N, ANY_HIT>(
+            &self.nodes,
+            &self.root_bounds,
+            self.root_leaf,
+            self.depth,
+            ray,
+            leaf,
+        )
     }
 
     /// Statistics of the topology; `bytes` counts the nodes only.
@@ -337,16 +303,132 @@ impl<const N: usize> WideTree<N> {
     }
 }
 
+/// A wide node as the traversal sees it: one entry distance per lane, and each lane's child.
+pub(crate) trait WideLanes<const N: usize> {
+    /// Entry distance per lane into `[tmin, tmax]`, NaN for lanes the ray misses.
+    fn entries(
+        &self,
+        o: &[f32; 3],
+        inv: &[f32; 3],
+        neg: &[bool; 3],
+        tmin: f32,
+        tmax: f32,
+    ) -> [f32; N];
+    /// Inner child: node index; leaf: first primitive; `u32::MAX` for an empty lane.
+    fn child(&self, lane: usize) -> u32;
+    /// 0 for an inner child, else the leaf's primitive count.
+    fn count(&self, lane: usize) -> u32;
+}
+
+impl<const N: usize> WideLanes<N> for WideNode<N> {
+    #[inline(always)]
+    fn entries(
+        &self,
+        o: &[f32; 3],
+        inv: &[f32; 3],
+        neg: &[bool; 3],
+        tmin: f32,
+        tmax: f32,
+    ) -> [f32; N] {
+        lane_entries(&self.min, &self.max, o, inv, neg, tmin, tmax)
+    }
+
+    #[inline(always)]
+    fn child(&self, lane: usize) -> u32 {
+        self.child[lane]
+    }
+
+    #[inline(always)]
+    fn count(&self, lane: usize) -> u32 {
+        self.count[lane]
+    }
+}
+
+/// The stack traversal of every wide layout (see [`WideTree::traverse`]).
+#[inline(always)]
+pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: bool>(
+    nodes: &[Node],
+    root_bounds: &Aabb,
+    root_leaf: Option<(u32, u32)>,
+    depth: usize,
+    ray: &Ray,
+    mut leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<(PrimHit, u32)>) -> bool,
+) -> Option<Hit> {
+    if !ray.is_valid() {
+        return None;
+    }
+    let mut r = *ray;
+    root_bounds.clip_ray(&r)?;
+    let mut best = None;
+    if let Some((first, count)) = root_leaf {
+        leaf(first, count, &mut r, &mut best);
+        return best.map(|(h, id)| Hit::new(h, id));
+    }
+    if nodes.is_empty() {
+        return None;
+    }
+    let o = ray.origin().to_array();
+    let inv = ray.inv_dir().to_array();
+    let neg = inv.map(f32::is_sign_negative);
+    STACK.with(|cell| {
+        let mut stack = cell.borrow_mut();
+        // At most N - 1 pending siblings per level.
+        let need = (N - 1) * (depth + 1) + N;
+        if stack.len() < need {
+            stack.resize(need, (0, 0, 0.0));
+        }
+        let mut sp = 0usize;
+        let mut next = (0u32, 0u32, r.tmin);
+        loop {
+            let (child, count, entry) = next;
+            if entry <= r.tmax {
+                if count > 0 {
+                    if leaf(child, count, &mut r, &mut best) {
+                        return;
+                    }
+                } else {
+                    let node = &nodes[child as usize];
+                    let t = node.entries(&o, &inv, &neg, r.tmin, r.tmax);
+                    // Push hit lanes far to near (insertion by entry, descending).
+                    let base = sp;
+                    for (lane, &te) in t.iter().enumerate() {
+                        if te.is_nan() || node.child(lane) == u32::MAX {
+                            continue;
+                        }
+                        let item = (node.child(lane), node.count(lane), te);
+                        let mut k = sp;
+                        // Any-hit queries stop at the first hit anywhere: no ordering.
+                        while !ANY_HIT && k > base && stack[k - 1].2 < te {
+                            stack[k] = stack[k - 1];
+                            k -= 1;
+                        }
+                        stack[k] = item;
+                        sp += 1;
+                    }
+                }
+            }
+            if sp == 0 {
+                return;
+            }
+            sp -= 1;
+            next = stack[sp];
+        }
+    });
+    best.map(|(h, id)| Hit::new(h, id))
+}
+
 thread_local! {
     /// Traversal stacks are reused per thread: no allocation and no zeroing per ray.
     static STACK: std::cell::RefCell<Vec<(u32, u32, f32)>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// Entry distance per lane, NaN for lanes the ray misses (written as plain lane loops: one SIMD
-/// operation each after vectorisation). Same arithmetic and padding as `Aabb::clip_ray`.
+/// Entry distance per lane into the boxes `min..max` (per axis, per lane), NaN for lanes the
+/// ray misses (written as plain lane loops: one SIMD operation each after vectorisation).
+/// Same arithmetic and padding as `Aabb::clip_ray`.
 #[inline(always)]
-fn entries<const N: usize>(
-    node: &WideNode<N>,
+pub(crate) fn lane_entries<const N: usize>(
+    min: &[[f32; N]; 3],
+    max: &[[f32; N]; 3],
     o: &[f32; 3],
     inv: &[f32; 3],
     neg: &[bool; 3],
@@ -357,9 +439,9 @@ fn entries<const N: usize>(
     let mut t1 = [tmax; N];
     for a in 0..3 {
         let (near, far) = if neg[a] {
-            (&node.max[a], &node.min[a])
+            (&max[a], &min[a])
         } else {
-            (&node.min[a], &node.max[a])
+            (&min[a], &max[a])
         };
         for l in 0..N {
             let tn = (near[l] - o[a]) * inv[a];
