@@ -82,12 +82,18 @@ impl<P: Primitive> Bvh<P> {
             }
             _ => {
                 let (root, count) = build::build_tree(&mut refs, &params);
-                (root, count, refs.iter().map(|r| r.index).collect())
+                (root, count, refs.iter().map(|r| r.index()).collect())
             }
         };
         let nodes = build::flatten(&root, count);
         drop(root);
-        let prims = ids.iter().map(|&i| prims[i as usize].clone()).collect();
+        let prims = {
+            use rayon::prelude::*;
+            ids.par_iter()
+                .with_min_len(1 << 14)
+                .map(|&i| prims[i as usize].clone())
+                .collect()
+        };
         Ok(Self {
             nodes,
             prims,

@@ -9,11 +9,16 @@
 //! grown by the duplication budget. A primitive straddling the chosen plane is referenced from
 //! both sides, each with the box of its part on that side.
 
-use super::sah::best_binned;
+use super::sah::{Bins, best_binned};
 use super::{BuildNode, PrimRef, split_cost};
 use crate::params::{BvhParams, MAX_DEPTH};
 use rt_geom::{Aabb, Primitive};
 use std::sync::atomic::{AtomicUsize, Ordering};
+
+thread_local! {
+    /// The object-split bins of this thread's nodes.
+    static SCRATCH: std::cell::RefCell<Bins> = std::cell::RefCell::default();
+}
 
 /// What the spatial builder needs besides the parameters.
 struct Ctx<'a, P> {
@@ -42,7 +47,7 @@ pub(crate) fn build<P: Primitive>(
     alpha: f32,
     budget: f32,
 ) -> (BuildNode, usize, Vec<u32>) {
-    let root = refs.iter().fold(Aabb::EMPTY, |b, r| b.union(r.bounds));
+    let root = super::bounds_of(&refs).0;
     let ctx = Ctx {
         prims,
         params,
@@ -83,19 +88,19 @@ fn convert(n: Node, order: &mut Vec<u32>, count: &mut usize) -> BuildNode {
 }
 
 fn leaf(bounds: Aabb, refs: &[PrimRef]) -> Node {
-    Node::Leaf(bounds, refs.iter().map(|r| r.index).collect())
+    Node::Leaf(bounds, refs.iter().map(PrimRef::index).collect())
 }
 
 fn node<P: Primitive>(ctx: &Ctx<'_, P>, mut refs: Vec<PrimRef>, depth: usize) -> Node {
     let n = refs.len();
-    let (bounds, centroids) = refs.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), r| {
-        (b.union(r.bounds), c.grow(r.centroid))
-    });
+    let (bounds, centroids) = super::bounds_of(&refs);
     if n <= 1 || depth + 1 >= MAX_DEPTH {
         return leaf(bounds, &refs);
     }
     let params = ctx.params;
-    let object = best_binned(&refs, &bounds, &centroids, ctx.bins as u32, params);
+    let object = SCRATCH.with_borrow_mut(|scratch| {
+        best_binned(&refs, &bounds, &centroids, ctx.bins as u32, params, scratch)
+    });
     let overlap = object
         .as_ref()
         .map_or(f32::INFINITY, |o| o.left.intersection(o.right).half_area());
@@ -186,16 +191,17 @@ fn best_spatial<P: Primitive>(
         enter.fill(0);
         exit.fill(0);
         for r in refs {
-            let (first, last) = (bin_of(r.bounds.min[axis]), bin_of(r.bounds.max[axis]));
+            let bounds = r.bounds();
+            let (first, last) = (bin_of(bounds.min[axis]), bin_of(bounds.max[axis]));
             enter[first] += 1;
             exit[last] += 1;
             if first == last {
-                bin_box[first] = bin_box[first].union(r.bounds);
+                bin_box[first] = bin_box[first].union(bounds);
                 continue;
             }
-            let prim = &ctx.prims[r.index as usize];
+            let prim = &ctx.prims[r.index() as usize];
             for (b, slot) in bin_box.iter_mut().enumerate().take(last + 1).skip(first) {
-                let mut cell = r.bounds;
+                let mut cell = bounds;
                 cell.min[axis] = cell.min[axis].max(plane(b));
                 cell.max[axis] = cell.max[axis].min(plane(b + 1));
                 *slot = slot.union(prim.clipped_bounds(&cell));
@@ -245,23 +251,20 @@ fn split_refs<P: Primitive>(
     let (mut left, mut right) = (Vec::new(), Vec::new());
     let mut duplicated = 0;
     for r in refs {
-        if r.bounds.max[axis] <= plane {
+        let bounds = r.bounds();
+        if bounds.max[axis] <= plane {
             left.push(*r);
-        } else if r.bounds.min[axis] >= plane {
+        } else if bounds.min[axis] >= plane {
             right.push(*r);
         } else {
-            let prim = &ctx.prims[r.index as usize];
-            let (mut lbox, mut rbox) = (r.bounds, r.bounds);
+            let prim = &ctx.prims[r.index() as usize];
+            let (mut lbox, mut rbox) = (bounds, bounds);
             lbox.max[axis] = plane;
             rbox.min[axis] = plane;
             let (lb, rb) = (prim.clipped_bounds(&lbox), prim.clipped_bounds(&rbox));
             for (b, side) in [(lb, &mut left), (rb, &mut right)] {
                 if !b.is_empty() {
-                    side.push(PrimRef {
-                        bounds: b,
-                        centroid: b.center(),
-                        index: r.index,
-                    });
+                    side.push(PrimRef::new(b, r.index()));
                 }
             }
             if !lb.is_empty() && !rb.is_empty() {
