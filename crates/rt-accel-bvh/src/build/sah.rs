@@ -132,6 +132,7 @@ impl Binner {
         for r in refs {
             let b = self.bins(r);
             let bounds = r.box4();
+            #[allow(clippy::needless_range_loop)] // indexing by axis compiles to less code here
             for axis in 0..3 {
                 let i = axis * MAX_BINS + (b[axis] as usize & (MAX_BINS - 1));
                 boxes[i] = boxes[i].union(bounds);
