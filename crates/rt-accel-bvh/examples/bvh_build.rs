@@ -6,7 +6,7 @@
 //! threads (all cores by default).
 
 use rt_accel_bvh::{Bvh, BvhBuilder, BvhParams};
-use rt_geom::{Accel, load_obj};
+use rt_geom::Accel;
 use std::time::Instant;
 
 fn main() {
@@ -17,16 +17,10 @@ fn main() {
     };
     let reps: usize = args.next().and_then(|r| r.parse().ok()).unwrap_or(5).max(1);
     let only = args.next();
-    let tris = match path.strip_prefix("sphere:").map(str::parse::<usize>) {
-        Some(Ok(n)) => rt_testkit::scenes::tessellated_sphere(n, rt_geom::Vec3::ZERO, 1.0),
-        _ => match load_obj(&path) {
-            Ok(m) => m.triangles(),
-            Err(e) => {
-                eprintln!("{e}");
-                std::process::exit(1);
-            }
-        },
-    };
+    let tris = rt_testkit::scenes::mesh_or_sphere(&path).unwrap_or_else(|e| {
+        eprintln!("{e}");
+        std::process::exit(1);
+    });
     println!(
         "{path}: {} triangles, {} threads, median of {reps}",
         tris.len(),

@@ -4,7 +4,7 @@
 //! `-- sphere:N` for a tessellated sphere of about N triangles.
 
 use rt_accel_kd::{BspParams, BspTree, KdParams, KdTree};
-use rt_geom::{Accel, load_obj};
+use rt_geom::Accel;
 use std::time::Instant;
 
 fn main() {
@@ -12,16 +12,10 @@ fn main() {
         eprintln!("usage: kd_stats MESH.obj");
         std::process::exit(2);
     };
-    let tris = match path.strip_prefix("sphere:").map(str::parse::<usize>) {
-        Some(Ok(n)) => rt_testkit::scenes::tessellated_sphere(n, rt_geom::Vec3::ZERO, 1.0),
-        _ => match load_obj(&path) {
-            Ok(m) => m.triangles(),
-            Err(e) => {
-                eprintln!("{e}");
-                std::process::exit(1);
-            }
-        },
-    };
+    let tris = rt_testkit::scenes::mesh_or_sphere(&path).unwrap_or_else(|e| {
+        eprintln!("{e}");
+        std::process::exit(1);
+    });
     println!("{path}: {} triangles", tris.len());
     for (name, params) in [
         ("sah", KdParams::sah()),

@@ -439,3 +439,14 @@ impl rt_geom::Primitive for NoGeometry {
         true
     }
 }
+
+/// The triangles a command-line argument names: `sphere:N` for a tessellated unit sphere of
+/// about N triangles, anything else an OBJ file (the error names the file and line).
+pub fn mesh_or_sphere(arg: &str) -> Result<Vec<Triangle>, String> {
+    match arg.strip_prefix("sphere:").map(str::parse::<usize>) {
+        Some(Ok(n)) => Ok(tessellated_sphere(n, Vec3::ZERO, 1.0)),
+        _ => rt_geom::load_obj(arg)
+            .map(|m| m.triangles())
+            .map_err(|e| e.to_string()),
+    }
+}
