@@ -9,7 +9,7 @@
 //! offset  size  field
 //!      0    12  origin[3]     f32   the node box's minimum corner
 //!     12     3  exponent[3]   u8    per axis, the step 2^(exponent - 127) (an f32's biased exponent)
-//!     15     1  (padding)
+//!     15     1  used          u8    bit `lane` set for the lanes that hold a child
 //!     16    24  qmin[3][8]    u8    per axis and lane: child box min = origin + qmin * step
 //!     40    24  qmax[3][8]    u8    per axis and lane: child box max = origin + qmax * step
 //!     64    32  child[8]      u32   inner: node index; leaf: first primitive; u32::MAX: empty lane
@@ -24,7 +24,9 @@
 //! returns exactly their hits.
 
 use crate::stats::check_leaf_primitive;
-use crate::wide::{WideLanes, WideNode, WideTree, lane_entries, test_leaf, traverse_nodes};
+use crate::wide::{
+    WideLanes, WideNode, WideTree, lane_entries, test_leaf, traverse_nodes,
+};
 use crate::{Bvh8, BvhParams};
 use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, Primitive, Ray, Vec3, all_referenced};
 
@@ -34,6 +36,7 @@ use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, Primitive, Ray, Vec3, al
 pub struct CompressedNode {
     pub origin: [f32; 3],
     pub exponent: [u8; 3],
+    pub used: u8,
     pub qmin: [[u8; 8]; 3],
     pub qmax: [[u8; 8]; 3],
     pub child: [u32; 8],
@@ -79,6 +82,7 @@ impl CompressedNode {
         let mut node = Self {
             origin: node_box.min.to_array(),
             exponent: [MIN_EXPONENT; 3],
+            used: used.iter().fold(0, |m, &l| m | 1 << l),
             // Empty lanes: a box from the far end to the origin (the traversal also skips
             // them by `child`).
             qmin: [[255; 8]; 3],
@@ -153,6 +157,11 @@ impl WideLanes<8> for CompressedNode {
     #[inline(always)]
     fn count(&self, lane: usize) -> u32 {
         self.count[lane]
+    }
+
+    #[inline(always)]
+    fn used_mask(&self) -> u32 {
+        self.used as u32
     }
 }
 

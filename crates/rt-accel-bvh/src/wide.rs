@@ -318,6 +318,30 @@ pub(crate) trait WideLanes<const N: usize> {
     fn child(&self, lane: usize) -> u32;
     /// 0 for an inner child, else the leaf's primitive count.
     fn count(&self, lane: usize) -> u32;
+    /// Bit `lane` set for the lanes that hold a child.
+    fn used_mask(&self) -> u32;
+}
+
+/// Bit `lane` set for the lanes with a number (not NaN) in `t`: one SIMD compare and mask
+/// extraction for 4 and 8 lanes.
+#[inline(always)]
+fn hit_lanes<const N: usize>(t: &[f32; N]) -> u32 {
+    use wide::CmpEq;
+    if let Ok(t8) = <&[f32; 8]>::try_from(&t[..]) {
+        let v = wide::f32x8::from(*t8);
+        return v.cmp_eq(v).move_mask() as u32;
+    }
+    if let Ok(t4) = <&[f32; 4]>::try_from(&t[..]) {
+        let v = wide::f32x4::from(*t4);
+        return v.cmp_eq(v).move_mask() as u32;
+    }
+    let mut m = 0u32;
+    for (l, &x) in t.iter().enumerate() {
+        #[allow(clippy::eq_op)] // x == x is false only for NaN
+        let hit = x == x;
+        m |= (hit as u32) << l;
+    }
+    m
 }
 
 impl<const N: usize> WideLanes<N> for WideNode<N> {
@@ -342,9 +366,24 @@ impl<const N: usize> WideLanes<N> for WideNode<N> {
     fn count(&self, lane: usize) -> u32 {
         self.count[lane]
     }
+
+    /// Every lane: an empty lane's box (min = +inf, max = -inf) gives NaN for every valid ray
+    /// (a near plane at +-inf puts the entry at +inf, the far one puts the exit at -inf).
+    #[inline(always)]
+    fn used_mask(&self) -> u32 {
+        u32::MAX
+    }
 }
 
 /// The stack traversal of every wide layout (see [`WideTree::traverse`]).
+///
+/// Per inner node: one SIMD slab test of all lanes, a bit mask of the lanes hit, and then
+/// - no lane: the next entry is popped from the stack;
+/// - one lane (the common case deep in the tree): that child is visited next, no stack traffic;
+/// - several: all are pushed far to near (closest-hit queries; any-hit queries push them
+///   unordered) and the nearest is popped.
+///
+/// Popped entries whose entry distance lies beyond the closest hit found since are skipped.
 #[inline(always)]
 pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: bool>(
     nodes: &[Node],
@@ -377,6 +416,7 @@ pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: 
         if stack.len() < need {
             stack.resize(need, (0, 0, 0.0));
         }
+        let stack = &mut stack[..need];
         let mut sp = 0usize;
         let mut next = (0u32, 0u32, r.tmin);
         loop {
@@ -389,21 +429,32 @@ pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: 
                 } else {
                     let node = &nodes[child as usize];
                     let t = node.entries(&o, &inv, &neg, r.tmin, r.tmax);
-                    // Push hit lanes far to near (insertion by entry, descending).
-                    let base = sp;
-                    for (lane, &te) in t.iter().enumerate() {
-                        if te.is_nan() || node.child(lane) == u32::MAX {
+                    let mut mask = hit_lanes(&t) & node.used_mask();
+                    if mask != 0 {
+                        let lane = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        let item = (node.child(lane), node.count(lane), t[lane]);
+                        if mask == 0 {
+                            next = item;
                             continue;
                         }
-                        let item = (node.child(lane), node.count(lane), te);
-                        let mut k = sp;
-                        // Any-hit queries stop at the first hit anywhere: no ordering.
-                        while !ANY_HIT && k > base && stack[k - 1].2 < te {
-                            stack[k] = stack[k - 1];
-                            k -= 1;
-                        }
-                        stack[k] = item;
+                        stack[sp] = item;
                         sp += 1;
+                        let base = sp - 1;
+                        while mask != 0 {
+                            let lane = mask.trailing_zeros() as usize;
+                            mask &= mask - 1;
+                            let te = t[lane];
+                            let item = (node.child(lane), node.count(lane), te);
+                            let mut k = sp;
+                            // Any-hit queries stop at the first hit anywhere: no ordering.
+                            while !ANY_HIT && k > base && stack[k - 1].2 < te {
+                                stack[k] = stack[k - 1];
+                                k -= 1;
+                            }
+                            stack[k] = item;
+                            sp += 1;
+                        }
                     }
                 }
             }
