@@ -117,11 +117,20 @@ impl Triangle {
     /// [`watertight_edges`]): the sign test, the zero-area rejections and [`Self::refine`].
     /// SIMD kernels compute the edge functions lane by lane with the same arithmetic and call
     /// this for the lanes that pass, so that they report exactly what the scalar kernel does.
-    #[inline]
+    ///
+    /// The sign test (which rejects most triangles a traversal tries) is inlined into the
+    /// caller; the rest runs out of line, only for the triangles it accepts.
+    #[inline(always)]
     pub fn finish_watertight(&self, ray: &Ray, (u, v, w): (f32, f32, f32)) -> Option<PrimHit> {
         if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
             return None;
         }
+        self.finish_accepted(ray, (u, v, w))
+    }
+
+    /// [`Self::finish_watertight`] once the edge functions agree in sign.
+    #[inline(never)]
+    fn finish_accepted(&self, ray: &Ray, (u, v, w): (f32, f32, f32)) -> Option<PrimHit> {
         if u + v + w == 0.0 || self.is_degenerate() {
             return None;
         }
