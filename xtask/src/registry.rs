@@ -269,6 +269,11 @@ const BASE: &[AccelEntry] = &[
         |p| boxed(TriBvh8::build(p, BvhParams::balanced())),
     ),
     own(
+        "bvh8-tri-spatial",
+        "rt BVH8 over SoA triangles from the spatial-split BVH2 (the fastest single-ray BVH)",
+        |p| boxed(TriBvh8::build(p, BvhParams::spatial())),
+    ),
+    own(
         "bvh8-tri-fast",
         "rt BVH8 over SoA triangles, binned SAH with 8 bins and leaves of up to 8 (two 4-lane tests)",
         |p| boxed(TriBvh8::build(p, BvhParams::fast())),

@@ -2,10 +2,13 @@
 //! four at a time (the watertight edge tests of four triangles are one SIMD operation each),
 //! with exactly the answers of the scalar kernel.
 //!
-//! Triangle layout ([`TriangleSoa`]): nine `f32` arrays `v0.x, v0.y, v0.z, v1.x, ... v2.z` in
-//! leaf order, padded by [`LANES`] zeros so that a leaf's four-lane window never runs off the
-//! end. A leaf `(first, count)` covers indices `first .. first + count`; lanes past `count`
-//! belong to the next leaf and are masked off.
+//! Triangle layout ([`TriangleSoa`]): one `f32` array holding, leaf after leaf, each leaf's
+//! triangles as structure of arrays. A leaf `(first, count)` (triangles `first .. first + count`
+//! in leaf order) occupies `9 * count` floats from `9 * first`: the `count` values of `v0.x`,
+//! then of `v0.y`, ... `v2.z`. A leaf's bytes are as contiguous as an array of triangles (the
+//! same cache lines), and the four-lane window of triangles `k .. k + 4` reads coordinate `j`
+//! at `9 * first + j * count + k`; lanes past the leaf read its next row (or the next leaf, or
+//! the [`LANES`] floats of padding at the end) and are masked off.
 
 use crate::stats::check_leaf_primitive;
 use crate::wide::WideTree;
@@ -19,24 +22,28 @@ use rt_geom::{
 /// Triangles tested together in a leaf.
 pub const LANES: usize = 4;
 
-/// Leaf-ordered triangles as structure of arrays (see the module documentation).
+/// Leaf-ordered triangles, each leaf as structure of arrays (see the module documentation).
 #[derive(Clone, Debug, Default)]
 pub struct TriangleSoa {
-    /// `coords[3 * vertex + axis][i]`.
-    coords: [Vec<f32>; 9],
+    data: Vec<f32>,
     len: usize,
 }
 
 impl TriangleSoa {
-    pub fn new(tris: &[Triangle]) -> Self {
-        let mut coords: [Vec<f32>; 9] = Default::default();
-        for (j, c) in coords.iter_mut().enumerate() {
-            c.reserve_exact(tris.len() + LANES);
-            c.extend(tris.iter().map(|t| t.v[j / 3][j % 3]));
-            c.extend([0.0; LANES]);
+    /// Lays out the leaf-ordered `tris`; `leaves` are the `(first, count)` ranges that cover
+    /// them (each triangle in exactly one).
+    pub fn new(tris: &[Triangle], leaves: impl IntoIterator<Item = (u32, u32)>) -> Self {
+        let mut data = vec![0.0; 9 * tris.len() + LANES];
+        for (first, count) in leaves {
+            let (first, count) = (first as usize, count as usize);
+            for (k, t) in tris[first..first + count].iter().enumerate() {
+                for j in 0..9 {
+                    data[9 * first + j * count + k] = t.v[j / 3][j % 3];
+                }
+            }
         }
         Self {
-            coords,
+            data,
             len: tris.len(),
         }
     }
@@ -49,10 +56,10 @@ impl TriangleSoa {
         self.len == 0
     }
 
-    /// Triangle `i` (leaf order).
+    /// Triangle `k` of the leaf `(first, count)`.
     #[inline]
-    pub fn get(&self, i: usize) -> Triangle {
-        let c = |j: usize| self.coords[j][i];
+    pub fn get(&self, first: usize, count: usize, k: usize) -> Triangle {
+        let c = |j: usize| self.data[9 * first + j * count + k];
         Triangle::new(
             Vec3::new(c(0), c(1), c(2)),
             Vec3::new(c(3), c(4), c(5)),
@@ -61,22 +68,13 @@ impl TriangleSoa {
     }
 
     fn bytes(&self) -> usize {
-        self.coords.iter().map(|c| c.len() * 4).sum()
-    }
-
-    /// The four-lane window starting at `i`.
-    #[inline(always)]
-    fn window(&self, i: usize) -> [&[f32; LANES]; 9] {
-        std::array::from_fn(|j| {
-            self.coords[j][i..i + LANES]
-                .try_into()
-                .expect("padded by LANES")
-        })
+        self.data.len() * 4
     }
 
     /// Tests triangles `first .. first + count` against the ray, nearest accepted hit last:
-    /// the edge functions of four triangles at once, then, lane by lane, the scalar kernel's
-    /// own [`Triangle::finish_watertight`] for the lanes that may hit. Returns true when
+    /// the edge functions and their sign test for four triangles at once (SIMD lanes, one bit
+    /// mask), then the scalar kernel's own [`Triangle::finish_watertight`] for the lanes that
+    /// may hit. Returns true when
     /// `ANY_HIT` and a hit was found.
     #[inline(always)]
     pub fn intersect_range<const ANY_HIT: bool>(
@@ -87,43 +85,44 @@ impl TriangleSoa {
         ids: &[u32],
         best: &mut Option<(PrimHit, u32)>,
     ) -> bool {
-        let o = r.origin().to_array();
+        use wide::{CmpEq, CmpGt, CmpLt, f32x4};
+        let o = r.origin().to_array().map(f32x4::splat);
         let [mx, my, _] = r.watertight_rows();
-        let (mx, my) = (mx.to_array(), my.to_array());
-        let end = first + count;
-        let mut i = first;
-        while i < end {
-            let w = self.window(i);
+        let (mx, my) = (mx.to_array().map(f32x4::splat), my.to_array().map(f32x4::splat));
+        let zero = f32x4::ZERO;
+        let leaf = &self.data[9 * first..9 * (first + count) + LANES];
+        let mut k = 0;
+        while k < count {
+            let w: [f32x4; 9] = std::array::from_fn(|j| {
+                let c: [f32; LANES] = leaf[j * count + k..][..LANES].try_into().expect("padded");
+                f32x4::from(c)
+            });
             // Sheared coordinates: (v - o) . row, summed in the order of `Vec3::dot`.
-            let mut sh = [[0.0f32; LANES]; 6];
-            for v in 0..3 {
-                for l in 0..LANES {
-                    let d = [
-                        w[3 * v][l] - o[0],
-                        w[3 * v + 1][l] - o[1],
-                        w[3 * v + 2][l] - o[2],
-                    ];
-                    sh[2 * v][l] = d[0] * mx[0] + d[1] * mx[1] + d[2] * mx[2];
-                    sh[2 * v + 1][l] = d[0] * my[0] + d[1] * my[1] + d[2] * my[2];
-                }
-            }
-            let [ax, ay, bx, by, cx, cy] = sh;
-            let mut may_hit = [false; LANES];
-            for l in 0..LANES {
-                let u = cx[l] * by[l] - cy[l] * bx[l];
-                let v = ax[l] * cy[l] - ay[l] * cx[l];
-                let w = bx[l] * ay[l] - by[l] * ax[l];
-                let mixed = (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0);
-                let zero = u == 0.0 || v == 0.0 || w == 0.0;
-                may_hit[l] = !mixed || zero;
-            }
-            for l in 0..(end - i).min(LANES) {
-                if !may_hit[l] {
-                    continue;
-                }
-                let edges = watertight_edges([ax[l], ay[l], bx[l], by[l], cx[l], cy[l]]);
-                if let Some(h) = self.get(i + l).finish_watertight(r, edges) {
-                    let id = ids[i + l];
+            let shear = |v: usize| {
+                let d = [w[3 * v] - o[0], w[3 * v + 1] - o[1], w[3 * v + 2] - o[2]];
+                (
+                    d[0] * mx[0] + d[1] * mx[1] + d[2] * mx[2],
+                    d[0] * my[0] + d[1] * my[1] + d[2] * my[2],
+                )
+            };
+            let ((ax, ay), (bx, by), (cx, cy)) = (shear(0), shear(1), shear(2));
+            let u = cx * by - cy * bx;
+            let v = ax * cy - ay * cx;
+            let w = bx * ay - by * ax;
+            let neg = (u.cmp_lt(zero) | v.cmp_lt(zero) | w.cmp_lt(zero)).move_mask();
+            let pos = (u.cmp_gt(zero) | v.cmp_gt(zero) | w.cmp_gt(zero)).move_mask();
+            let on_edge = (u.cmp_eq(zero) | v.cmp_eq(zero) | w.cmp_eq(zero)).move_mask();
+            // Lanes whose signs agree, or with a zero edge function (decided in `f64` by the
+            // scalar kernel's own steps); lanes past the leaf belong to the next one.
+            let in_leaf = (1i32 << (count - k).min(LANES)) - 1;
+            let mut may_hit = (!(neg & pos) | on_edge) & in_leaf;
+            let sheared = [ax, ay, bx, by, cx, cy].map(|x| x.to_array());
+            while may_hit != 0 {
+                let l = may_hit.trailing_zeros() as usize;
+                may_hit &= may_hit - 1;
+                let edges = watertight_edges(sheared.map(|x| x[l]));
+                if let Some(h) = self.get(first, count, k + l).finish_watertight(r, edges) {
+                    let id = ids[first + k + l];
                     if ANY_HIT {
                         *best = Some((h, id));
                         return true;
@@ -134,7 +133,7 @@ impl TriangleSoa {
                     }
                 }
             }
-            i += LANES;
+            k += LANES;
         }
         false
     }
@@ -160,9 +159,10 @@ impl<const N: usize> TriBvh<N> {
 
     /// Collapses a binary BVH and converts its leaf-ordered triangles.
     pub fn from_binary(bvh: Bvh<Triangle>) -> Self {
+        let tree = WideTree::collapse(&bvh.nodes);
         Self {
-            tree: WideTree::collapse(&bvh.nodes),
-            tris: TriangleSoa::new(&bvh.prims),
+            tris: TriangleSoa::new(&bvh.prims, tree.leaves()),
+            tree,
             ids: bvh.ids,
             count: bvh.count,
             params: bvh.params,
@@ -210,12 +210,14 @@ impl<const N: usize> Accel for TriBvh<N> {
     fn validate(&self) -> Result<(), String> {
         let mut seen = vec![false; self.count];
         self.tree.check(|first, count, bounds: &Aabb| {
-            for k in first as usize..(first + count) as usize {
-                if k >= self.tris.len() {
-                    return Err("leaf points past the triangles".into());
-                }
+            let (first, count) = (first as usize, count as usize);
+            if first + count > self.tris.len() {
+                return Err("leaf points past the triangles".into());
+            }
+            for k in 0..count {
+                let (t, id) = (self.tris.get(first, count, k), self.ids[first + k]);
                 let split = self.params.splits_primitives();
-                check_leaf_primitive(&self.tris.get(k), self.ids[k], bounds, &mut seen, split)?;
+                check_leaf_primitive(&t, id, bounds, &mut seen, split)?;
             }
             Ok(())
         })?;
@@ -251,10 +253,14 @@ mod tests {
     #[test]
     fn soa_round_trips() {
         let tris = rt_testkit::scenes::random_soup(10, 3);
-        let soa = TriangleSoa::new(&tris);
+        let leaves = [(0, 3), (3, 1), (4, 6)];
+        let soa = TriangleSoa::new(&tris, leaves);
         assert_eq!(soa.len(), 10);
-        for (i, t) in tris.iter().enumerate() {
-            assert_eq!(soa.get(i), *t);
+        for (first, count) in leaves {
+            for k in 0..count {
+                let t = tris[(first + k) as usize];
+                assert_eq!(soa.get(first as usize, count as usize, k as usize), t);
+            }
         }
     }
 }

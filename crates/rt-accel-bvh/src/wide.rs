@@ -204,6 +204,16 @@ impl<const N: usize> WideTree<N> {
         self.depth
     }
 
+    /// Every leaf's `(first, count)`, in node order.
+    pub fn leaves(&self) -> Vec<(u32, u32)> {
+        let lanes = self.nodes.iter().flat_map(|n| {
+            (0..N)
+                .filter(|&l| n.is_used(l) && n.count[l] > 0)
+                .map(|l| (n.child[l], n.count[l]))
+        });
+        self.root_leaf.into_iter().chain(lanes).collect()
+    }
+
     /// Stack traversal; all children of a node are tested at once and pushed far to near.
     /// `leaf(first, count, ray, best)` tests a leaf, shrinking `ray.tmax` and updating `best`
     /// `(hit, caller's id)`; it returns true to stop (any-hit queries).
