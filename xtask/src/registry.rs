@@ -3,7 +3,8 @@
 
 use crate::obvhs_accel::{ObvhsBvh2, ObvhsCwBvh};
 use rt_accel_bvh::{
-    BvList, BvListParams, Bvh, Bvh4, Bvh8, BvhBuilder, BvhParams, CompressedBvh8, TriBvh4, TriBvh8,
+    BvList, BvListParams, Bvh, Bvh4, Bvh8, BvhBuilder, BvhParams, CompressedBvh8,
+    CompressedTriBvh8, TriBvh4, TriBvh8,
 };
 use rt_accel_grid::{Grid, GridParams};
 use rt_accel_kd::{BspParams, BspTree, KdParams, KdTraversal, KdTree};
@@ -272,6 +273,16 @@ const BASE: &[AccelEntry] = &[
         "bvh8-tri-spatial",
         "rt BVH8 over SoA triangles from the spatial-split BVH2 (the fastest single-ray BVH)",
         |p| boxed(TriBvh8::build(p, BvhParams::spatial())),
+    ),
+    own(
+        "bvh8c-tri",
+        "rt BVH8 with quantized child boxes over SoA triangles (bvh8c's nodes, bvh8-tri's leaves), balanced build",
+        |p| boxed(CompressedTriBvh8::build(p, BvhParams::balanced())),
+    ),
+    own(
+        "bvh8c-tri-spatial",
+        "rt BVH8 with quantized child boxes over SoA triangles, from the spatial-split BVH2",
+        |p| boxed(CompressedTriBvh8::build(p, BvhParams::spatial())),
     ),
     own(
         "bvh8-tri-fast",

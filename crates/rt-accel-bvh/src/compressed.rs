@@ -24,11 +24,11 @@
 //! returns exactly their hits.
 
 use crate::stats::check_leaf_primitive;
-use crate::wide::{
-    WideLanes, WideNode, WideTree, lane_entries, test_leaf, traverse_nodes,
-};
+use crate::wide::{WideLanes, WideNode, WideTree, lane_entries, test_leaf, traverse_nodes};
 use crate::{Bvh8, BvhParams};
-use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, Primitive, Ray, Vec3, all_referenced};
+use rt_geom::{
+    Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray, Vec3, all_referenced,
+};
 
 /// A node of [`CompressedBvh8`] (layout in the module documentation).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -165,14 +165,104 @@ impl WideLanes<8> for CompressedNode {
     }
 }
 
-/// An 8-wide BVH with quantized child boxes ([`CompressedNode`]), compressed from a [`Bvh8`];
-/// the same leaves and primitives.
+/// The topology of a compressed 8-wide BVH: nodes, root box, depth (the counterpart of
+/// [`WideTree`]). Leaves are ranges of a leaf-ordered primitive array kept by the owner
+/// ([`CompressedBvh8`], or [`CompressedTriBvh8`](crate::CompressedTriBvh8) with SIMD triangle
+/// leaves), which supplies the leaf test to [`CompressedTree::traverse`].
 #[derive(Clone, Debug)]
-pub struct CompressedBvh8<P> {
+pub struct CompressedTree {
     nodes: Vec<CompressedNode>,
     root_bounds: Aabb,
     root_leaf: Option<(u32, u32)>,
     depth: usize,
+}
+
+impl CompressedTree {
+    /// Compresses every node of `tree`.
+    pub fn compress(tree: &WideTree<8>) -> Self {
+        Self {
+            nodes: tree.nodes().iter().map(CompressedNode::compress).collect(),
+            root_bounds: tree.root_bounds(),
+            root_leaf: tree.root_leaf(),
+            depth: tree.depth(),
+        }
+    }
+
+    pub fn nodes(&self) -> &[CompressedNode] {
+        &self.nodes
+    }
+
+    /// The shared wide-BVH stack traversal (see [`WideTree::traverse`]).
+    #[inline(always)]
+    pub fn traverse<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<(PrimHit, u32)>) -> bool,
+    ) -> Option<Hit> {
+        traverse_nodes::<_, 8, ANY_HIT>(
+            &self.nodes,
+            &self.root_bounds,
+            self.root_leaf,
+            self.depth,
+            ray,
+            leaf,
+        )
+    }
+
+    /// Checks the topology: children after their parents, depth bounded, and
+    /// `leaf(first, count, bounds)` for each leaf, with `bounds` the intersection of the
+    /// dequantized boxes on the way down (what the traversal relies on).
+    pub fn check(
+        &self,
+        mut leaf: impl FnMut(u32, u32, &Aabb) -> Result<(), String>,
+    ) -> Result<(), String> {
+        if let Some((first, count)) = self.root_leaf {
+            return leaf(first, count, &self.root_bounds);
+        }
+        if self.nodes.is_empty() {
+            return Ok(());
+        }
+        // (node, the intersection of the dequantized boxes above it, depth)
+        let mut stack = vec![(0usize, self.root_bounds, 0usize)];
+        while let Some((i, above, depth)) = stack.pop() {
+            if depth > crate::MAX_DEPTH {
+                return Err(format!("node {i} deeper than {}", crate::MAX_DEPTH));
+            }
+            let n = self.nodes.get(i).ok_or(format!("node {i} out of range"))?;
+            for lane in (0..8).filter(|&l| n.child[l] != u32::MAX) {
+                let b = n.bounds(lane).intersection(above);
+                if n.count[lane] > 0 {
+                    leaf(n.child[lane], n.count[lane], &b)?;
+                } else if n.child[lane] as usize <= i {
+                    return Err(format!("node {i} lane {lane} points backwards"));
+                } else {
+                    stack.push((n.child[lane] as usize, b, depth + 1));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Statistics of `tree` (the same topology) with this layout's node bytes plus
+    /// `leaf_bytes` (primitives and ids).
+    pub(crate) fn stats(
+        &self,
+        tree: &WideTree<8>,
+        prims: usize,
+        params: &BvhParams,
+        leaf_bytes: usize,
+    ) -> AccelStats {
+        let mut stats = tree.stats(prims, params);
+        stats.bytes = std::mem::size_of_val(self.nodes.as_slice()) + leaf_bytes;
+        stats
+    }
+}
+
+/// An 8-wide BVH with quantized child boxes ([`CompressedNode`]), compressed from a [`Bvh8`];
+/// the same leaves and primitives.
+#[derive(Clone, Debug)]
+pub struct CompressedBvh8<P> {
+    tree: CompressedTree,
     prims: Vec<P>,
     ids: Vec<u32>,
     count: usize,
@@ -189,18 +279,13 @@ impl<P: Primitive> CompressedBvh8<P> {
 
     /// Compresses every node of `wide`.
     pub fn from_wide(wide: Bvh8<P>) -> Self {
-        let (tree, prims, ids, count, params): (WideTree<8>, _, _, _, _) = wide.into_parts();
-        let nodes: Vec<CompressedNode> =
-            tree.nodes().iter().map(CompressedNode::compress).collect();
-        let mut stats = tree.stats(count, &params);
-        stats.bytes = std::mem::size_of_val(nodes.as_slice())
-            + std::mem::size_of_val(prims.as_slice())
-            + std::mem::size_of_val(ids.as_slice());
+        let (wide, prims, ids, count, params): (WideTree<8>, _, _, _, _) = wide.into_parts();
+        let tree = CompressedTree::compress(&wide);
+        let leaf_bytes =
+            std::mem::size_of_val(prims.as_slice()) + std::mem::size_of_val(ids.as_slice());
+        let stats = tree.stats(&wide, count, &params, leaf_bytes);
         Self {
-            nodes,
-            root_bounds: tree.root_bounds(),
-            root_leaf: tree.root_leaf(),
-            depth: tree.depth(),
+            tree,
             prims,
             ids,
             count,
@@ -210,20 +295,13 @@ impl<P: Primitive> CompressedBvh8<P> {
     }
 
     pub fn nodes(&self) -> &[CompressedNode] {
-        &self.nodes
+        self.tree.nodes()
     }
 
     fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        traverse_nodes::<_, 8, ANY_HIT>(
-            &self.nodes,
-            &self.root_bounds,
-            self.root_leaf,
-            self.depth,
-            ray,
-            |first, count, r, best| {
-                test_leaf::<P, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
-            },
-        )
+        self.tree.traverse::<ANY_HIT>(ray, |first, count, r, best| {
+            test_leaf::<P, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
+        })
     }
 }
 
@@ -248,37 +326,13 @@ impl<P: Primitive> Accel for CompressedBvh8<P> {
     fn validate(&self) -> Result<(), String> {
         let mut seen = vec![false; self.count];
         let split = self.params.splits_primitives();
-        let mut check_leaf = |first: u32, count: u32, b: &Aabb| -> Result<(), String> {
+        self.tree.check(|first, count, b| {
             for k in first as usize..(first + count) as usize {
                 let p = self.prims.get(k).ok_or("leaf points past the primitives")?;
                 check_leaf_primitive(p, self.ids[k], b, &mut seen, split)?;
             }
             Ok(())
-        };
-        if let Some((first, count)) = self.root_leaf {
-            check_leaf(first, count, &self.root_bounds)?;
-            return all_referenced(&seen);
-        }
-        if !self.nodes.is_empty() {
-            // (node, the intersection of the dequantized boxes above it, depth)
-            let mut stack = vec![(0usize, self.root_bounds, 0usize)];
-            while let Some((i, above, depth)) = stack.pop() {
-                if depth > crate::MAX_DEPTH {
-                    return Err(format!("node {i} deeper than {}", crate::MAX_DEPTH));
-                }
-                let n = self.nodes.get(i).ok_or(format!("node {i} out of range"))?;
-                for lane in (0..8).filter(|&l| n.child[l] != u32::MAX) {
-                    let b = n.bounds(lane).intersection(above);
-                    if n.count[lane] > 0 {
-                        check_leaf(n.child[lane], n.count[lane], &b)?;
-                    } else if n.child[lane] as usize <= i {
-                        return Err(format!("node {i} lane {lane} points backwards"));
-                    } else {
-                        stack.push((n.child[lane] as usize, b, depth + 1));
-                    }
-                }
-            }
-        }
+        })?;
         all_referenced(&seen)
     }
 }

@@ -10,8 +10,8 @@
 //! | `stats` | `stats()` and `validate()` |
 //! | `refit` | [`Bvh::refit`] after vertices move |
 //! | [`wide`] | [`Bvh4`], [`Bvh8`]: collapsed wide BVHs, all children tested at once ([`WideTree`]) |
-//! | [`compressed`] | [`CompressedBvh8`]: the 8-wide BVH with child boxes quantized to 8 bits per plane, 128-byte nodes ([`CompressedNode`]) |
-//! | [`tri`] | [`TriBvh4`], [`TriBvh8`]: wide BVHs over triangles stored as SoA, four tested at once |
+//! | [`compressed`] | [`CompressedBvh8`]: the 8-wide BVH with child boxes quantized to 8 bits per plane, 128-byte nodes ([`CompressedNode`], topology [`CompressedTree`]) |
+//! | [`tri`] | [`TriBvh4`], [`TriBvh8`], [`CompressedTriBvh8`]: wide BVHs over triangles stored leaf by leaf as SoA ([`TriangleSoa`]), four tested at once |
 //!
 //! ```
 //! use rt_accel_bvh::{Bvh, BvhParams};
@@ -39,10 +39,10 @@ pub mod tri;
 pub mod wide;
 
 pub use bvlist::{BvList, BvListParams, Grouping};
-pub use compressed::{CompressedBvh8, CompressedNode};
+pub use compressed::{CompressedBvh8, CompressedNode, CompressedTree};
 pub use node::BvhNode;
 pub use params::{BvhBuilder, BvhParams, MAX_DEPTH};
-pub use tri::{TriBvh, TriBvh4, TriBvh8, TriangleSoa};
+pub use tri::{CompressedTriBvh8, TriBvh, TriBvh4, TriBvh8, TriangleSoa};
 pub use wide::{Bvh4, Bvh8, WideBvh, WideNode, WideTree};
 
 use rt_geom::{Accel, AccelStats, BuildError, Hit, Primitive, Ray, check_primitives};

@@ -10,6 +10,7 @@
 //! at `9 * first + j * count + k`; lanes past the leaf read its next row (or the next leaf, or
 //! the [`LANES`] floats of padding at the end) and are masked off.
 
+use crate::compressed::CompressedTree;
 use crate::stats::check_leaf_primitive;
 use crate::wide::WideTree;
 use crate::{Bvh, BvhParams};
@@ -71,6 +72,27 @@ impl TriangleSoa {
         self.data.len() * 4
     }
 
+    /// Checks the triangles of leaf `(first, count)` against its `bounds` and marks their ids
+    /// in `seen` (see [`check_leaf_primitive`]).
+    fn check_leaf(
+        &self,
+        ids: &[u32],
+        (first, count): (u32, u32),
+        bounds: &Aabb,
+        seen: &mut [bool],
+        split: bool,
+    ) -> Result<(), String> {
+        let (first, count) = (first as usize, count as usize);
+        if first + count > self.len {
+            return Err("leaf points past the triangles".into());
+        }
+        for k in 0..count {
+            let t = self.get(first, count, k);
+            check_leaf_primitive(&t, ids[first + k], bounds, seen, split)?;
+        }
+        Ok(())
+    }
+
     /// Tests triangles `first .. first + count` against the ray, nearest accepted hit last:
     /// the edge functions and their sign test for four triangles at once (SIMD lanes, one bit
     /// mask), then the scalar kernel's own [`Triangle::finish_watertight`] for the lanes that
@@ -88,7 +110,10 @@ impl TriangleSoa {
         use wide::{CmpEq, CmpGt, CmpLt, f32x4};
         let o = r.origin().to_array().map(f32x4::splat);
         let [mx, my, _] = r.watertight_rows();
-        let (mx, my) = (mx.to_array().map(f32x4::splat), my.to_array().map(f32x4::splat));
+        let (mx, my) = (
+            mx.to_array().map(f32x4::splat),
+            my.to_array().map(f32x4::splat),
+        );
         let zero = f32x4::ZERO;
         let leaf = &self.data[9 * first..9 * (first + count) + LANES];
         let mut k = 0;
@@ -209,17 +234,77 @@ impl<const N: usize> Accel for TriBvh<N> {
 
     fn validate(&self) -> Result<(), String> {
         let mut seen = vec![false; self.count];
-        self.tree.check(|first, count, bounds: &Aabb| {
-            let (first, count) = (first as usize, count as usize);
-            if first + count > self.tris.len() {
-                return Err("leaf points past the triangles".into());
-            }
-            for k in 0..count {
-                let (t, id) = (self.tris.get(first, count, k), self.ids[first + k]);
-                let split = self.params.splits_primitives();
-                check_leaf_primitive(&t, id, bounds, &mut seen, split)?;
-            }
-            Ok(())
+        let split = self.params.splits_primitives();
+        self.tree.check(|first, count, bounds| {
+            self.tris
+                .check_leaf(&self.ids, (first, count), bounds, &mut seen, split)
+        })?;
+        all_referenced(&seen)
+    }
+}
+
+/// [`TriBvh8`] with child boxes quantized to 8 bits per plane ([`CompressedTree`]): the
+/// SIMD triangle leaves of the one and the half-size nodes of the other.
+#[derive(Clone, Debug)]
+pub struct CompressedTriBvh8 {
+    tree: CompressedTree,
+    tris: TriangleSoa,
+    ids: Vec<u32>,
+    count: usize,
+    params: BvhParams,
+    stats: AccelStats,
+}
+
+impl CompressedTriBvh8 {
+    pub fn build(tris: &[Triangle], params: BvhParams) -> Result<Self, BuildError> {
+        Ok(Self::from_tri_bvh(TriBvh8::build(tris, params)?))
+    }
+
+    /// Compresses the nodes of `bvh`, keeping its triangles.
+    pub fn from_tri_bvh(bvh: TriBvh8) -> Self {
+        let tree = CompressedTree::compress(&bvh.tree);
+        let leaf_bytes = bvh.tris.bytes() + std::mem::size_of_val(bvh.ids.as_slice());
+        let stats = tree.stats(&bvh.tree, bvh.count, &bvh.params, leaf_bytes);
+        Self {
+            tree,
+            tris: bvh.tris,
+            ids: bvh.ids,
+            count: bvh.count,
+            params: bvh.params,
+            stats,
+        }
+    }
+
+    #[inline]
+    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
+        self.tree.traverse::<ANY_HIT>(ray, |first, count, r, best| {
+            self.tris
+                .intersect_range::<ANY_HIT>(first as usize, count as usize, r, &self.ids, best)
+        })
+    }
+}
+
+impl Accel for CompressedTriBvh8 {
+    #[inline]
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.traverse::<false>(ray)
+    }
+
+    #[inline]
+    fn occluded(&self, ray: &Ray) -> bool {
+        self.traverse::<true>(ray).is_some()
+    }
+
+    fn stats(&self) -> AccelStats {
+        self.stats.clone()
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        let mut seen = vec![false; self.count];
+        let split = self.params.splits_primitives();
+        self.tree.check(|first, count, bounds| {
+            self.tris
+                .check_leaf(&self.ids, (first, count), bounds, &mut seen, split)
         })?;
         all_referenced(&seen)
     }
@@ -240,6 +325,20 @@ mod tests {
         use super::*;
         rt_testkit::conformance_tests!(
             triangles: |p: &[Triangle]| TriBvh8::build(p, BvhParams::balanced()),
+        );
+    }
+
+    mod compressed_tri8 {
+        use super::*;
+        rt_testkit::conformance_tests!(
+            triangles: |p: &[Triangle]| CompressedTriBvh8::build(p, BvhParams::balanced()),
+        );
+    }
+
+    mod compressed_tri8_spatial {
+        use super::*;
+        rt_testkit::conformance_tests!(
+            triangles: |p: &[Triangle]| CompressedTriBvh8::build(p, BvhParams::spatial()),
         );
     }
 
