@@ -24,7 +24,9 @@
 //! returns exactly their hits.
 
 use crate::stats::check_leaf_primitive;
-use crate::wide::{WideLanes, WideNode, WideTree, lane_entries, test_leaf, traverse_nodes};
+use crate::wide::{
+    WideLanes, WideNode, WideTopology, WideTree, lane_entries, test_leaf, traverse_nodes,
+};
 use crate::{Bvh8, BvhParams};
 use rt_geom::{
     Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray, Vec3, all_referenced,
@@ -192,9 +194,25 @@ impl CompressedTree {
         &self.nodes
     }
 
+    /// Statistics of `tree` (the same topology) with this layout's node bytes plus
+    /// `leaf_bytes` (primitives and ids).
+    pub(crate) fn stats(
+        &self,
+        tree: &WideTree<8>,
+        prims: usize,
+        params: &BvhParams,
+        leaf_bytes: usize,
+    ) -> AccelStats {
+        let mut stats = tree.stats(prims, params);
+        stats.bytes = std::mem::size_of_val(self.nodes.as_slice()) + leaf_bytes;
+        stats
+    }
+}
+
+impl WideTopology for CompressedTree {
     /// The shared wide-BVH stack traversal (see [`WideTree::traverse`]).
     #[inline(always)]
-    pub fn traverse<const ANY_HIT: bool>(
+    fn traverse<const ANY_HIT: bool>(
         &self,
         ray: &Ray,
         leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<(PrimHit, u32)>) -> bool,
@@ -212,7 +230,7 @@ impl CompressedTree {
     /// Checks the topology: children after their parents, depth bounded, and
     /// `leaf(first, count, bounds)` for each leaf, with `bounds` the intersection of the
     /// dequantized boxes on the way down (what the traversal relies on).
-    pub fn check(
+    fn check(
         &self,
         mut leaf: impl FnMut(u32, u32, &Aabb) -> Result<(), String>,
     ) -> Result<(), String> {
@@ -241,20 +259,6 @@ impl CompressedTree {
             }
         }
         Ok(())
-    }
-
-    /// Statistics of `tree` (the same topology) with this layout's node bytes plus
-    /// `leaf_bytes` (primitives and ids).
-    pub(crate) fn stats(
-        &self,
-        tree: &WideTree<8>,
-        prims: usize,
-        params: &BvhParams,
-        leaf_bytes: usize,
-    ) -> AccelStats {
-        let mut stats = tree.stats(prims, params);
-        stats.bytes = std::mem::size_of_val(self.nodes.as_slice()) + leaf_bytes;
-        stats
     }
 }
 

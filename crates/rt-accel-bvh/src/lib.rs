@@ -43,7 +43,7 @@ pub use compressed::{CompressedBvh8, CompressedNode, CompressedTree};
 pub use node::BvhNode;
 pub use params::{BvhBuilder, BvhParams, MAX_DEPTH};
 pub use tri::{CompressedTriBvh8, TriBvh, TriBvh4, TriBvh8, TriangleSoa};
-pub use wide::{Bvh4, Bvh8, WideBvh, WideNode, WideTree};
+pub use wide::{Bvh4, Bvh8, WideBvh, WideNode, WideTopology, WideTree};
 
 use rt_geom::{Accel, AccelStats, BuildError, Hit, Primitive, Ray, check_primitives};
 

@@ -12,7 +12,7 @@
 
 use crate::compressed::CompressedTree;
 use crate::stats::check_leaf_primitive;
-use crate::wide::WideTree;
+use crate::wide::{WideTopology, WideTree};
 use crate::{Bvh, BvhParams};
 use rt_geom::all_referenced;
 use rt_geom::{
@@ -164,37 +164,69 @@ impl TriangleSoa {
     }
 }
 
-/// A wide BVH over triangles with four-lane leaf tests. `N` = 4 or 8 children per node.
+/// A wide BVH over triangles with four-lane leaf tests, over a topology `T`: [`WideTree<N>`]
+/// (`N` = 4 or 8 children per node) or the quantized [`CompressedTree`].
 #[derive(Clone, Debug)]
-pub struct TriBvh<const N: usize> {
-    tree: WideTree<N>,
+pub struct TriBvh<T> {
+    tree: T,
     tris: TriangleSoa,
     ids: Vec<u32>,
     count: usize,
     params: BvhParams,
+    stats: AccelStats,
 }
 
-pub type TriBvh4 = TriBvh<4>;
-pub type TriBvh8 = TriBvh<8>;
+pub type TriBvh4 = TriBvh<WideTree<4>>;
+pub type TriBvh8 = TriBvh<WideTree<8>>;
+/// [`TriBvh8`] with child boxes quantized to 8 bits per plane: the SIMD triangle leaves and
+/// half-size nodes.
+pub type CompressedTriBvh8 = TriBvh<CompressedTree>;
 
-impl<const N: usize> TriBvh<N> {
+impl<const N: usize> TriBvh<WideTree<N>> {
     pub fn build(tris: &[Triangle], params: BvhParams) -> Result<Self, BuildError> {
         Ok(Self::from_binary(Bvh::build(tris, params)?))
     }
 
     /// Collapses a binary BVH and converts its leaf-ordered triangles.
     pub fn from_binary(bvh: Bvh<Triangle>) -> Self {
-        let tree = WideTree::collapse(&bvh.nodes);
+        let tree = WideTree::<N>::collapse(&bvh.nodes);
+        let tris = TriangleSoa::new(&bvh.prims, tree.leaves());
+        let mut stats = tree.stats(bvh.count, &bvh.params);
+        stats.bytes += tris.bytes() + std::mem::size_of_val(bvh.ids.as_slice());
         Self {
-            tris: TriangleSoa::new(&bvh.prims, tree.leaves()),
             tree,
+            tris,
             ids: bvh.ids,
             count: bvh.count,
             params: bvh.params,
+            stats,
         }
     }
+}
 
-    pub fn tree(&self) -> &WideTree<N> {
+impl TriBvh<CompressedTree> {
+    pub fn build(tris: &[Triangle], params: BvhParams) -> Result<Self, BuildError> {
+        Ok(Self::from_tri_bvh(TriBvh8::build(tris, params)?))
+    }
+
+    /// Compresses the nodes of `bvh`, keeping its triangles.
+    pub fn from_tri_bvh(bvh: TriBvh8) -> Self {
+        let tree = CompressedTree::compress(&bvh.tree);
+        let leaf_bytes = bvh.tris.bytes() + std::mem::size_of_val(bvh.ids.as_slice());
+        let stats = tree.stats(&bvh.tree, bvh.count, &bvh.params, leaf_bytes);
+        Self {
+            tree,
+            tris: bvh.tris,
+            ids: bvh.ids,
+            count: bvh.count,
+            params: bvh.params,
+            stats,
+        }
+    }
+}
+
+impl<T: WideTopology> TriBvh<T> {
+    pub fn tree(&self) -> &T {
         &self.tree
     }
 
@@ -215,76 +247,7 @@ impl<const N: usize> TriBvh<N> {
     }
 }
 
-impl<const N: usize> Accel for TriBvh<N> {
-    #[inline]
-    fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        self.traverse::<false>(ray)
-    }
-
-    #[inline]
-    fn occluded(&self, ray: &Ray) -> bool {
-        self.traverse::<true>(ray).is_some()
-    }
-
-    fn stats(&self) -> AccelStats {
-        let mut s = self.tree.stats(self.count, &self.params);
-        s.bytes += self.tris.bytes() + std::mem::size_of_val(self.ids.as_slice());
-        s
-    }
-
-    fn validate(&self) -> Result<(), String> {
-        let mut seen = vec![false; self.count];
-        let split = self.params.splits_primitives();
-        self.tree.check(|first, count, bounds| {
-            self.tris
-                .check_leaf(&self.ids, (first, count), bounds, &mut seen, split)
-        })?;
-        all_referenced(&seen)
-    }
-}
-
-/// [`TriBvh8`] with child boxes quantized to 8 bits per plane ([`CompressedTree`]): the
-/// SIMD triangle leaves of the one and the half-size nodes of the other.
-#[derive(Clone, Debug)]
-pub struct CompressedTriBvh8 {
-    tree: CompressedTree,
-    tris: TriangleSoa,
-    ids: Vec<u32>,
-    count: usize,
-    params: BvhParams,
-    stats: AccelStats,
-}
-
-impl CompressedTriBvh8 {
-    pub fn build(tris: &[Triangle], params: BvhParams) -> Result<Self, BuildError> {
-        Ok(Self::from_tri_bvh(TriBvh8::build(tris, params)?))
-    }
-
-    /// Compresses the nodes of `bvh`, keeping its triangles.
-    pub fn from_tri_bvh(bvh: TriBvh8) -> Self {
-        let tree = CompressedTree::compress(&bvh.tree);
-        let leaf_bytes = bvh.tris.bytes() + std::mem::size_of_val(bvh.ids.as_slice());
-        let stats = tree.stats(&bvh.tree, bvh.count, &bvh.params, leaf_bytes);
-        Self {
-            tree,
-            tris: bvh.tris,
-            ids: bvh.ids,
-            count: bvh.count,
-            params: bvh.params,
-            stats,
-        }
-    }
-
-    #[inline]
-    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        self.tree.traverse::<ANY_HIT>(ray, |first, count, r, best| {
-            self.tris
-                .intersect_range::<ANY_HIT>(first as usize, count as usize, r, &self.ids, best)
-        })
-    }
-}
-
-impl Accel for CompressedTriBvh8 {
+impl<T: WideTopology> Accel for TriBvh<T> {
     #[inline]
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         self.traverse::<false>(ray)

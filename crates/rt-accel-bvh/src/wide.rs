@@ -76,6 +76,35 @@ pub struct WideTree<const N: usize> {
     pub(crate) depth: usize,
 }
 
+/// What the owner of a wide topology's leaves ([`TriBvh`](crate::TriBvh)) needs of it:
+/// [`WideTree`] and [`CompressedTree`](crate::CompressedTree) implement it.
+pub trait WideTopology: Send + Sync {
+    /// The stack traversal; `leaf(first, count, ray, best)` tests a leaf (see
+    /// [`WideTree::traverse`]).
+    fn traverse<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<(PrimHit, u32)>) -> bool,
+    ) -> Option<Hit>;
+    /// Checks the topology; `leaf(first, count, bounds)` checks each leaf.
+    fn check(&self, leaf: impl FnMut(u32, u32, &Aabb) -> Result<(), String>) -> Result<(), String>;
+}
+
+impl<const N: usize> WideTopology for WideTree<N> {
+    #[inline(always)]
+    fn traverse<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<(PrimHit, u32)>) -> bool,
+    ) -> Option<Hit> {
+        WideTree::traverse::<ANY_HIT>(self, ray, leaf)
+    }
+
+    fn check(&self, leaf: impl FnMut(u32, u32, &Aabb) -> Result<(), String>) -> Result<(), String> {
+        WideTree::check(self, leaf)
+    }
+}
+
 /// A BVH with `N` children per node (`N` = 4 or 8), sharing the leaf-ordered primitives of the
 /// binary tree it was collapsed from.
 #[derive(Clone, Debug)]
