@@ -96,8 +96,7 @@ impl TriangleSoa {
     /// Tests triangles `first .. first + count` against the ray, nearest accepted hit last:
     /// the edge functions and their sign test for four triangles at once (SIMD lanes, one bit
     /// mask), then the scalar kernel's own [`Triangle::finish_watertight`] for the lanes that
-    /// may hit. Returns true when
-    /// `ANY_HIT` and a hit was found.
+    /// may hit. Returns true when `ANY_HIT` and a hit was found.
     #[inline(always)]
     pub fn intersect_range<const ANY_HIT: bool>(
         &self,
