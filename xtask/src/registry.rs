@@ -271,7 +271,7 @@ const BASE: &[AccelEntry] = &[
     ),
     own(
         "bvh8-tri-spatial",
-        "rt BVH8 over SoA triangles from the spatial-split BVH2 (the fastest single-ray BVH)",
+        "rt BVH8 over SoA triangles from the spatial-split BVH2",
         |p| boxed(TriBvh8::build(p, BvhParams::spatial())),
     ),
     own(
