@@ -2,7 +2,7 @@
 //! eight octants; each primitive goes to every octant it really overlaps (clipped to the
 //! octant, not just boxed), empty octants are not stored.
 
-use crate::node::{FULL_CELL, OctNode, octant, quantize_content};
+use crate::node::{ChildRef, OctLeaf, OctNode, octant, quantize_content};
 use crate::params::OctreeParams;
 use rayon::prelude::*;
 use rt_geom::{Aabb, Primitive};
@@ -107,33 +107,63 @@ pub(crate) fn build<P: Primitive>(
     BuildNode::Inner(Box::new(children), content)
 }
 
-/// Writes `node` (whose cell is `cell`) into `nodes[slot]`, its octants contiguously after
-/// the current end.
-pub(crate) fn flatten(
-    node: &BuildNode,
-    cell: &Aabb,
-    slot: usize,
-    nodes: &mut Vec<OctNode>,
-    indices: &mut Vec<u32>,
-) {
-    let content = quantize_content(cell, &node.content());
-    match node {
-        BuildNode::Leaf(ids, _) => {
-            nodes[slot] = OctNode::leaf(indices.len() as u32, ids.len() as u32, content);
-            indices.extend_from_slice(ids);
-        }
-        BuildNode::Inner(children, _) => {
-            let first = nodes.len();
-            let mask = (0..8).fold(0u8, |m, i| m | ((children[i].is_some() as u8) << i));
-            nodes.resize(
-                first + mask.count_ones() as usize,
-                OctNode::leaf(0, 0, FULL_CELL),
-            );
-            nodes[slot] = OctNode::inner(first as u32, mask, content);
-            let octants = (0..8).filter_map(|i| Some((i, children[i].as_ref()?)));
-            for (k, (i, child)) in octants.enumerate() {
-                flatten(child, &octant(cell, i), first + k, nodes, indices);
+/// The flattened arrays of [`crate::Octree`].
+#[derive(Default)]
+pub(crate) struct Flat {
+    pub nodes: Vec<OctNode>,
+    pub leaves: Vec<OctLeaf>,
+    pub indices: Vec<u32>,
+}
+
+impl Flat {
+    /// Flattens the tree `root` of cell `cell`; returns the reference to its root.
+    pub fn add_root(&mut self, root: &BuildNode, cell: &Aabb) -> ChildRef {
+        match root {
+            BuildNode::Leaf(ids, _) => self.add_leaf(ids),
+            BuildNode::Inner(children, _) => {
+                self.nodes.push(OctNode::new(0, 0));
+                self.add_inner(children, cell, 0);
+                ChildRef::inner(0)
             }
+        }
+    }
+
+    fn add_leaf(&mut self, ids: &[u32]) -> ChildRef {
+        self.leaves.push(OctLeaf {
+            first: self.indices.len() as u32,
+            count: ids.len() as u32,
+        });
+        self.indices.extend_from_slice(ids);
+        ChildRef::leaf(self.leaves.len() - 1)
+    }
+
+    /// Writes the inner node of `children` (whose cell is `cell`) into `nodes[slot]`: its
+    /// leaves at the end of `leaves`, its inner octants contiguously at the end of `nodes`,
+    /// then their subtrees depth first.
+    fn add_inner(&mut self, children: &[Option<BuildNode>; 8], cell: &Aabb, slot: usize) {
+        let inner_base = self.nodes.len();
+        let mut node = OctNode::new(inner_base as u32, self.leaves.len() as u32);
+        let mut inner = Vec::with_capacity(8);
+        for (i, child) in children.iter().enumerate() {
+            let Some(child) = child else { continue };
+            let b = octant(cell, i);
+            let leaf = match child {
+                BuildNode::Leaf(ids, _) => {
+                    self.add_leaf(ids);
+                    true
+                }
+                BuildNode::Inner(grandchildren, _) => {
+                    inner.push((grandchildren, b));
+                    false
+                }
+            };
+            node.set_octant(i, leaf, quantize_content(&b, &child.content()));
+        }
+        self.nodes[slot] = node;
+        self.nodes
+            .resize(inner_base + inner.len(), OctNode::new(0, 0));
+        for (k, (grandchildren, b)) in inner.into_iter().enumerate() {
+            self.add_inner(grandchildren, &b, inner_base + k);
         }
     }
 }

@@ -2,7 +2,7 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`node`] | [`OctNode`], 16 bytes: child mask + first child, or a leaf's range, and a quantized content box (layout there) |
+//! | [`node`] | [`OctNode`], 64 bytes: child and leaf masks, first inner child and first leaf, the octants' quantized content boxes; [`OctLeaf`], 8 bytes (layout there) |
 //! | [`params`] | [`OctreeParams`], [`OctreeTraversal`] |
 //! | `build` | split at the centre while a node holds more than `max_prims`; primitives clipped to each octant |
 //! | `traverse` | the seeds' recursive nearest-first walk, and the parametric walk of Revelles et al. |
@@ -26,17 +26,20 @@ pub mod node;
 pub mod params;
 mod traverse;
 
-pub use node::OctNode;
+pub use node::{ChildRef, OctLeaf, OctNode};
 pub use params::{MAX_DEPTH, OctreeParams, OctreeTraversal};
 
-use node::octant;
+use node::{MAX_NODES, octant};
 use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, Primitive, Ray, Vec3, check_primitives};
 
 /// An octree over primitives `P`.
 #[derive(Clone, Debug)]
 pub struct Octree<P> {
     nodes: Vec<OctNode>,
+    leaves: Vec<OctLeaf>,
     indices: Vec<u32>,
+    /// The root node (unused when there are no primitives).
+    root: ChildRef,
     prims: Vec<P>,
     /// The root cube.
     bounds: Aabb,
@@ -45,12 +48,14 @@ pub struct Octree<P> {
 
 impl<P: Primitive> Octree<P> {
     /// Builds over `prims` (copied) inside the cube around them. Empty input gives an empty
-    /// tree.
+    /// tree. References are capped at [`MAX_NODES`] in all (beyond the memory of any machine
+    /// this runs on), so that every index fits its field.
     pub fn build(prims: &[P], params: OctreeParams) -> Result<Self, BuildError> {
         params.validate()?;
-        check_primitives(prims, u32::MAX as usize - 1)?;
-        let (mut nodes, mut indices) = (Vec::new(), Vec::new());
+        check_primitives(prims, MAX_NODES - 1)?;
+        let mut flat = build::Flat::default();
         let mut bounds = Aabb::EMPTY;
+        let mut root = ChildRef::inner(0);
         if !prims.is_empty() {
             let b = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
             // A cube, so that octants stay cubes (no flat octants duplicating everything).
@@ -62,14 +67,16 @@ impl<P: Primitive> Octree<P> {
                 params: &params,
             };
             let n = prims.len();
-            let budget = ((params.reference_budget as f64 * n as f64) as usize).max(n);
-            let root = build::build(&ctx, (0..n as u32).collect(), bounds, 0, budget);
-            nodes.push(OctNode::leaf(0, 0, node::FULL_CELL));
-            build::flatten(&root, &bounds, 0, &mut nodes, &mut indices);
+            let budget = (params.reference_budget as f64 * n as f64).min((MAX_NODES - 1) as f64);
+            let budget = (budget as usize).max(n);
+            let tree = build::build(&ctx, (0..n as u32).collect(), bounds, 0, budget);
+            root = flat.add_root(&tree, &bounds);
         }
         Ok(Self {
-            nodes,
-            indices,
+            nodes: flat.nodes,
+            leaves: flat.leaves,
+            indices: flat.indices,
+            root,
             prims: prims.to_vec(),
             bounds,
             params,
@@ -78,6 +85,15 @@ impl<P: Primitive> Octree<P> {
 
     pub fn nodes(&self) -> &[OctNode] {
         &self.nodes
+    }
+
+    pub fn leaves(&self) -> &[OctLeaf] {
+        &self.leaves
+    }
+
+    /// The root node; meaningless for an empty tree (no leaves).
+    pub fn root(&self) -> ChildRef {
+        self.root
     }
 
     pub fn indices(&self) -> &[u32] {
@@ -99,22 +115,24 @@ impl<P: Primitive> Octree<P> {
         self
     }
 
-    /// Calls `f(node, box, depth)` for every node, parents first.
-    fn walk(&self, f: &mut impl FnMut(usize, &Aabb, usize)) {
-        if self.nodes.is_empty() {
+    /// Calls `f(node, cell, depth, content)` for every node, parents first, where `content`
+    /// is the node's content box as its parent stores it (the cell for the root).
+    fn walk(&self, f: &mut impl FnMut(ChildRef, &Aabb, usize, &Aabb)) {
+        if self.leaves.is_empty() {
             return;
         }
-        let mut stack = vec![(0usize, self.bounds, 0usize)];
-        while let Some((i, b, d)) = stack.pop() {
-            f(i, &b, d);
-            let n = self.nodes[i];
-            if !n.is_leaf() && d <= MAX_DEPTH as usize {
-                for o in 0..8 {
-                    if let Some(c) = n.child(o) {
-                        if c > i && c < self.nodes.len() {
-                            stack.push((c, octant(&b, o), d + 1));
-                        }
-                    }
+        let mut stack = vec![(self.root, self.bounds, 0usize, self.bounds)];
+        while let Some((r, cell, d, content)) = stack.pop() {
+            f(r, &cell, d, &content);
+            if r.is_leaf() || d > MAX_DEPTH as usize {
+                continue;
+            }
+            let Some(n) = self.nodes.get(r.index()) else {
+                continue;
+            };
+            for o in 0..8 {
+                if let Some(c) = n.child(o) {
+                    stack.push((c, octant(&cell, o), d + 1, n.content_box(&cell, o)));
                 }
             }
         }
@@ -133,55 +151,75 @@ impl<P: Primitive> Accel for Octree<P> {
     fn stats(&self) -> AccelStats {
         let s = AccelStats {
             primitives: self.prims.len(),
-            nodes: self.nodes.len(),
+            nodes: self.nodes.len() + self.leaves.len(),
             bytes: std::mem::size_of_val(self.nodes.as_slice())
+                + std::mem::size_of_val(self.leaves.as_slice())
                 + std::mem::size_of_val(self.indices.as_slice())
                 + std::mem::size_of_val(self.prims.as_slice()),
             ..AccelStats::default()
         };
-        if self.nodes.is_empty() {
+        if self.leaves.is_empty() {
             return s;
         }
         let mut acc = rt_geom::StatsSum::new(s, &self.bounds);
-        self.walk(&mut |i, b, d| {
-            let n = self.nodes[i];
-            acc.add(b, d, n.is_leaf(), n.prims().len())
+        self.walk(&mut |r, b, d, _| {
+            let count = match r.is_leaf() {
+                true => self.leaves[r.index()].count as usize,
+                false => 0,
+            };
+            acc.add(b, d, r.is_leaf(), count)
         });
         acc.finish()
     }
 
-    /// Children after their parent and in range; every leaf within the index array; every
-    /// referenced primitive overlapping its leaf's box, and inside the leaf's content box
-    /// where it is inside the cell; every primitive referenced.
+    /// Inner children after their parent and every child in range; every leaf within the
+    /// index array; every referenced primitive overlapping its leaf's cell, and inside the
+    /// leaf's content box where it is inside the cell; every node and every primitive
+    /// reached.
     fn validate(&self) -> Result<(), String> {
-        if self.nodes.is_empty() {
-            return if self.prims.is_empty() {
+        if self.leaves.is_empty() {
+            return if self.prims.is_empty() && self.nodes.is_empty() {
                 Ok(())
             } else {
-                Err("no nodes for a non-empty scene".into())
+                Err("no leaves for a non-empty scene".into())
             };
         }
         let mut seen = vec![false; self.prims.len()];
         let mut err = None;
-        let mut reached = 0;
-        self.walk(&mut |i, b, d| {
-            reached += 1;
-            let n = self.nodes[i];
+        let (mut inner_reached, mut leaves_reached) = (0, 0);
+        self.walk(&mut |r, b, d, content| {
+            let i = r.index();
             if d > self.params.max_depth as usize {
-                err.get_or_insert(format!("node {i} at depth {d}"));
+                err.get_or_insert(format!("node {r:?} at depth {d}"));
             }
-            if !n.is_leaf() {
-                let last = n.first_child() + n.mask().count_ones() as usize;
-                if n.first_child() <= i || last > self.nodes.len() || n.mask() == 0 {
+            if !r.is_leaf() {
+                inner_reached += 1;
+                let Some(n) = self.nodes.get(i) else {
+                    err.get_or_insert(format!("inner node {i} out of range"));
+                    return;
+                };
+                let inner = (n.mask() & !n.leaf_mask()).count_ones() as usize;
+                let leaves = n.leaf_mask().count_ones() as usize;
+                if n.mask() == 0
+                    || n.leaf_mask() & !n.mask() != 0
+                    || (inner > 0 && n.inner_base() <= i)
+                    || n.inner_base() + inner > self.nodes.len()
+                    || n.leaf_base() + leaves > self.leaves.len()
+                {
                     err.get_or_insert(format!("inner node {i} has children out of range"));
                 }
                 return;
             }
-            if n.prims().end > self.indices.len() {
+            leaves_reached += 1;
+            let Some(leaf) = self.leaves.get(i) else {
+                err.get_or_insert(format!("leaf {i} out of range"));
+                return;
+            };
+            if leaf.prims().end > self.indices.len() {
                 err.get_or_insert(format!("leaf {i} points past the index array"));
                 return;
             }
-            for &p in &self.indices[n.prims()] {
+            for &p in &self.indices[leaf.prims()] {
                 match self.prims.get(p as usize) {
                     None => {
                         err.get_or_insert(format!("leaf {i} holds primitive {p}, out of range"));
@@ -191,9 +229,7 @@ impl<P: Primitive> Accel for Octree<P> {
                             "primitive {p} is in leaf {i} but not in its box"
                         ));
                     }
-                    Some(prim)
-                        if !holds(&n.content_box(b), &prim.clipped_bounds(b).intersection(*b)) =>
-                    {
+                    Some(prim) if !holds(content, &prim.clipped_bounds(b).intersection(*b)) => {
                         err.get_or_insert(format!(
                             "primitive {p} reaches outside the content box of leaf {i}"
                         ));
@@ -202,11 +238,15 @@ impl<P: Primitive> Accel for Octree<P> {
                 }
             }
         });
-        if reached != self.nodes.len() {
-            return Err(format!("{} nodes, {reached} reachable", self.nodes.len()));
-        }
         if let Some(e) = err {
             return Err(e);
+        }
+        if inner_reached != self.nodes.len() || leaves_reached != self.leaves.len() {
+            return Err(format!(
+                "{} inner nodes and {} leaves, {inner_reached} and {leaves_reached} reachable",
+                self.nodes.len(),
+                self.leaves.len()
+            ));
         }
         rt_geom::all_referenced(&seen)
     }
@@ -298,8 +338,8 @@ mod tests {
             t.v = t.v.map(|p| p * 0.1);
         }
         let t = Octree::build(&tris, OctreeParams::standard()).unwrap();
+        assert!(!t.root().is_leaf());
         let root = t.nodes()[0];
-        assert!(!root.is_leaf());
         assert_eq!(root.mask().count_ones(), 2, "{:08b}", root.mask());
     }
 

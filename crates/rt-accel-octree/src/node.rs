@@ -1,95 +1,179 @@
-//! The flattened node of [`Octree`](crate::Octree): 16 bytes.
+//! The flattened octree: inner nodes of 64 bytes (one cache line) and leaves of 8 bytes, in
+//! two arrays.
 //!
 //! ```text
+//! OctNode (inner node, 64 bytes, 64-byte aligned)
 //! offset  size  field
-//!      0     4  data     inner: index of the first child; leaf: first entry in the index array
-//!      4     4  meta     bit 31: leaf;
-//!                        inner: bits 0..=7 the child mask (bit i: octant i is non-empty);
-//!                        leaf: bits 0..=30 the number of primitives
-//!      8     6  content  the min/max box of what the node holds, quantized in its own cell:
-//!                        min x, y, z then max x, y, z, each 0..=255 (see `content_box`)
-//!     14     2  (padding)
+//!      0     4  inner_base  index in `nodes` of the node's first inner child
+//!      4     4  leaf_base   index in `leaves` of its first leaf child
+//!      8     1  mask        bit i: octant i is non-empty (stored)
+//!      9     1  leaf_mask   bit i: octant i is a leaf (a subset of `mask`)
+//!     10     6  (padding)
+//!     16    24  lo          [axis][octant]: the octant's content box, min corner, 0..=255
+//!     40    24  hi          [axis][octant]: its max corner (see `content_box`)
+//!
+//! OctLeaf (8 bytes): first entry in the index array, number of primitives
 //! ```
 //!
-//! The content box is the union of the node's primitives clipped to its cell: a ray that
-//! enters the cell but misses the content box cannot hit anything there, and the walks skip
-//! the node (the "min/max information" of the seeds). Quantized to 1/254 of the cell side,
-//! rounded outward, it costs 6 bytes; `content_box` is the one formula both the build
-//! (to round outward) and the walks use.
-//!
 //! Octant `i` of a node is the half of its box above the centre along x when bit 0 of `i` is
-//! set, along y for bit 1, along z for bit 2. Only non-empty octants are stored, contiguously
-//! and in octant order: octant `i` is node `data + popcount(mask & ((1 << i) - 1))`.
+//! set, along y for bit 1, along z for bit 2. Only non-empty octants are stored: the inner
+//! ones contiguously in `nodes` and the leaves contiguously in `leaves`, each in octant
+//! order, so that inner octant `i` is node `inner_base + popcount(inner mask below i)` and
+//! leaf octant `i` is leaf `leaf_base + popcount(leaf_mask below i)`.
+//!
+//! The content box of an octant is the union of its primitives clipped to its cell: a ray
+//! that enters the cell but misses the content box cannot hit anything there, and the walks
+//! skip it (the "min/max information" of the seeds). The parent holds its eight octants'
+//! boxes, quantized to 1/254 of the octant's side and rounded outward (6 bytes each, stored
+//! by axis so that one SIMD pass reads all eight), so that a walk decides which octants to
+//! enter from the one cache line of the parent and loads a child only when it goes there.
+//! `content_box` is the one formula both the build (to round outward) and the walks use.
 
 use rt_geom::{Aabb, Vec3};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(C, align(16))]
+#[repr(C, align(64))]
 pub struct OctNode {
-    data: u32,
-    meta: u32,
-    content: [u8; 6],
+    inner_base: u32,
+    leaf_base: u32,
+    mask: u8,
+    leaf_mask: u8,
+    _pad: [u8; 6],
+    /// Content box codes of octant `i`, axis `a`: `lo[a][i]..=hi[a][i]`.
+    pub lo: [[u8; 8]; 3],
+    pub hi: [[u8; 8]; 3],
 }
 
-const _: () = assert!(std::mem::size_of::<OctNode>() == 16);
+const _: () = assert!(std::mem::size_of::<OctNode>() == 64);
 
-const LEAF: u32 = 1 << 31;
+/// A leaf: the primitives `indices[first..first + count]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct OctLeaf {
+    pub first: u32,
+    pub count: u32,
+}
 
-/// Largest primitive count of a leaf.
-pub const MAX_LEAF_COUNT: u32 = LEAF - 1;
+const _: () = assert!(std::mem::size_of::<OctLeaf>() == 8);
+
+impl OctLeaf {
+    /// The leaf's range in the index array.
+    #[inline]
+    pub fn prims(&self) -> std::ops::Range<usize> {
+        self.first as usize..self.first as usize + self.count as usize
+    }
+}
+
+/// A reference to a node: an inner node's index in `nodes`, or a leaf's in `leaves` with
+/// [`ChildRef::LEAF`] set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ChildRef(pub u32);
+
+impl ChildRef {
+    pub const LEAF: u32 = 1 << 31;
+
+    pub fn inner(i: usize) -> Self {
+        Self(i as u32)
+    }
+
+    pub fn leaf(i: usize) -> Self {
+        Self(i as u32 | Self::LEAF)
+    }
+
+    #[inline]
+    pub fn is_leaf(self) -> bool {
+        self.0 & Self::LEAF != 0
+    }
+
+    /// The index in `nodes` or in `leaves`.
+    #[inline]
+    pub fn index(self) -> usize {
+        (self.0 & !Self::LEAF) as usize
+    }
+}
+
+/// Largest number of inner nodes or leaves (the top bit of a [`ChildRef`] is its kind).
+pub const MAX_NODES: usize = ChildRef::LEAF as usize;
 
 impl OctNode {
-    /// An inner node; `content` from [`quantize_content`] (the whole cell: [`FULL_CELL`]).
-    pub fn inner(first_child: u32, mask: u8, content: [u8; 6]) -> Self {
+    /// An inner node with no octants yet (see [`OctNode::set_octant`]).
+    pub fn new(inner_base: u32, leaf_base: u32) -> Self {
         Self {
-            data: first_child,
-            meta: mask as u32,
-            content,
+            inner_base,
+            leaf_base,
+            mask: 0,
+            leaf_mask: 0,
+            _pad: [0; 6],
+            lo: [[0; 8]; 3],
+            hi: [[0; 8]; 3],
         }
     }
 
-    pub fn leaf(first: u32, count: u32, content: [u8; 6]) -> Self {
-        debug_assert!(count <= MAX_LEAF_COUNT);
-        Self {
-            data: first,
-            meta: LEAF | count,
-            content,
+    /// Marks octant `i` non-empty (a leaf when `leaf`) with quantized content `q` (from
+    /// [`quantize_content`]). Octants must be set in increasing order of `i`.
+    pub fn set_octant(&mut self, i: usize, leaf: bool, q: [u8; 6]) {
+        self.mask |= 1 << i;
+        self.leaf_mask |= (leaf as u8) << i;
+        for a in 0..3 {
+            self.lo[a][i] = q[a];
+            self.hi[a][i] = q[a + 3];
         }
     }
 
-    /// The box holding everything the node holds, given the node's cell.
-    #[inline]
-    pub fn content_box(&self, cell: &Aabb) -> Aabb {
-        content_box(cell, &self.content)
-    }
-
-    #[inline]
-    pub fn is_leaf(&self) -> bool {
-        self.meta & LEAF != 0
-    }
-
-    /// Non-empty octants of an inner node.
+    /// Non-empty octants.
     #[inline]
     pub fn mask(&self) -> u8 {
-        self.meta as u8
+        self.mask
+    }
+
+    /// Octants that are leaves.
+    #[inline]
+    pub fn leaf_mask(&self) -> u8 {
+        self.leaf_mask
     }
 
     /// The node of octant `i`, if it is non-empty.
     #[inline]
-    pub fn child(&self, i: usize) -> Option<usize> {
-        let m = self.mask() as u32;
-        (m >> i & 1 == 1).then(|| self.data as usize + (m & ((1 << i) - 1)).count_ones() as usize)
+    pub fn child(&self, i: usize) -> Option<ChildRef> {
+        let below = (1u32 << i) - 1;
+        let (mask, leaves) = (self.mask as u32, self.leaf_mask as u32);
+        if mask >> i & 1 == 0 {
+            None
+        } else if leaves >> i & 1 == 1 {
+            let k = (leaves & below).count_ones();
+            Some(ChildRef::leaf((self.leaf_base + k) as usize))
+        } else {
+            let k = (mask & !leaves & below).count_ones();
+            Some(ChildRef::inner((self.inner_base + k) as usize))
+        }
     }
 
-    /// A leaf's range in the index array.
+    /// The quantized content box of octant `i` (meaningful when it is non-empty).
     #[inline]
-    pub fn prims(&self) -> std::ops::Range<usize> {
-        let first = self.data as usize;
-        first..first + (self.meta & !LEAF) as usize
+    pub fn content(&self, i: usize) -> [u8; 6] {
+        [
+            self.lo[0][i],
+            self.lo[1][i],
+            self.lo[2][i],
+            self.hi[0][i],
+            self.hi[1][i],
+            self.hi[2][i],
+        ]
     }
 
-    pub fn first_child(&self) -> usize {
-        self.data as usize
+    /// The box holding everything octant `i` holds, given this node's cell.
+    #[inline]
+    pub fn content_box(&self, cell: &Aabb, i: usize) -> Aabb {
+        content_box(&octant(cell, i), &self.content(i))
+    }
+
+    /// Index in `nodes` of the first inner child.
+    pub fn inner_base(&self) -> usize {
+        self.inner_base as usize
+    }
+
+    /// Index in `leaves` of the first leaf child.
+    pub fn leaf_base(&self) -> usize {
+        self.leaf_base as usize
     }
 }
 
@@ -148,13 +232,17 @@ pub fn quantize_content(cell: &Aabb, content: &Aabb) -> [u8; 6] {
 /// Octant `i` of `b` (split at its centre).
 #[inline]
 pub fn octant(b: &Aabb, i: usize) -> Aabb {
-    let c = b.center();
-    let pick =
-        |bit: usize, lo: f32, mid: f32, hi: f32| if i & bit != 0 { (mid, hi) } else { (lo, mid) };
-    let (x0, x1) = pick(1, b.min.x, c.x, b.max.x);
-    let (y0, y1) = pick(2, b.min.y, c.y, b.max.y);
-    let (z0, z1) = pick(4, b.min.z, c.z, b.max.z);
-    Aabb::new(Vec3::new(x0, y0, z0), Vec3::new(x1, y1, z1))
+    octant_at(b, b.center(), i)
+}
+
+/// Octant `i` of `b`, given its centre `c` (= `b.center()`).
+#[inline(always)]
+pub fn octant_at(b: &Aabb, c: Vec3, i: usize) -> Aabb {
+    let upper = rt_geom::glam::BVec3::new(i & 1 != 0, i & 2 != 0, i & 4 != 0);
+    Aabb::new(
+        Vec3::select(upper, c, b.min),
+        Vec3::select(upper, b.max, c),
+    )
 }
 
 #[cfg(test)]
@@ -163,16 +251,21 @@ mod tests {
 
     #[test]
     fn fields_and_octants() {
-        let n = OctNode::inner(10, 0b1010_0110, FULL_CELL);
-        assert!(!n.is_leaf());
+        let mut n = OctNode::new(10, 20);
+        for (i, leaf) in [(1, false), (2, true), (5, false), (7, true)] {
+            n.set_octant(i, leaf, [i as u8, 1, 2, 3, 4, 5]);
+        }
+        assert_eq!(n.mask(), 0b1010_0110);
+        assert_eq!(n.leaf_mask(), 0b1000_0100);
         assert_eq!(n.child(0), None);
-        assert_eq!(n.child(1), Some(10));
-        assert_eq!(n.child(2), Some(11));
-        assert_eq!(n.child(5), Some(12));
-        assert_eq!(n.child(7), Some(13));
-        let l = OctNode::leaf(5, 3, FULL_CELL);
-        assert!(l.is_leaf());
-        assert_eq!(l.prims(), 5..8);
+        assert_eq!(n.child(1), Some(ChildRef::inner(10)));
+        assert_eq!(n.child(2), Some(ChildRef::leaf(20)));
+        assert_eq!(n.child(5), Some(ChildRef::inner(11)));
+        assert_eq!(n.child(7), Some(ChildRef::leaf(21)));
+        assert_eq!(n.content(5), [5, 1, 2, 3, 4, 5]);
+        let r = ChildRef::leaf(21);
+        assert!(r.is_leaf() && r.index() == 21 && !ChildRef::inner(21).is_leaf());
+        assert_eq!(OctLeaf { first: 5, count: 3 }.prims(), 5..8);
         let b = Aabb::new(Vec3::ZERO, Vec3::splat(2.0));
         assert_eq!(octant(&b, 0), Aabb::new(Vec3::ZERO, Vec3::ONE));
         assert_eq!(octant(&b, 7), Aabb::new(Vec3::ONE, Vec3::splat(2.0)));

@@ -1,42 +1,50 @@
 //! Both walks. Each octant's box is the same `octant()` of its parent that the build used,
-//! and both skip an octant whose content box (the node's min/max information, see
-//! [`crate::node`]) the ray does not enter, or enters beyond the closest hit.
+//! and both skip an octant whose content box (the min/max information its parent stores,
+//! see [`crate::node`]) the ray does not enter, or enters beyond the closest hit.
 //!
 //! - `recursive`: the seeds' walk. At an inner node, every non-empty octant whose content box
-//!   the ray enters (the padded box test) is collected with its entry distance, the list is
-//!   sorted, and the octants are visited nearest first; octants entered beyond the closest
-//!   hit are skipped.
-//! - `parametric` (Revelles, Ureña & Lastra 2000): per axis, the distances to the node's near
-//!   and far planes and to its centre plane, in the mirrored frame where every direction is
-//!   positive (octant numbers XOR-ed with the direction mask give the real ones). Each
-//!   octant's interval follows from these nine parameters, not from a box test: along an
-//!   axis it is `[near, mid]` or `[mid, far]`. Revelles' walk steps from the first octant
-//!   (from the entry plane) to the next (across the smallest exit) with data-dependent
-//!   branches; here the eight intervals are evaluated at once in SIMD lanes and the
-//!   octants whose interval is non-empty are the ones the sequence visits, ordered as the
-//!   sequence orders them (each step crosses one more centre plane). The distances are
-//!   computed afresh at each node from the cell's coordinates (not averaged from the
-//!   parent's, so they are exactly the build's planes), NaN (a ray lying in a plane) counts
-//!   as "inside the slab", and each interval is padded like the box test. No sorting, and
-//!   the walk is iterative with an explicit stack.
+//!   the ray enters (the padded box test, one octant at a time) is collected with its entry
+//!   distance, the list is sorted, and the octants are visited nearest first; octants
+//!   entered beyond the closest hit are skipped.
+//! - `parametric` (Revelles, Ureña & Lastra 2000): per axis, the distances to the node's two
+//!   planes and to its centre plane; along an axis an octant's interval is `[t(lo), t(mid)]`
+//!   or `[t(mid), t(hi)]` (swapped for a negative direction), so the eight octant intervals
+//!   follow from these nine parameters, not from eight box tests. Revelles' walk steps from
+//!   the first octant (from the entry plane) to the next (across the smallest exit) with
+//!   data-dependent branches; here the eight intervals are evaluated at once in SIMD lanes,
+//!   narrowed by the octants' content boxes (read from the parent's one cache line), and the
+//!   octants left are the ones the sequence visits, taken in the order the sequence takes
+//!   them: in the mirrored frame where every direction is positive (octant numbers XOR-ed
+//!   with the direction's sign mask), each step crosses one more centre plane, so the
+//!   sequence orders octants by the number of bits set. The distances are computed afresh
+//!   at each node from the cell's coordinates (not averaged from the parent's, so they are
+//!   exactly the build's planes); NaN (a ray lying in a plane) leaves an interval unchanged,
+//!   as in the box test, and each interval is padded like the box test. No sorting: one
+//!   octant entered is walked next with no stack traffic, several are pushed far to near.
 //!
 //! Both walks keep a per-ray mailbox of the last 8 primitives tested: a primitive listed in
 //! several leaves along the ray is tested once.
 
 use crate::MAX_DEPTH;
 use crate::Octree;
-use crate::node::{OctNode, octant};
+use crate::node::{ChildRef, OctNode, content_box, octant, octant_at};
 use rt_geom::aabb::PAD;
-use rt_geom::{Aabb, Hit, Mailbox, Primitive, Ray, test_primitives};
-use wide::{CmpGe, CmpLe, CmpNe, f32x8};
+use rt_geom::{Aabb, Hit, Mailbox, Primitive, Ray, Vec3, test_primitives};
+use wide::{CmpEq, CmpGt, CmpLe, CmpLt, CmpNe, f32x8};
 
 struct Walk<'a, P> {
     tree: &'a Octree<P>,
     origin: [f32; 3],
     inv: [f32; 3],
-    /// Bit `a` set: the ray runs towards -a (octant bits mirrored).
-    mirror: usize,
-    /// Per axis, the lanes (mirrored octants) in the upper half along it.
+    /// Per axis: the ray runs towards -a.
+    neg: [bool; 3],
+    /// Bit `k`: the `k`-th octant of Revelles' sequence (see [`SEQUENCE_MASKS`]), by the
+    /// mask of real octants; the ray's row of the table.
+    sequence: &'static [u8; 256],
+    /// The real octant of step `k` of the sequence: `SEQUENCE_ORDER[k] ^ mirror`, where bit
+    /// `a` of `mirror` is set when the ray runs towards -a (octant bits mirrored).
+    octant_at_step: [u8; 8],
+    /// Per axis, the lanes (octants) in the upper half along it.
     upper_half: [f32x8; 3],
     ray: Ray,
     best: Option<Hit>,
@@ -48,7 +56,7 @@ impl<P: Primitive> Walk<'_, P> {
     /// Tests leaf `i`; true when `ANY_HIT` and something was hit.
     fn leaf<const ANY_HIT: bool>(&mut self, i: usize) -> bool {
         let tree = self.tree;
-        let ids = &tree.indices[tree.nodes[i].prims()];
+        let ids = &tree.indices[tree.leaves[i].prims()];
         let mailbox = &mut self.mailbox;
         test_primitives::<P, ANY_HIT>(&tree.prims, ids, &mut self.ray, &mut self.best, |p| {
             mailbox.seen(p)
@@ -62,17 +70,17 @@ impl<P: Primitive> Walk<'_, P> {
         t > self.ray.tmax
     }
 
-    fn recursive<const ANY_HIT: bool>(&mut self, i: usize, bounds: &Aabb) -> bool {
-        let node = self.tree.nodes[i];
-        if node.is_leaf() {
-            return self.leaf::<ANY_HIT>(i);
+    fn recursive<const ANY_HIT: bool>(&mut self, r: ChildRef, cell: &Aabb) -> bool {
+        if r.is_leaf() {
+            return self.leaf::<ANY_HIT>(r.index());
         }
-        let mut entered: [(f32, usize, Aabb); 8] = [(0.0, 0, Aabb::EMPTY); 8];
+        let node = &self.tree.nodes[r.index()];
+        let mut entered: [(f32, ChildRef, Aabb); 8] = [(0.0, r, Aabb::EMPTY); 8];
         let mut count = 0;
         for o in 0..8 {
             if let Some(child) = node.child(o) {
-                let b = octant(bounds, o);
-                let content = self.tree.nodes[child].content_box(&b);
+                let b = octant(cell, o);
+                let content = content_box(&b, &node.content(o));
                 if let Some((t0, _)) = content.clip_ray(&self.ray) {
                     entered[count] = (t0, child, b);
                     count += 1;
@@ -92,41 +100,12 @@ impl<P: Primitive> Walk<'_, P> {
         false
     }
 
-    /// `(near, mid, far)` distances to the planes of the box `lo..hi` along each axis, in the
-    /// mirrored frame. The centre is computed as [`Aabb::center`] does, so the planes are
-    /// exactly those of the build's [`octant`] boxes.
-    #[inline(always)]
-    fn planes(&self, cell: &Aabb) -> [[f32; 3]; 3] {
-        let (lo, hi) = (&cell.min, &cell.max);
-        std::array::from_fn(|a| {
-            let (near, far) = if self.mirror >> a & 1 == 1 {
-                (hi[a], lo[a])
-            } else {
-                (lo[a], hi[a])
-            };
-            let c = (lo[a] + hi[a]) * 0.5;
-            let t = |x: f32| (x - self.origin[a]) * self.inv[a];
-            // NaN: the ray lies in that plane; for the slab it is inside, and it never
-            // crosses the centre plane.
-            let (near, mid, far) = (t(near), t(c), t(far));
-            [
-                if near.is_nan() {
-                    f32::NEG_INFINITY
-                } else {
-                    near
-                },
-                if mid.is_nan() { f32::INFINITY } else { mid },
-                if far.is_nan() { f32::INFINITY } else { far },
-            ]
-        })
-    }
-
     /// The parametric walk, iterative: at an inner node the octants the ray enters are found
-    /// at once ([`Walk::entered_octants`]) and pushed far to near; the nearest comes up
-    /// next. A cell entered beyond the closest hit is dropped when it comes up. Each inner
-    /// node adds at most seven cells to the stack beyond the one walked next, so
-    /// `7 * depth + 1` entries suffice for a tree of that depth ([`stack_size`]); the stack
-    /// is the thread's own, reused from ray to ray.
+    /// at once ([`Walk::entered_octants`]); the nearest is walked next and the others are
+    /// pushed far to near. A cell entered beyond the closest hit is dropped when it comes
+    /// up. Each inner node adds at most seven cells to the stack, so `7 * depth + 1` entries
+    /// suffice for a tree of that depth ([`stack_size`]); the stack is the thread's own,
+    /// reused from ray to ray.
     fn parametric<const ANY_HIT: bool>(&mut self) -> bool {
         STACK.with(|stack| {
             let mut stack = stack.borrow_mut();
@@ -141,113 +120,149 @@ impl<P: Primitive> Walk<'_, P> {
     /// [`Walk::parametric`] on a stack of at least [`stack_size`] entries.
     fn parametric_on<const ANY_HIT: bool>(&mut self, stack: &mut [Pending]) -> bool {
         let tree = self.tree;
-        stack[0] = Pending {
+        let mut cur = Pending {
             cell: tree.bounds,
-            node: 0,
+            node: tree.root,
             t_enter: f32::NEG_INFINITY,
         };
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let cur = stack[top];
-            if self.beyond(cur.t_enter) {
-                continue;
-            }
-            let node = tree.nodes[cur.node as usize];
-            if node.is_leaf() {
-                if self.leaf::<ANY_HIT>(cur.node as usize) {
+        let mut top = 0;
+        loop {
+            if cur.node.is_leaf() {
+                if self.leaf::<ANY_HIT>(cur.node.index()) {
                     return true;
                 }
-                continue;
-            }
-            let (entered, t0) = self.entered_octants(&node, &cur.cell);
-            // Far to near: the sequence order reversed, one step per octant entered.
-            let mut pending = in_sequence_order(entered);
-            while pending != 0 {
-                let k = 7 - pending.leading_zeros() as usize;
-                pending &= !(1 << k);
-                let j = SEQUENCE_ORDER[k];
-                let real = j as usize ^ self.mirror;
-                let Some(child) = node.child(real) else {
+            } else {
+                let node = &tree.nodes[cur.node.index()];
+                // As `Aabb::center` computes it: exactly the build's planes.
+                let mid = cur.cell.center();
+                let t0 = self.entered_octants(node, &cur.cell, mid);
+                let entered = hit_lanes(&t0) & node.mask();
+                if entered != 0 {
+                    // Bit k: the k-th octant of the sequence (mirrored numbering).
+                    let mut pending = self.sequence[entered as usize];
+                    let nearest = pending.trailing_zeros() as usize;
+                    pending &= pending - 1;
+                    while pending != 0 {
+                        let k = 7 - pending.leading_zeros() as usize;
+                        pending &= !(1 << k);
+                        let i = self.octant_at_step[k] as usize;
+                        stack[top] = Pending::octant(node, &cur.cell, mid, i, t0[i]);
+                        top += 1;
+                    }
+                    let i = self.octant_at_step[nearest] as usize;
+                    cur = Pending::octant(node, &cur.cell, mid, i, t0[i]);
                     continue;
-                };
-                // Entered only if the ray meets what the octant holds.
-                let b = octant(&cur.cell, real);
-                let content = tree.nodes[child].content_box(&b);
-                if let Some((t_content, _)) = content.clip_ray(&self.ray) {
-                    stack[top] = Pending {
-                        cell: b,
-                        node: child as u32,
-                        t_enter: t0[j as usize].max(t_content),
-                    };
-                    top += 1;
+                }
+            }
+            loop {
+                if top == 0 {
+                    return false;
+                }
+                top -= 1;
+                cur = stack[top];
+                if !self.beyond(cur.t_enter) {
+                    break;
                 }
             }
         }
-        false
     }
 
     /// Revelles et al.'s octant intervals, for the eight octants of an inner node at once
-    /// (one 8-lane pass; lane `j` is octant `j` of the mirrored frame): along axis `a` the
-    /// octant spans `[near, mid]`, or `[mid, far]` when bit `a` of `j` is set; its interval
-    /// is the largest lower end to the smallest upper end, padded like the box test. Returns
-    /// the mirrored octants whose padded interval is non-empty and meets
-    /// `[tmin, tmax]` (bit `j`), with their padded entry distances.
-    ///
-    /// These are the octants of Revelles' sequence (first octant from the entry plane, the
-    /// next across the plane of the smallest exit), found without its data-dependent steps;
-    /// along the sequence each octant sets one more bit of `j` than the last, which is why
-    /// [`SEQUENCE_ORDER`] (by the number of bits set) visits them nearest first.
+    /// (lane `i`: octant `i`), each intersected with the octant's content box and with
+    /// `[tmin, tmax]` and padded like the box test. Returns the padded entry distance per
+    /// octant, NaN for the octants the ray does not enter.
     #[inline(always)]
-    fn entered_octants(&self, node: &OctNode, cell: &Aabb) -> (u8, [f32; 8]) {
-        let p = self.planes(cell);
-        let lane = |a: usize, upper: bool| {
-            let (below, above) = if upper {
-                (p[a][1], p[a][2])
-            } else {
-                (p[a][0], p[a][1])
-            };
-            self.upper_half[a].blend(f32x8::splat(above), f32x8::splat(below))
-        };
-        let t0 = lane(0, false).max(lane(1, false)).max(lane(2, false));
-        let t1 = lane(0, true).min(lane(1, true)).min(lane(2, true));
+    fn entered_octants(&self, node: &OctNode, cell: &Aabb, mid: Vec3) -> [f32; 8] {
+        let mut t = (f32x8::splat(self.ray.tmin), f32x8::splat(self.ray.tmax));
+        let planes = |a: usize| (cell.min[a], mid[a], cell.max[a]);
+        self.narrow_along(0, node, planes(0), &mut t);
+        self.narrow_along(1, node, planes(1), &mut t);
+        self.narrow_along(2, node, planes(2), &mut t);
+        let (t0, t1) = t;
         let pad = f32x8::splat(PAD);
-        let t0 = t0 - t0.abs() * pad;
-        let t1 = t1 + t1.abs() * pad;
-        let ok = t0.cmp_le(t1)
-            & t1.cmp_ge(f32x8::splat(self.ray.tmin))
-            & t0.cmp_le(f32x8::splat(self.ray.tmax));
-        let entered = ok.move_mask() as u8 & mirror_mask(node.mask(), self.mirror);
-        (entered, t0.to_array())
+        let (t0, t1) = (t0 - t0.abs() * pad, t1 + t1.abs() * pad);
+        let entry = t0.cmp_gt(f32x8::splat(self.ray.tmin)).blend(t0, f32x8::splat(self.ray.tmin));
+        t0.cmp_le(t1).blend(entry, f32x8::splat(f32::NAN)).to_array()
     }
+
+    /// Narrows the eight intervals `t` to the octants' slabs along axis `a`, and to their
+    /// content boxes' slabs. NaN (origin in a plane, zero direction) leaves an interval
+    /// unchanged, as in the box test.
+    #[inline(always)]
+    fn narrow_along(
+        &self,
+        a: usize,
+        node: &OctNode,
+        (lo, mid, hi): (f32, f32, f32),
+        t: &mut (f32x8, f32x8),
+    ) {
+        let (o, inv) = (f32x8::splat(self.origin[a]), f32x8::splat(self.inv[a]));
+        let dist = |x: f32x8| (x - o) * inv;
+        // The three parameters of this axis; per lane, the octant's slab is the lower or
+        // the upper half.
+        let upper = self.upper_half[a];
+        let half = |below: f32, above: f32| upper.blend(f32x8::splat(above), f32x8::splat(below));
+        let (t_lo, t_mid, t_hi) = (
+            dist(f32x8::splat(lo)),
+            dist(f32x8::splat(mid)),
+            dist(f32x8::splat(hi)),
+        );
+        let slab_a = upper.blend(t_mid, t_lo);
+        let slab_b = upper.blend(t_hi, t_mid);
+        // Content codes count steps of 1/254 of the octant's side from its low corner
+        // (`node::content_box`, the same arithmetic).
+        let base = half(lo, mid);
+        let step = half((mid - lo) * (1.0 / 254.0), (hi - mid) * (1.0 / 254.0));
+        let code = |q: &[u8; 8]| f32x8::from(q.map(f32::from));
+        let box_a = dist(base + code(&node.lo[a]) * step);
+        let box_b = dist(base + code(&node.hi[a]) * step);
+        let (near, far, box_near, box_far) = if self.neg[a] {
+            (slab_b, slab_a, box_b, box_a)
+        } else {
+            (slab_a, slab_b, box_a, box_b)
+        };
+        // The octant's slab and its content's, in one interval. Where one bound is NaN the
+        // result may be either (`fast_max` leaves NaN unspecified): NaN is no constraint,
+        // and the other is a true one, so the interval stays conservative either way.
+        let (near, far) = (box_near.fast_max(near), box_far.fast_min(far));
+        t.0 = near.cmp_gt(t.0).blend(near, t.0);
+        t.1 = far.cmp_lt(t.1).blend(far, t.1);
+    }
+}
+
+/// Bit `l` set for the lanes of `t` that are numbers (not NaN).
+#[inline(always)]
+fn hit_lanes(t: &[f32; 8]) -> u8 {
+    let v = f32x8::from(*t);
+    v.cmp_eq(v).move_mask() as u8
 }
 
 /// Mirrored octants in the order Revelles' sequence meets them: by the number of centre
 /// planes crossed.
 const SEQUENCE_ORDER: [u8; 8] = [0, 1, 2, 4, 3, 5, 6, 7];
 
-/// Bit `k` of the result is bit `SEQUENCE_ORDER[k]` of `mask` (octants 3 and 4 trade places).
-#[inline(always)]
-fn in_sequence_order(mask: u8) -> u8 {
-    mask & 0b1110_0111 | (mask & 0b1000) << 1 | (mask & 0b1_0000) >> 1
-}
+/// `SEQUENCE_MASKS[mirror][mask]`: bit `k` set when the `k`-th octant of the sequence,
+/// real octant `SEQUENCE_ORDER[k] ^ mirror`, is in `mask` (bit `i`: real octant `i`).
+static SEQUENCE_MASKS: [[u8; 256]; 8] = {
+    let mut t = [[0u8; 256]; 8];
+    let mut mirror = 0;
+    while mirror < 8 {
+        let mut mask = 0;
+        while mask < 256 {
+            let mut k = 0;
+            while k < 8 {
+                let real = SEQUENCE_ORDER[k] as usize ^ mirror;
+                t[mirror][mask] |= ((mask >> real & 1) as u8) << k;
+                k += 1;
+            }
+            mask += 1;
+        }
+        mirror += 1;
+    }
+    t
+};
 
-/// `mask` (bit `i`: real octant `i`) renumbered to mirrored octants `i ^ mirror`.
-#[inline(always)]
-fn mirror_mask(mut mask: u8, mirror: usize) -> u8 {
-    if mirror & 1 != 0 {
-        mask = (mask & 0x55) << 1 | (mask & 0xaa) >> 1;
-    }
-    if mirror & 2 != 0 {
-        mask = (mask & 0x33) << 2 | (mask & 0xcc) >> 2;
-    }
-    if mirror & 4 != 0 {
-        mask = mask.rotate_left(4);
-    }
-    mask
-}
-
-/// Lane `j` of axis `a` is non-zero when bit `a` of `j` is set.
+/// Lane `i` of axis `a` is non-zero when bit `a` of `i` is set.
 const UPPER_HALF: [[f32; 8]; 3] = [
     [0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0],
     [0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 1.0],
@@ -257,8 +272,9 @@ const UPPER_HALF: [[f32; 8]; 3] = [
 /// A cell waiting on the parametric walk's stack.
 #[derive(Clone, Copy)]
 struct Pending {
+    /// The node's cell (unused for leaves).
     cell: Aabb,
-    node: u32,
+    node: ChildRef,
     /// Padded entry distance of the cell (`-inf` for the root).
     t_enter: f32,
 }
@@ -270,9 +286,22 @@ impl Pending {
             min: rt_geom::Vec3::ZERO,
             max: rt_geom::Vec3::ZERO,
         },
-        node: 0,
+        node: ChildRef(0),
         t_enter: 0.0,
     };
+
+    /// Octant `i` (non-empty) of `node`, whose cell is `cell` with centre `mid`, entered at
+    /// `t_enter`.
+    #[inline(always)]
+    fn octant(node: &OctNode, cell: &Aabb, mid: Vec3, i: usize, t_enter: f32) -> Self {
+        let child = node.child(i).unwrap_or(ChildRef::leaf(0));
+        debug_assert!(node.mask() >> i & 1 == 1);
+        Self {
+            cell: octant_at(cell, mid, i),
+            node: child,
+            t_enter,
+        }
+    }
 }
 
 /// Stack entries the parametric walk needs in a tree of depth at most `depth`: seven per
@@ -288,23 +317,27 @@ thread_local! {
 
 impl<P: Primitive> Octree<P> {
     pub(crate) fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        if self.nodes.is_empty() || !ray.is_valid() {
+        if self.leaves.is_empty() || !ray.is_valid() {
             return None;
         }
         self.bounds.clip_ray(ray)?;
         let dir = ray.dir();
+        let neg = [0, 1, 2].map(|a| dir[a].is_sign_negative());
+        let mirror = (0..3).fold(0, |m, a| m | ((neg[a] as usize) << a));
         let mut walk = Walk {
             tree: self,
             origin: ray.origin().to_array(),
             inv: ray.inv_dir().to_array(),
-            mirror: (0..3).fold(0, |m, a| m | ((dir[a].is_sign_negative() as usize) << a)),
+            neg,
+            sequence: &SEQUENCE_MASKS[mirror],
+            octant_at_step: SEQUENCE_ORDER.map(|j| j ^ mirror as u8),
             upper_half: UPPER_HALF.map(f32x8::from).map(|l| l.cmp_ne(f32x8::ZERO)),
             ray: *ray,
             best: None,
             mailbox: Mailbox::default(),
         };
         match self.params.traversal {
-            crate::OctreeTraversal::Recursive => walk.recursive::<ANY_HIT>(0, &self.bounds),
+            crate::OctreeTraversal::Recursive => walk.recursive::<ANY_HIT>(self.root, &self.bounds),
             crate::OctreeTraversal::Parametric => walk.parametric::<ANY_HIT>(),
         };
         walk.best
