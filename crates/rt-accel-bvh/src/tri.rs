@@ -16,8 +16,8 @@ use crate::wide::{WideTopology, WideTree};
 use crate::{Bvh, BvhParams};
 use rt_geom::all_referenced;
 use rt_geom::{
-    Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Ray, Triangle, Vec3, replaces,
-    watertight_edges,
+    Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Ray, Triangle, TriangleLanes, Vec3,
+    replaces, watertight_edges, watertight_lanes,
 };
 
 /// Triangles tested together in a leaf.
@@ -106,41 +106,17 @@ impl TriangleSoa {
         ids: &[u32],
         best: &mut Option<(PrimHit, u32)>,
     ) -> bool {
-        use wide::{CmpEq, CmpGt, CmpLt, f32x4};
-        let o = r.origin().to_array().map(f32x4::splat);
-        let [mx, my, _] = r.watertight_rows();
-        let (mx, my) = (
-            mx.to_array().map(f32x4::splat),
-            my.to_array().map(f32x4::splat),
-        );
-        let zero = f32x4::ZERO;
         let leaf = &self.data[9 * first..9 * (first + count) + LANES];
         let mut k = 0;
         while k < count {
-            let w: [f32x4; 9] = std::array::from_fn(|j| {
+            let w: TriangleLanes = std::array::from_fn(|j| {
                 let c: [f32; LANES] = leaf[j * count + k..][..LANES].try_into().expect("padded");
-                f32x4::from(c)
+                wide::f32x4::from(c)
             });
-            // Sheared coordinates: (v - o) . row, summed in the order of `Vec3::dot`.
-            let shear = |v: usize| {
-                let d = [w[3 * v] - o[0], w[3 * v + 1] - o[1], w[3 * v + 2] - o[2]];
-                (
-                    d[0] * mx[0] + d[1] * mx[1] + d[2] * mx[2],
-                    d[0] * my[0] + d[1] * my[1] + d[2] * my[2],
-                )
-            };
-            let ((ax, ay), (bx, by), (cx, cy)) = (shear(0), shear(1), shear(2));
-            let u = cx * by - cy * bx;
-            let v = ax * cy - ay * cx;
-            let w = bx * ay - by * ax;
-            let neg = (u.cmp_lt(zero) | v.cmp_lt(zero) | w.cmp_lt(zero)).move_mask();
-            let pos = (u.cmp_gt(zero) | v.cmp_gt(zero) | w.cmp_gt(zero)).move_mask();
-            let on_edge = (u.cmp_eq(zero) | v.cmp_eq(zero) | w.cmp_eq(zero)).move_mask();
-            // Lanes whose signs agree, or with a zero edge function (decided in `f64` by the
-            // scalar kernel's own steps); lanes past the leaf belong to the next one.
-            let in_leaf = (1i32 << (count - k).min(LANES)) - 1;
-            let mut may_hit = (!(neg & pos) | on_edge) & in_leaf;
-            let sheared = [ax, ay, bx, by, cx, cy].map(|x| x.to_array());
+            let (may_hit, sheared) = watertight_lanes(&w, r);
+            // Lanes past the leaf belong to the next one.
+            let in_leaf = (1u32 << (count - k).min(LANES)) - 1;
+            let mut may_hit = may_hit & in_leaf;
             while may_hit != 0 {
                 let l = may_hit.trailing_zeros() as usize;
                 may_hit &= may_hit - 1;

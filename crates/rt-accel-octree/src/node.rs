@@ -239,10 +239,7 @@ pub fn octant(b: &Aabb, i: usize) -> Aabb {
 #[inline(always)]
 pub fn octant_at(b: &Aabb, c: Vec3, i: usize) -> Aabb {
     let upper = rt_geom::glam::BVec3::new(i & 1 != 0, i & 2 != 0, i & 4 != 0);
-    Aabb::new(
-        Vec3::select(upper, c, b.min),
-        Vec3::select(upper, b.max, c),
-    )
+    Aabb::new(Vec3::select(upper, c, b.min), Vec3::select(upper, b.max, c))
 }
 
 #[cfg(test)]

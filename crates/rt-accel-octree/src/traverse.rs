@@ -181,8 +181,12 @@ impl<P: Primitive> Walk<'_, P> {
         let (t0, t1) = t;
         let pad = f32x8::splat(PAD);
         let (t0, t1) = (t0 - t0.abs() * pad, t1 + t1.abs() * pad);
-        let entry = t0.cmp_gt(f32x8::splat(self.ray.tmin)).blend(t0, f32x8::splat(self.ray.tmin));
-        t0.cmp_le(t1).blend(entry, f32x8::splat(f32::NAN)).to_array()
+        let entry = t0
+            .cmp_gt(f32x8::splat(self.ray.tmin))
+            .blend(t0, f32x8::splat(self.ray.tmin));
+        t0.cmp_le(t1)
+            .blend(entry, f32x8::splat(f32::NAN))
+            .to_array()
     }
 
     /// Narrows the eight intervals `t` to the octants' slabs along axis `a`, and to their

@@ -1,8 +1,9 @@
 //! Triangles: the watertight ray/triangle test (reference kernel), Möller–Trumbore (option),
 //! and clipping to a box (for perfect kd-tree splits).
 
-use crate::{Aabb, PrimHit, Ray};
+use crate::{Aabb, Hit, PrimHit, Ray, replaces};
 use glam::{DVec3, Vec3};
+use wide::f32x4;
 
 /// A triangle given by its three vertices.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -332,6 +333,137 @@ pub fn watertight_edges([ax, ay, bx, by, cx, cy]: [f32; 6]) -> (f32, f32, f32) {
     (u, v, w)
 }
 
+/// Four triangles in SIMD lanes: coordinate `j` of `[v0.x, v0.y, v0.z, v1.x, .., v2.z]` in
+/// vector `j`, lane `l` holding triangle `l`.
+pub type TriangleLanes = [f32x4; 9];
+
+/// The watertight test's edge functions for four triangles at once ([`TriangleLanes`]),
+/// with the scalar kernel's arithmetic (vertex minus origin, dotted with the ray's
+/// [`Ray::watertight_rows`] in the order of `Vec3::dot`), and their sign test. Returns the
+/// lanes the sign test cannot reject (signs that agree, or an edge function exactly zero,
+/// which [`watertight_edges`] recomputes in `f64`) as bits, and the sheared coordinates
+/// `[ax, ay, bx, by, cx, cy]` of every lane: for such a lane `l`,
+/// `tri.finish_watertight(ray, watertight_edges(sheared.map(|x| x[l])))` is exactly what
+/// [`Triangle::intersect_watertight`] returns.
+#[inline(always)]
+pub fn watertight_lanes(w: &TriangleLanes, ray: &Ray) -> (u32, [[f32; 4]; 6]) {
+    use wide::{CmpEq, CmpGt, CmpLt};
+    let o = ray.origin().to_array().map(f32x4::splat);
+    let [mx, my, _] = ray.watertight_rows();
+    let (mx, my) = (
+        mx.to_array().map(f32x4::splat),
+        my.to_array().map(f32x4::splat),
+    );
+    let shear = |v: usize| {
+        let d = [w[3 * v] - o[0], w[3 * v + 1] - o[1], w[3 * v + 2] - o[2]];
+        (
+            d[0] * mx[0] + d[1] * mx[1] + d[2] * mx[2],
+            d[0] * my[0] + d[1] * my[1] + d[2] * my[2],
+        )
+    };
+    let ((ax, ay), (bx, by), (cx, cy)) = (shear(0), shear(1), shear(2));
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    let zero = f32x4::ZERO;
+    let neg = (u.cmp_lt(zero) | v.cmp_lt(zero) | w.cmp_lt(zero)).move_mask();
+    let pos = (u.cmp_gt(zero) | v.cmp_gt(zero) | w.cmp_gt(zero)).move_mask();
+    let on_edge = (u.cmp_eq(zero) | v.cmp_eq(zero) | w.cmp_eq(zero)).move_mask();
+    let may_hit = (!(neg & pos) | on_edge) as u32 & 0b1111;
+    (may_hit, [ax, ay, bx, by, cx, cy].map(|x| x.to_array()))
+}
+
+/// The leaf test of [`crate::test_primitives`] for triangles: the ids that `skip` lets
+/// through, four at a time (gathered into [`TriangleLanes`], edge functions and sign test in
+/// SIMD lanes, the scalar kernel's own steps for the lanes that pass), the last one to three
+/// one by one. Same answers, same order, same `ray.tmax` updates as testing each in turn.
+///
+/// Lists of fewer than four ids (the leaves of kd-trees, mostly) take the scalar loop inline;
+/// longer ones the batched loop, out of line, so that it does not weigh on the callers'
+/// traversal loops.
+#[inline(always)]
+pub(crate) fn test_triangles<const ANY_HIT: bool>(
+    tris: &[Triangle],
+    ids: &[u32],
+    ray: &mut Ray,
+    best: &mut Option<Hit>,
+    skip: impl FnMut(u32) -> bool,
+) -> bool {
+    if ids.len() < 4 {
+        crate::test_each::<Triangle, ANY_HIT>(tris, ids, ray, best, skip)
+    } else {
+        test_in_batches::<ANY_HIT>(tris, ids, ray, best, skip)
+    }
+}
+
+/// [`test_triangles`] four at a time.
+#[inline(never)]
+fn test_in_batches<const ANY_HIT: bool>(
+    tris: &[Triangle],
+    ids: &[u32],
+    ray: &mut Ray,
+    best: &mut Option<Hit>,
+    mut skip: impl FnMut(u32) -> bool,
+) -> bool {
+    if !ray.is_valid() {
+        return false;
+    }
+    let mut batch = [0u32; 4];
+    let mut n = 0;
+    for &p in ids {
+        if skip(p) {
+            continue;
+        }
+        batch[n] = p;
+        n += 1;
+        if n == 4 {
+            n = 0;
+            let lanes: [&Triangle; 4] = batch.map(|p| &tris[p as usize]);
+            let w: TriangleLanes =
+                std::array::from_fn(|j| f32x4::from(lanes.map(|t| t.v[j / 3][j % 3])));
+            let (mut may_hit, sheared) = watertight_lanes(&w, ray);
+            while may_hit != 0 {
+                let l = may_hit.trailing_zeros() as usize;
+                may_hit &= may_hit - 1;
+                let edges = watertight_edges(sheared.map(|x| x[l]));
+                if let Some(h) = lanes[l].finish_watertight(ray, edges) {
+                    if keep::<ANY_HIT>(h, batch[l], ray, best) {
+                        return true;
+                    }
+                }
+            }
+        }
+    }
+    for &p in &batch[..n] {
+        if let Some(h) = tris[p as usize].intersect_watertight(ray) {
+            if keep::<ANY_HIT>(h, p, ray, best) {
+                return true;
+            }
+        }
+    }
+    false
+}
+
+/// Records hit `h` of primitive `p` as [`crate::test_primitives`] does; true when `ANY_HIT`
+/// (the search is over).
+#[inline(always)]
+pub(crate) fn keep<const ANY_HIT: bool>(
+    h: PrimHit,
+    p: u32,
+    ray: &mut Ray,
+    best: &mut Option<Hit>,
+) -> bool {
+    if ANY_HIT {
+        *best = Some(Hit::new(h, p));
+        return true;
+    }
+    if replaces(h.t, p, best.as_ref().map(Hit::key)) {
+        *best = Some(Hit::new(h, p));
+        ray.tmax = h.t;
+    }
+    false
+}
+
 fn next_up(v: Vec3) -> Vec3 {
     Vec3::new(v.x.next_up(), v.y.next_up(), v.z.next_up())
 }
@@ -547,5 +679,61 @@ mod tests {
             "t = {}",
             h.t
         );
+    }
+
+    /// The four-lane leaf test against the scalar one: same hit, same `tmax`, same any-hit
+    /// answer, on a grid of triangles sharing edges and vertices (rays through them), with
+    /// degenerate and duplicated triangles, skipped ids, and every batch remainder.
+    #[test]
+    fn lanes_test_equals_one_at_a_time() {
+        let mut tris = Vec::new();
+        for i in 0..6 {
+            for j in 0..6 {
+                let p = Vec3::new(i as f32, j as f32, 0.25 * ((i + j) % 3) as f32);
+                let (px, py) = (p + Vec3::X, p + Vec3::Y);
+                tris.push(Triangle::new(p, px, py));
+                tris.push(Triangle::new(px, px + Vec3::Y, py));
+            }
+        }
+        tris.push(Triangle::new(Vec3::ONE, Vec3::ONE, Vec3::ONE)); // a point
+        tris.push(Triangle::new(Vec3::ZERO, Vec3::X, Vec3::X * 2.0)); // a segment
+        tris.push(tris[7]); // a duplicate
+        let mut seed = 7u64;
+        let mut rnd = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut hits = 0;
+        for case in 0..4000 {
+            // Origins on a lattice (rays through shared vertices and edges) or anywhere.
+            let o = if case % 3 == 0 {
+                Vec3::new((rnd() * 6.0).floor(), (rnd() * 6.0).floor(), 2.0)
+            } else {
+                Vec3::new(rnd() * 7.0 - 0.5, rnd() * 7.0 - 0.5, rnd() * 4.0 - 1.0)
+            };
+            let d = Vec3::new(rnd() - 0.5, rnd() - 0.5, -rnd());
+            let d = if case % 5 == 0 { -Vec3::Z } else { d };
+            let mut ray = Ray::new(o, d);
+            if case % 7 == 0 {
+                ray.tmax = rnd() * 3.0;
+            }
+            let n = case % (tris.len() + 1);
+            let ids: Vec<u32> = (0..n as u32).rev().collect();
+            let skip = |p: u32| case % 4 == 0 && p % 5 == 1;
+            let (mut r1, mut r2) = (ray, ray);
+            let (mut b1, mut b2) = (None, None);
+            let a1 = test_triangles::<false>(&tris, &ids, &mut r1, &mut b1, skip);
+            let a2 = crate::test_each::<Triangle, false>(&tris, &ids, &mut r2, &mut b2, skip);
+            assert_eq!((a1, b1, r1.tmax), (a2, b2, r2.tmax), "case {case}");
+            hits += b1.is_some() as usize;
+            let (mut r1, mut r2) = (ray, ray);
+            let (mut b1, mut b2) = (None, None);
+            let a1 = test_triangles::<true>(&tris, &ids, &mut r1, &mut b1, skip);
+            let a2 = crate::test_each::<Triangle, true>(&tris, &ids, &mut r2, &mut b2, skip);
+            assert_eq!((a1, b1), (a2, b2), "case {case} (any hit)");
+        }
+        assert!(hits > 500, "{hits} hits: the rays must meet the triangles");
     }
 }
