@@ -440,6 +440,11 @@ const BASE: &[AccelEntry] = &[
         |p| boxed(Octree::build(p, OctreeParams::standard())),
     ),
     generic!(
+        "octree-mailbox",
+        "the same octree with per-ray mailboxes (a primitive in several leaves tested once)",
+        |p| boxed(Octree::build(p, OctreeParams::standard().with_mailbox(true))),
+    ),
+    generic!(
         "octree-recursive",
         "the same octree, walked by the seeds' recursive nearest-first descent",
         |p| {

@@ -275,6 +275,10 @@ mod tests {
             traversal: OctreeTraversal::Recursive,
             ..OctreeParams::standard()
         },
+        parametric_mailbox: OctreeParams::standard().with_mailbox(true),
+        recursive_mailbox: OctreeParams::standard()
+            .with_traversal(OctreeTraversal::Recursive)
+            .with_mailbox(true),
         parametric_serial: OctreeParams {
             parallel_threshold: usize::MAX,
             ..OctreeParams::standard()

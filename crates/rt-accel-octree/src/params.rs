@@ -27,6 +27,11 @@ pub struct OctreeParams {
     /// Nodes with more primitives than this build their octants in parallel.
     pub parallel_threshold: usize,
     pub traversal: OctreeTraversal,
+    /// Each ray remembers the last 8 primitives it tested and skips them in later leaves (a
+    /// primitive is listed in every leaf it overlaps). Off by default: with triangles tested
+    /// four at a time, testing a repeat again costs less than looking it up (bunny, one
+    /// thread, two A/B runs: primary rays 7% and shadow rays 7-22% faster without).
+    pub mailbox: bool,
 }
 
 /// Depth limit (a box halves 24 times before `f32` runs out of room for its centre).
@@ -41,11 +46,17 @@ impl OctreeParams {
             reference_budget: 8.0,
             parallel_threshold: 4096,
             traversal: OctreeTraversal::Parametric,
+            mailbox: false,
         }
     }
 
     pub const fn with_traversal(mut self, traversal: OctreeTraversal) -> Self {
         self.traversal = traversal;
+        self
+    }
+
+    pub const fn with_mailbox(mut self, mailbox: bool) -> Self {
+        self.mailbox = mailbox;
         self
     }
 

@@ -22,8 +22,9 @@
 //!   as in the box test, and each interval is padded like the box test. No sorting: one
 //!   octant entered is walked next with no stack traffic, several are pushed far to near.
 //!
-//! Both walks keep a per-ray mailbox of the last 8 primitives tested: a primitive listed in
-//! several leaves along the ray is tested once.
+//! With [`OctreeParams::mailbox`](crate::OctreeParams::mailbox), both walks keep a per-ray
+//! mailbox of the last 8 primitives tested, so that a primitive listed in several leaves
+//! along the ray is tested once; without, a repeat is tested again (same answer).
 
 use crate::MAX_DEPTH;
 use crate::Octree;
@@ -48,7 +49,7 @@ struct Walk<'a, P> {
     upper_half: [f32x8; 3],
     ray: Ray,
     best: Option<Hit>,
-    /// Primitives listed in several leaves are tested once per ray.
+    /// With `params.mailbox`: primitives listed in several leaves are tested once per ray.
     mailbox: Mailbox<8>,
 }
 
@@ -58,8 +59,9 @@ impl<P: Primitive> Walk<'_, P> {
         let tree = self.tree;
         let ids = &tree.indices[tree.leaves[i].prims()];
         let mailbox = &mut self.mailbox;
+        let skip_seen = tree.params.mailbox;
         test_primitives::<P, ANY_HIT>(&tree.prims, ids, &mut self.ray, &mut self.best, |p| {
-            mailbox.seen(p)
+            skip_seen && mailbox.seen(p)
         })
     }
 
