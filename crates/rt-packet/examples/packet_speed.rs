@@ -7,7 +7,7 @@
 use rt_accel_bvh::{Bvh, Bvh8, BvhParams};
 use rt_accel_kd::{KdParams, KdTree};
 use rt_geom::{Aabb, Accel, Ray, Triangle, Vec3};
-use rt_packet::{MlrtaKdTree, PacketTraversal, TILE_SIDES, tiles};
+use rt_packet::{MlrtaKdTree, PacketTraversal, RayPacket, TILE_SIDES, tiles};
 use std::time::Instant;
 
 fn median_mrays(rays: usize, mut run: impl FnMut() -> usize) -> (f64, usize) {
@@ -47,6 +47,16 @@ fn report<T: Accel + PacketTraversal>(name: &str, accel: &T, rays: &[Ray], (w, h
             };
             hits.iter().filter(|h| h.is_some()).count()
         });
+        if side == 16 {
+            // What filling the packets alone costs (reading the rays, writing their lanes).
+            let (rate, _) = median_mrays(tiled.len(), || {
+                tiled
+                    .chunks(256)
+                    .map(|c| std::hint::black_box(RayPacket::<256>::new(c)).active_count())
+                    .sum()
+            });
+            println!("{name:<10} 16x16 packets filled, not traced {rate:7.2} Mrays/s");
+        }
         println!(
             "{name:<10} {side:>2}x{side:<2} packets {rate:7.2} Mrays/s  ({hits} hits)  {:.2}x single",
             rate / single

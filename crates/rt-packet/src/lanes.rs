@@ -6,8 +6,11 @@
 //! A block's lanes are a bit mask (`u32`, bit `l` = lane `base + l`).
 
 use crate::RayPacket;
+use rt_geom::aabb::PAD;
+#[cfg(doc)]
 use rt_geom::aabb::{pad_down, pad_up};
 use rt_geom::{Cone, Hit, PrimHit, Primitive, Shape, Sphere, Triangle, Vec3, replaces};
+use wide::{CmpEq, CmpGt, CmpLe, CmpLt, f32x8};
 
 /// The block width for packets of `N` lanes.
 pub(crate) const fn block_width(n: usize) -> usize {
@@ -22,35 +25,65 @@ pub(crate) fn block<const N: usize, const W: usize>(v: &[f32; N], base: usize) -
         .expect("block inside the packet")
 }
 
-/// The slab test of the block's lanes against the box `[min, max]`, each lane over `[tmin,
-/// tmax]` of the packet: the unpadded entry and exit, computed as
-/// [`rt_geom::Aabb::clip_ray`] computes them.
+/// Lanes `base..base + min(W, 8)` of `v` in one SIMD register (for `W` = 4 the upper four are
+/// zero; the masks below keep only the block's own bits).
+#[inline(always)]
+fn load<const N: usize, const W: usize>(v: &[f32; N], base: usize) -> f32x8 {
+    let mut a = [0.0; 8];
+    let n = W.min(8);
+    a[..n].copy_from_slice(&v[base..base + n]);
+    f32x8::new(a)
+}
+
+/// The bits of the SIMD lanes of `m` (all ones or all zeros each) that belong to a block of
+/// `W` lanes (the first 8 of them when `W` is larger).
+#[inline(always)]
+fn bits<const W: usize>(m: f32x8) -> u32 {
+    m.move_mask() as u32 & ((1 << W.min(8)) - 1)
+}
+
+/// `if c { a } else { b }` per lane, `c` a comparison result.
+#[inline(always)]
+fn select(c: f32x8, a: f32x8, b: f32x8) -> f32x8 {
+    c.blend(a, b)
+}
+
+/// The slab test of 8 lanes from `base` (4 for `W` = 4) against the box `[min, max]`, each lane
+/// over `[tmin, tmax]` of the packet: the unpadded entry and exit, computed as
+/// [`rt_geom::Aabb::clip_ray`] computes them (same operations, in the same order, on 8 lanes
+/// at once).
 #[inline(always)]
 fn slabs<const N: usize, const W: usize>(
     min: &[f32; 3],
     max: &[f32; 3],
     p: &RayPacket<'_, N>,
     base: usize,
-) -> ([f32; W], [f32; W]) {
-    let mut t0: [f32; W] = *block(&p.tmin, base);
-    let mut t1: [f32; W] = *block(&p.tmax, base);
+) -> (f32x8, f32x8) {
+    let mut t0 = load::<N, W>(&p.tmin, base);
+    let mut t1 = load::<N, W>(&p.tmax, base);
     for a in 0..3 {
-        let o = block::<N, W>(&p.origin[a], base);
-        let inv = block::<N, W>(&p.inv_dir[a], base);
-        let (lo, hi) = (min[a], max[a]);
-        for l in 0..W {
-            // Both planes, then the near one by the sign of the direction: the same values
-            // as the single-ray test's, in a form that vectorises.
-            let t_lo = (lo - o[l]) * inv[l];
-            let t_hi = (hi - o[l]) * inv[l];
-            let neg = inv[l].is_sign_negative();
-            let tn = if neg { t_hi } else { t_lo };
-            let tf = if neg { t_lo } else { t_hi };
-            t0[l] = if tn > t0[l] { tn } else { t0[l] };
-            t1[l] = if tf < t1[l] { tf } else { t1[l] };
-        }
+        let o = load::<N, W>(&p.origin[a], base);
+        let inv = load::<N, W>(&p.inv_dir[a], base);
+        // Both planes, then the near one by the sign of the direction (`inv < 0` is
+        // `is_sign_negative` for every active lane: an inverse of -0 or NaN belongs to an
+        // invalid ray).
+        let t_lo = (f32x8::splat(min[a]) - o) * inv;
+        let t_hi = (f32x8::splat(max[a]) - o) * inv;
+        let neg = inv.cmp_lt(f32x8::ZERO);
+        let tn = select(neg, t_hi, t_lo);
+        let tf = select(neg, t_lo, t_hi);
+        // `if tn > t0 { tn } else { t0 }`: NaN keeps the interval as it is.
+        t0 = select(tn.cmp_gt(t0), tn, t0);
+        t1 = select(tf.cmp_lt(t1), tf, t1);
     }
     (t0, t1)
+}
+
+/// `t - |t| PAD` and `t + |t| PAD` on 8 lanes ([`pad_down`], [`pad_up`]).
+#[inline(always)]
+fn pad(t: f32x8, up: bool) -> f32x8 {
+    let m = t.abs() * f32x8::splat(PAD);
+    if up { t + m } else { t - m }
 }
 
 /// The lanes of the block at `base` that are active and enter the box `[min, max]` within
@@ -63,14 +96,12 @@ pub(crate) fn enter_mask<const N: usize, const W: usize>(
     p: &RayPacket<'_, N>,
     base: usize,
 ) -> u32 {
-    let (t0, t1) = slabs::<N, W>(min, max, p, base);
-    let active: &[bool; W] = p.active[base..base + W].try_into().expect("block");
     let mut mask = 0;
-    for l in 0..W {
-        let enters = (pad_down(t0[l]) <= pad_up(t1[l])) & active[l];
-        mask |= (enters as u32) << l;
+    for half in (0..W).step_by(8) {
+        let (t0, t1) = slabs::<N, W>(min, max, p, base + half);
+        mask |= bits::<W>(pad(t0, false).cmp_le(pad(t1, true))) << half;
     }
-    mask
+    mask & active_mask::<N, W>(p, base)
 }
 
 /// [`rt_geom::Aabb::clip_ray`] of the block's lanes: the padded entry and exit of each lane,
@@ -82,19 +113,19 @@ pub(crate) fn clip_block<const N: usize, const W: usize>(
     p: &RayPacket<'_, N>,
     base: usize,
 ) -> ([f32; W], [f32; W], u32) {
-    let (mut t0, mut t1) = slabs::<N, W>(min, max, p, base);
-    let tmin: &[f32; W] = block(&p.tmin, base);
-    let active: &[bool; W] = p.active[base..base + W].try_into().expect("block");
-    let mut mask = 0;
-    for l in 0..W {
-        t0[l] = pad_down(t0[l]);
-        t1[l] = pad_up(t1[l]);
-        let enters = (t0[l] <= t1[l]) & active[l];
-        mask |= (enters as u32) << l;
-        // `t0.max(tmin)` of `clip_ray` (t0 is never NaN here).
-        t0[l] = if tmin[l] > t0[l] { tmin[l] } else { t0[l] };
+    let (mut near, mut far, mut mask) = ([0.0; W], [0.0; W], 0);
+    for half in (0..W).step_by(8) {
+        let (t0, t1) = slabs::<N, W>(min, max, p, base + half);
+        let (t0, t1) = (pad(t0, false), pad(t1, true));
+        mask |= bits::<W>(t0.cmp_le(t1)) << half;
+        // `t0.max(tmin)` of `clip_ray` (t0 is never NaN for a lane that enters).
+        let tmin = load::<N, W>(&p.tmin, base + half);
+        let t0 = select(tmin.cmp_gt(t0), tmin, t0).to_array();
+        let n = W.min(8);
+        near[half..half + n].copy_from_slice(&t0[..n]);
+        far[half..half + n].copy_from_slice(&t1.to_array()[..n]);
     }
-    (t0, t1, mask)
+    (near, far, mask & active_mask::<N, W>(p, base))
 }
 
 /// The active lanes of the block at `base`.
@@ -103,7 +134,19 @@ pub(crate) fn active_mask<const N: usize, const W: usize>(
     p: &RayPacket<'_, N>,
     base: usize,
 ) -> u32 {
-    (0..W).fold(0, |m, l| m | ((p.active[base + l] as u32) << l))
+    let mut mask = 0;
+    for half in (0..W).step_by(8) {
+        // The flags as bytes (0 or 1) of one word; the multiply gathers bit 0 of byte `l`
+        // into bit `56 + l`.
+        let mut bytes = [0u8; 8];
+        let flags = &p.active[base + half..base + half + W.min(8)];
+        for (byte, &on) in bytes.iter_mut().zip(flags) {
+            *byte = on as u8;
+        }
+        let gathered = u64::from_le_bytes(bytes).wrapping_mul(0x0102_0408_1020_4080) >> 56;
+        mask |= (gathered as u32) << half;
+    }
+    mask
 }
 
 /// A primitive tested against several lanes of a packet at once. The default tests the lanes
@@ -182,36 +225,45 @@ impl PacketPrimitive for Triangle {
         base: usize,
         mask: u32,
     ) -> [Option<PrimHit>; W] {
-        let o = [0, 1, 2].map(|a| block::<N, W>(&p.origin[a], base));
-        let s = [0, 1, 2, 3, 4, 5].map(|k| block::<N, W>(&p.shear[k], base));
-        let sheared = |v: Vec3, l: usize| {
-            let (x, y, z) = (v.x - o[0][l], v.y - o[1][l], v.z - o[2][l]);
-            (
-                x * s[0][l] + y * s[1][l] + z * s[2][l],
-                x * s[3][l] + y * s[4][l] + z * s[5][l],
-            )
-        };
-        let (mut eu, mut ev, mut ew) = ([0.0f32; W], [0.0f32; W], [0.0f32; W]);
-        for l in 0..W {
-            let (ax, ay) = sheared(self.v[0], l);
-            let (bx, by) = sheared(self.v[1], l);
-            let (cx, cy) = sheared(self.v[2], l);
-            eu[l] = cx * by - cy * bx;
-            ev[l] = ax * cy - ay * cx;
-            ew[l] = bx * ay - by * ax;
-        }
-        let (mut accept, mut zero) = (0u32, 0u32);
-        for l in 0..W {
-            let (u, v, w) = (eu[l], ev[l], ew[l]);
-            let mixed = (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0);
-            accept |= (!mixed as u32) << l;
-            zero |= ((u == 0.0 || v == 0.0 || w == 0.0) as u32) << l;
-        }
         let mut out = [None; W];
-        for_each_lane(mask & zero, |l| out[l] = self.intersect(&p.ray(base + l)));
-        for_each_lane(mask & accept & !zero, |l| {
-            out[l] = self.finish_watertight(&p.ray(base + l), (eu[l], ev[l], ew[l]));
-        });
+        for half in (0..W).step_by(8) {
+            let (sub, mask) = (base + half, mask >> half & 0xff);
+            if mask == 0 {
+                continue;
+            }
+            let o = [0, 1, 2].map(|a| load::<N, W>(&p.origin[a], sub));
+            let s = [0, 1, 2, 3, 4, 5].map(|k| load::<N, W>(&p.shear[k], sub));
+            let sheared = |v: Vec3| {
+                let (x, y, z) = (
+                    f32x8::splat(v.x) - o[0],
+                    f32x8::splat(v.y) - o[1],
+                    f32x8::splat(v.z) - o[2],
+                );
+                (
+                    x * s[0] + y * s[1] + z * s[2],
+                    x * s[3] + y * s[4] + z * s[5],
+                )
+            };
+            let (ax, ay) = sheared(self.v[0]);
+            let (bx, by) = sheared(self.v[1]);
+            let (cx, cy) = sheared(self.v[2]);
+            let u = cx * by - cy * bx;
+            let v = ax * cy - ay * cx;
+            let w = bx * ay - by * ax;
+            let z = f32x8::ZERO;
+            let neg = u.cmp_lt(z) | v.cmp_lt(z) | w.cmp_lt(z);
+            let pos = u.cmp_gt(z) | v.cmp_gt(z) | w.cmp_gt(z);
+            let mixed = bits::<W>(neg & pos);
+            let zero = bits::<W>(u.cmp_eq(z) | v.cmp_eq(z) | w.cmp_eq(z));
+            let (eu, ev, ew) = (u.to_array(), v.to_array(), w.to_array());
+            for_each_lane(mask & zero, |l| {
+                out[half + l] = self.intersect(&p.ray(sub + l));
+            });
+            for_each_lane(mask & !mixed & !zero, |l| {
+                let edges = (eu[l], ev[l], ew[l]);
+                out[half + l] = self.finish_watertight(&p.ray(sub + l), edges);
+            });
+        }
         out
     }
 }
@@ -248,6 +300,19 @@ mod tests {
                     assert_eq!(got[l], t.intersect(r), "{t:?} {r:?}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn active_mask_gathers_every_pattern() {
+        let rays = [Ray::new(Vec3::ZERO, Vec3::X); 8];
+        let mut p = RayPacket::<8>::new(&rays);
+        for bits in 0..256u32 {
+            for l in 0..8 {
+                p.active[l] = bits >> l & 1 == 1;
+            }
+            assert_eq!(active_mask::<8, 8>(&p, 0), bits);
+            assert_eq!(active_mask::<8, 4>(&p, 4), bits >> 4);
         }
     }
 

@@ -37,31 +37,28 @@ impl<'a, const N: usize> RayPacket<'a, N> {
             "{} rays do not fit a packet of {N}",
             rays.len()
         );
-        let mut p = Self {
-            rays,
-            origin: [[0.0; N]; 3],
-            dir: [[0.0; N]; 3],
-            inv_dir: [[0.0; N]; 3],
-            shear: [[0.0; N]; 6],
-            tmin: [0.0; N],
-            tmax: [f32::NEG_INFINITY; N],
-            active: [false; N],
+        // Each field written once, lane by lane (no zeroing first); lanes past the rays are
+        // inactive, with an empty interval.
+        let axis3 = |f: fn(&Ray) -> rt_geom::Vec3| -> [[f32; N]; 3] {
+            [
+                lanes(rays, 0.0, |r| f(r).x),
+                lanes(rays, 0.0, |r| f(r).y),
+                lanes(rays, 0.0, |r| f(r).z),
+            ]
         };
-        for (i, r) in rays.iter().enumerate() {
-            let (o, d, inv) = (r.origin(), r.dir(), r.inv_dir());
-            let rows = r.watertight_rows();
-            for a in 0..3 {
-                p.origin[a][i] = o[a];
-                p.dir[a][i] = d[a];
-                p.inv_dir[a][i] = inv[a];
-                p.shear[a][i] = rows[0][a];
-                p.shear[3 + a][i] = rows[1][a];
-            }
-            p.tmin[i] = r.tmin;
-            p.tmax[i] = r.tmax;
-            p.active[i] = r.is_valid() && r.tmin <= r.tmax;
+        Self {
+            rays,
+            origin: axis3(Ray::origin),
+            dir: axis3(Ray::dir),
+            inv_dir: axis3(Ray::inv_dir),
+            shear: std::array::from_fn(|k| lanes(rays, 0.0, |r| r.watertight_rows()[k / 3][k % 3])),
+            tmin: lanes(rays, 0.0, |r| r.tmin),
+            tmax: lanes(rays, f32::NEG_INFINITY, |r| r.tmax),
+            active: std::array::from_fn(|i| {
+                rays.get(i)
+                    .is_some_and(|r| r.is_valid() && r.tmin <= r.tmax)
+            }),
         }
-        p
     }
 
     /// Lane `i`'s ray with its interval ending at the lane's current closest hit.
@@ -76,8 +73,19 @@ impl<'a, const N: usize> RayPacket<'a, N> {
     }
 }
 
+/// `f` of every ray, lane by lane, and `empty` in the lanes past them.
+#[inline(always)]
+fn lanes<const N: usize>(rays: &[Ray], empty: f32, f: impl Fn(&Ray) -> f32) -> [f32; N] {
+    match <&[Ray; N]>::try_from(rays) {
+        Ok(full) => std::array::from_fn(|i| f(&full[i])),
+        Err(_) => std::array::from_fn(|i| rays.get(i).map_or(empty, &f)),
+    }
+}
+
 /// Indices of a row-major `width x height` image's pixels grouped into `tw x th` tiles, tiles
-/// in row-major order, pixels row-major inside each tile (edge tiles are smaller).
+/// in row-major order (edge tiles are smaller). Inside a tile the pixels go by blocks of 4x2,
+/// the blocks in Morton order: each block of 8 lanes covers a compact patch of the image, so
+/// a small box that some of the tile's rays enter is entered by few blocks.
 pub fn tiles(width: usize, height: usize, tw: usize, th: usize) -> Vec<Vec<usize>> {
     let (tw, th) = (tw.max(1), th.max(1));
     let mut out = Vec::with_capacity(width.div_ceil(tw) * height.div_ceil(th));
@@ -89,10 +97,22 @@ pub fn tiles(width: usize, height: usize, tw: usize, th: usize) -> Vec<Vec<usize
                     t.push(y * width + x);
                 }
             }
+            t.sort_by_cached_key(|&i| lane_order(i % width - tx, i / width - ty));
             out.push(t);
         }
     }
     out
+}
+
+/// The place of pixel `(x, y)` of a tile among the packet's lanes: blocks of 4x2 pixels (one
+/// block of 8 SIMD lanes each) in Morton order, pixels row-major inside a block.
+fn lane_order(x: usize, y: usize) -> (usize, usize, usize) {
+    let (bx, by) = (x / 4, y / 2);
+    let mut morton = 0;
+    for bit in 0..16 {
+        morton |= (bx >> bit & 1) << (2 * bit) | (by >> bit & 1) << (2 * bit + 1);
+    }
+    (morton, y % 2, x % 4)
 }
 
 #[cfg(test)]
@@ -112,6 +132,17 @@ mod tests {
         let mut all: Vec<usize> = t.concat();
         all.sort();
         assert_eq!(all, (0..70).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn tile_lanes_go_by_blocks_of_4x2() {
+        let t = tiles(16, 16, 8, 8);
+        // The first block of 8 lanes is the tile's top-left 4x2 pixels, the second the 4x2
+        // to its right, then the two below them (Morton order).
+        assert_eq!(t[0][..8], [0, 1, 2, 3, 16, 17, 18, 19]);
+        assert_eq!(t[0][8..16], [4, 5, 6, 7, 20, 21, 22, 23]);
+        assert_eq!(t[0][16..24], [32, 33, 34, 35, 48, 49, 50, 51]);
+        assert_eq!(t[1][..4], [8, 9, 10, 11]);
     }
 
     #[test]
