@@ -273,8 +273,9 @@ fn measure(
     )
 }
 
-/// Median Mrays/s of rays traced as packets (one per group of ray indices), closest hit or
-/// (`occluded`) any hit.
+/// Median Mrays/s of rays traced as packets (one per group of ray indices, gathered into
+/// slices before the timing as a renderer makes its rays tile by tile), closest hit or
+/// (`occluded`) any hit, counting hits as the single-ray measurement does.
 fn measure_packets(
     accel: &dyn rt_packet::PacketAccel,
     rays: &[Ray],
@@ -283,13 +284,12 @@ fn measure_packets(
     pool: &rayon::ThreadPool,
     reps: usize,
 ) -> (f64, usize) {
-    let mut out = vec![crate::rayfile::HitRecord::MISS; rays.len()];
-    run::trace_packets_into(accel, rays, groups, occluded, pool, &mut out); // warm-up
+    let grouped = run::GroupedRays::new(rays, groups);
+    let (hits, _) = run::trace_packets_count(accel, &grouped, occluded, pool); // warm-up
     let times = (0..reps)
-        .map(|_| run::trace_packets_into(accel, rays, groups, occluded, pool, &mut out))
+        .map(|_| run::trace_packets_count(accel, &grouped, occluded, pool).1)
         .collect();
-    let hits = out.iter().filter(|h| h.is_hit()).count();
-    (run::mrays_per_s(rays.len(), run::median(times)), hits)
+    (run::mrays_per_s(grouped.ray_count(), run::median(times)), hits)
 }
 
 fn fill_ratios(records: &mut [Record]) {

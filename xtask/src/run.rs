@@ -79,6 +79,79 @@ pub fn trace_packets_into(
     start.elapsed()
 }
 
+/// Rays gathered group by group (image tiles, or the secondary rays of their pixels), so that
+/// each group is a slice, as a renderer that makes its rays tile by tile has them.
+pub struct GroupedRays {
+    rays: Vec<Ray>,
+    /// Group `k` is `rays[ends[k - 1]..ends[k]]` (from 0 for the first).
+    ends: Vec<usize>,
+}
+
+impl GroupedRays {
+    /// `groups` of indices into `rays`, gathered.
+    pub fn new(rays: &[Ray], groups: &[Vec<usize>]) -> Self {
+        let mut out = Self {
+            rays: Vec::with_capacity(groups.iter().map(Vec::len).sum()),
+            ends: Vec::with_capacity(groups.len()),
+        };
+        for g in groups {
+            out.rays.extend(g.iter().map(|&i| rays[i]));
+            out.ends.push(out.rays.len());
+        }
+        out
+    }
+
+    /// Number of rays in all groups.
+    pub fn ray_count(&self) -> usize {
+        self.rays.len()
+    }
+
+    /// Group `k`.
+    fn group(&self, k: usize) -> &[Ray] {
+        let start = if k == 0 { 0 } else { self.ends[k - 1] };
+        &self.rays[start..self.ends[k]]
+    }
+}
+
+/// Traces every group of rays as a packet (incoherent groups ray by ray, as
+/// [`rt_packet::PacketAccel::intersect_group`] does) and counts hits, nothing stored: the
+/// packet counterpart of [`trace_count`]. Returns `(hits, time)`.
+pub fn trace_packets_count(
+    accel: &dyn rt_packet::PacketAccel,
+    grouped: &GroupedRays,
+    occluded: bool,
+    pool: &rayon::ThreadPool,
+) -> (usize, Duration) {
+    let largest = grouped.ends.iter().scan(0, |prev, &e| {
+        let len = e - *prev;
+        *prev = e;
+        Some(len)
+    });
+    let per_task = (CHUNK / largest.max().unwrap_or(1).max(1)).max(1);
+    let start = Instant::now();
+    let hits = pool.install(|| {
+        (0..grouped.ends.len())
+            .into_par_iter()
+            .with_min_len(per_task)
+            .map(|k| {
+                let rays = grouped.group(k);
+                if occluded {
+                    let mut blocked = [false; rt_packet::MAX_GROUP];
+                    let blocked = &mut blocked[..rays.len()];
+                    accel.occluded_group(rays, blocked);
+                    blocked.iter().filter(|&&b| b).count()
+                } else {
+                    let mut hits = [None; rt_packet::MAX_GROUP];
+                    let hits = &mut hits[..rays.len()];
+                    accel.intersect_group(rays, hits);
+                    hits.iter().filter(|h| h.is_some()).count()
+                }
+            })
+            .sum()
+    });
+    (hits, start.elapsed())
+}
+
 /// Traces every ray and counts hits (nothing stored); returns `(hits, time)`.
 pub fn trace_count(
     accel: &dyn Accel,

@@ -84,8 +84,9 @@ fn lanes<const N: usize>(rays: &[Ray], empty: f32, f: impl Fn(&Ray) -> f32) -> [
 
 /// Indices of a row-major `width x height` image's pixels grouped into `tw x th` tiles, tiles
 /// in row-major order (edge tiles are smaller). Inside a tile the pixels go by blocks of 4x2,
-/// the blocks in Morton order: each block of 8 lanes covers a compact patch of the image, so
-/// a small box that some of the tile's rays enter is entered by few blocks.
+/// the blocks in Morton order: each block of 8 lanes covers a compact patch of the image (and
+/// 16 lanes 4x4 pixels), so a small box that some of the tile's rays enter is entered by few
+/// blocks.
 pub fn tiles(width: usize, height: usize, tw: usize, th: usize) -> Vec<Vec<usize>> {
     let (tw, th) = (tw.max(1), th.max(1));
     let mut out = Vec::with_capacity(width.div_ceil(tw) * height.div_ceil(th));
@@ -105,12 +106,13 @@ pub fn tiles(width: usize, height: usize, tw: usize, th: usize) -> Vec<Vec<usize
 }
 
 /// The place of pixel `(x, y)` of a tile among the packet's lanes: blocks of 4x2 pixels (one
-/// block of 8 SIMD lanes each) in Morton order, pixels row-major inside a block.
+/// block of 8 SIMD lanes each) in Morton order, `y` first, pixels row-major inside a block:
+/// lanes 0..8 are 4x2 pixels, 0..16 are 4x4, 0..32 are 8x4, 0..64 are 8x8.
 fn lane_order(x: usize, y: usize) -> (usize, usize, usize) {
     let (bx, by) = (x / 4, y / 2);
     let mut morton = 0;
     for bit in 0..16 {
-        morton |= (bx >> bit & 1) << (2 * bit) | (by >> bit & 1) << (2 * bit + 1);
+        morton |= (by >> bit & 1) << (2 * bit) | (bx >> bit & 1) << (2 * bit + 1);
     }
     (morton, y % 2, x % 4)
 }
@@ -138,10 +140,10 @@ mod tests {
     fn tile_lanes_go_by_blocks_of_4x2() {
         let t = tiles(16, 16, 8, 8);
         // The first block of 8 lanes is the tile's top-left 4x2 pixels, the second the 4x2
-        // to its right, then the two below them (Morton order).
+        // below it, then the two to their right (Morton order, y first).
         assert_eq!(t[0][..8], [0, 1, 2, 3, 16, 17, 18, 19]);
-        assert_eq!(t[0][8..16], [4, 5, 6, 7, 20, 21, 22, 23]);
-        assert_eq!(t[0][16..24], [32, 33, 34, 35, 48, 49, 50, 51]);
+        assert_eq!(t[0][8..16], [32, 33, 34, 35, 48, 49, 50, 51]);
+        assert_eq!(t[0][16..24], [4, 5, 6, 7, 20, 21, 22, 23]);
         assert_eq!(t[1][..4], [8, 9, 10, 11]);
     }
 
