@@ -1,7 +1,9 @@
-//! The per-lane kernels, over blocks of `W` consecutive lanes (8, or 4 for packets of 4):
-//! the slab test of one box against every lane, and [`PacketPrimitive`], one primitive against
-//! every lane. Each lane computes exactly what the single-ray code computes for its ray (same
-//! operations in the same order, no fused multiply-add), so the answers agree bit for bit.
+//! The per-lane kernels, over blocks of `W` consecutive lanes (8, 4 for packets of 4, 16 for
+//! the kd-tree's walks, as two halves): the slab test of one box against every lane, and
+//! [`PacketPrimitive`], one primitive against every lane, on `wide::f32x8` (and `f64x4` for
+//! the refinement of accepted triangle hits). Each lane computes exactly what the single-ray
+//! code computes for its ray (same operations in the same order, no fused multiply-add), so
+//! the answers agree bit for bit.
 //!
 //! A block's lanes are a bit mask (`u32`, bit `l` = lane `base + l`).
 
