@@ -289,7 +289,10 @@ fn measure_packets(
     let times = (0..reps)
         .map(|_| run::trace_packets_count(accel, &grouped, occluded, pool).1)
         .collect();
-    (run::mrays_per_s(grouped.ray_count(), run::median(times)), hits)
+    (
+        run::mrays_per_s(grouped.ray_count(), run::median(times)),
+        hits,
+    )
 }
 
 fn fill_ratios(records: &mut [Record]) {
@@ -323,6 +326,27 @@ fn fill_ratios(records: &mut [Record]) {
     }
 }
 
+/// Mrays/s of `accel` on `r`'s scene and threads for the ray set `rays`, if measured.
+fn rate_of(records: &[Record], accel: &str, r: &Record, rays: &str) -> Option<f64> {
+    records
+        .iter()
+        .find(|o| {
+            o.accel == accel && o.scene == r.scene && o.threads == r.threads && o.rays == rays
+        })
+        .map(|o| o.mrays_s)
+}
+
+/// A packet record (`primary-16x16`, ...) against the same structure's single rays on the same
+/// set: `x single` (for a packet path over another entry's structure, such as `kd-mlrta`, that
+/// entry's single rays).
+pub fn packet_speedup(records: &[Record], r: &Record) -> Option<f64> {
+    let (set, _) = r.rays.split_once('-')?;
+    let single_of = registry::find(&r.accel)
+        .and_then(|e| e.packet_only)
+        .unwrap_or(&r.accel);
+    rate_of(records, single_of, r, set).map(|s| r.mrays_s / s.max(1e-9))
+}
+
 /// The packet records against the same structure's single rays (and, for a packet path over
 /// another entry's structure, against that entry's packets on the same tiles).
 pub fn print_packet_table(records: &[Record]) {
@@ -330,24 +354,14 @@ pub fn print_packet_table(records: &[Record]) {
     if packets.is_empty() {
         return;
     }
-    let find = |accel: &str, r: &Record, rays: &str| {
-        records
-            .iter()
-            .find(|o| {
-                o.accel == accel && o.scene == r.scene && o.threads == r.threads && o.rays == rays
-            })
-            .map(|o| o.mrays_s)
-    };
     println!(
         "\npackets: {:<18} {:<12} {:<15} {:>3} {:>9} {:>9} {:>9} {:>10}",
         "accel", "scene", "rays", "thr", "Mrays/s", "x single", "vs obvhs", "x plain"
     );
+    let ratio = |x: Option<f64>| x.map_or("-".into(), |x| format!("{x:.2}x"));
     for r in packets {
-        let set = r.rays.split('-').next().unwrap_or(&r.rays);
         let base = registry::find(&r.accel).and_then(|e| e.packet_only);
-        let single = find(base.unwrap_or(&r.accel), r, set);
-        let plain = base.and_then(|b| find(b, r, &r.rays));
-        let ratio = |x: Option<f64>| x.map_or("-".into(), |x| format!("{:.2}x", r.mrays_s / x));
+        let plain = base.and_then(|b| rate_of(records, b, r, &r.rays));
         println!(
             "         {:<18} {:<12} {:<15} {:>3} {:>9.2} {:>9} {:>9} {:>10}",
             r.accel,
@@ -355,9 +369,9 @@ pub fn print_packet_table(records: &[Record]) {
             r.rays,
             r.threads,
             r.mrays_s,
-            ratio(single),
-            r.ratio_vs_obvhs.map_or("-".into(), |x| format!("{x:.2}x")),
-            ratio(plain),
+            ratio(packet_speedup(records, r)),
+            ratio(r.ratio_vs_obvhs),
+            ratio(plain.map(|p| r.mrays_s / p)),
         );
     }
 }

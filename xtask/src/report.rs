@@ -79,6 +79,15 @@ fn write(
             "tradeoff.png",
             plot_tradeoff(&dir.join("tradeoff.png"), records, threads),
         );
+        if records
+            .iter()
+            .any(|r| r.threads == threads && r.rays.contains('-'))
+        {
+            attempt(
+                "packets.png",
+                plot_packets(&dir.join("packets.png"), records, threads),
+            );
+        }
         for family in sweep::FAMILIES {
             let name = format!("sweep-{family}.png");
             attempt(&name, plot_sweep(&dir.join(&name), sweep, family));
@@ -633,6 +642,106 @@ fn plot_tradeoff(path: &Path, records: &[Record], threads: usize) -> Result<(), 
     })
 }
 
+/// Packets against single rays: one panel per scene and ray set (primary, shadow), the speed-up
+/// over the same structure's single rays against the tile size, a line per packet path.
+fn plot_packets(path: &Path, records: &[Record], threads: usize) -> Result<(), String> {
+    const SETS: [&str; 2] = ["primary", "shadow"];
+    let sides = rt_packet::TILE_SIDES;
+    let points = |scene: &str, set: &str, accel: &str| -> Vec<(f64, f64)> {
+        sides
+            .iter()
+            .enumerate()
+            .filter_map(|(k, side)| {
+                let rays = format!("{set}-{side}x{side}");
+                let r = records.iter().find(|r| {
+                    r.threads == threads && r.scene == scene && r.accel == accel && r.rays == rays
+                })?;
+                Some((k as f64, crate::bench::packet_speedup(records, r)?))
+            })
+            .collect()
+    };
+    let packet_records = || {
+        records
+            .iter()
+            .filter(|r| r.threads == threads && r.rays.contains('-'))
+    };
+    let scenes = names(packet_records().map(|r| r.scene.as_str()));
+    let accels = names(packet_records().map(|r| r.accel.as_str()));
+    let top = packet_records()
+        .filter_map(|r| crate::bench::packet_speedup(records, r))
+        .fold(1.0, f64::max)
+        * 1.15;
+    png(path, |root| {
+        let e = |e: DrawingAreaErrorKind<_>| e.to_string();
+        let root = root
+            .titled(
+                &format!("packets, {threads} thread(s): x the same structure's single rays"),
+                ("sans-serif", 22),
+            )
+            .map_err(e)?;
+        let panels = root.split_evenly((SETS.len(), scenes.len().max(1)));
+        for (k, panel) in panels.iter().enumerate() {
+            let (set, scene) = (
+                SETS[k / scenes.len().max(1)],
+                scenes[k % scenes.len().max(1)],
+            );
+            let mut chart = ChartBuilder::on(panel)
+                .caption(format!("{scene}, {set}"), ("sans-serif", 16))
+                .margin(8)
+                .x_label_area_size(22)
+                .y_label_area_size(32)
+                .build_cartesian_2d(-0.2..sides.len() as f64 - 0.8, 0.0..top)
+                .map_err(e)?;
+            chart
+                .configure_mesh()
+                .x_labels(sides.len())
+                .x_label_formatter(&|x| {
+                    let s = sides[(x.round().max(0.0) as usize).min(sides.len() - 1)];
+                    format!("{s}x{s}")
+                })
+                .draw()
+                .map_err(e)?;
+            // No gain below this line.
+            chart
+                .draw_series(LineSeries::new(
+                    [(-0.2, 1.0), (sides.len() as f64 - 0.8, 1.0)],
+                    BLACK.mix(0.4),
+                ))
+                .map_err(e)?;
+            for (i, accel) in accels.iter().enumerate() {
+                let line = points(scene, set, accel);
+                if line.is_empty() {
+                    continue;
+                }
+                let c = colour(i);
+                chart
+                    .draw_series(LineSeries::new(line.clone(), c.stroke_width(2)))
+                    .map_err(e)?
+                    .label(*accel)
+                    .legend(move |(x, y)| {
+                        PathElement::new([(x, y), (x + 16, y)], c.stroke_width(2))
+                    });
+                chart
+                    .draw_series(line.iter().map(|p| Circle::new(*p, 3, c.filled())))
+                    .map_err(e)?;
+            }
+            if k > 0 {
+                // One legend, in the first panel.
+                continue;
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperLeft)
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK.mix(0.3))
+                .label_font(("sans-serif", 11))
+                .draw()
+                .map_err(e)?;
+        }
+        Ok(())
+    })
+}
+
 /// Log-log: time per ray and build time against N, with reference slopes.
 fn plot_sweep(path: &Path, sweep: &[SweepRecord], family: &str) -> Result<(), String> {
     let rs: Vec<&SweepRecord> = sweep.iter().filter(|r| r.family == family).collect();
@@ -734,18 +843,8 @@ fn packet_verdict(records: &[Record], scene: &str, set: &str, threads: usize) ->
         .iter()
         .filter(|r| r.scene == scene && r.threads == threads && r.rays.starts_with(&prefix))
         .max_by(|a, b| a.mrays_s.total_cmp(&b.mrays_s))?;
-    let single_of = crate::registry::find(&best.accel)
-        .and_then(|e| e.packet_only)
-        .unwrap_or(&best.accel);
-    let single = records
-        .iter()
-        .find(|r| r.scene == scene && r.threads == threads && r.rays == set && r.accel == single_of)
-        .map_or(String::new(), |r| {
-            format!(
-                ", {:.2}x its single rays",
-                best.mrays_s / r.mrays_s.max(1e-9)
-            )
-        });
+    let single = crate::bench::packet_speedup(records, best)
+        .map_or(String::new(), |x| format!(", {x:.2}x its single rays"));
     Some(format!(
         "- **{set} packets**: `{}` {} at {:.2} Mrays/s{single}{}",
         best.accel,
@@ -877,6 +976,7 @@ mod tests {
             for png in [
                 "throughput.png",
                 "tradeoff.png",
+                "packets.png",
                 "sweep-sphere.png",
                 "sweep-soup.png",
             ] {
