@@ -30,7 +30,8 @@
 
 use crate::beam::Beam;
 use crate::lanes::{
-    PacketPrimitive, active_mask, block, block_width, clip_block, for_each_lane, test_block,
+    PacketPrimitive, active_mask, block, block_width, clip_block, for_each_lane, le_mask,
+    test_block,
 };
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_kd::{KdTree, MAX_DEPTH};
@@ -158,8 +159,8 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
                     (n0[l], n1[l], f0[l], f1[l]) = (a, b, c, d);
                 }
             }
-            let any_near = (0..W).any(|l| n0[l] <= n1[l]);
-            let any_far = (0..W).any(|l| f0[l] <= f1[l]);
+            let any_near = le_mask(&n0, &n1) != 0;
+            let any_far = le_mask(&f0, &f1) != 0;
             if any_near {
                 if any_far {
                     stack.push((far as u32, f0, f1));
@@ -172,10 +173,7 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
                 continue;
             }
         } else {
-            let mut lanes = 0u32;
-            for l in 0..W {
-                lanes |= ((t0[l] <= t1[l] && p.active[base + l]) as u32) << l;
-            }
+            let lanes = le_mask(&t0, &t1) & active_mask::<N, W>(p, base);
             let leaf = node
                 .leaf_prims(indices)
                 .iter()
@@ -187,18 +185,17 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
             let Some((n, mut a, b)) = stack.pop() else {
                 return;
             };
-            let mut any = false;
-            for l in 0..W {
-                let lane = base + l;
-                let keep = p.active[lane]
-                    && a[l] <= b[l]
-                    && (best[lane].is_none() || a[l] <= p.tmax[lane]);
-                if !keep {
-                    a[l] = f32::INFINITY;
-                }
-                any |= keep;
+            // Per lane: active, a non-empty interval, and no hit yet or the cell starting by
+            // the closest hit.
+            let mut no_hit = 0u32;
+            for (l, hit) in best[base..base + W].iter().enumerate() {
+                no_hit |= (hit.is_none() as u32) << l;
             }
-            if any {
+            let tmax: &[f32; W] = block(&p.tmax, base);
+            let keep =
+                le_mask(&a, &b) & (no_hit | le_mask(&a, tmax)) & active_mask::<N, W>(p, base);
+            for_each_lane(!keep & (u32::MAX >> (32 - W)), |l| a[l] = f32::INFINITY);
+            if keep != 0 {
                 (i, t0, t1) = (n as usize, a, b);
                 break;
             }

@@ -130,6 +130,18 @@ pub(crate) fn clip_block<const N: usize, const W: usize>(
     (near, far, mask & active_mask::<N, W>(p, base))
 }
 
+/// The lanes `l` of a block of `W` where `x[l] <= y[l]` (a comparison per lane, as `<=` on
+/// `f32`: false when either is NaN), eight at a time.
+#[inline(always)]
+pub(crate) fn le_mask<const W: usize>(x: &[f32; W], y: &[f32; W]) -> u32 {
+    let mut mask = 0;
+    for half in (0..W).step_by(8) {
+        let (x, y) = (load::<W, W>(x, half), load::<W, W>(y, half));
+        mask |= bits::<W>(x.cmp_le(y)) << half;
+    }
+    mask
+}
+
 /// The active lanes of the block at `base`.
 #[inline(always)]
 pub(crate) fn active_mask<const N: usize, const W: usize>(
