@@ -133,20 +133,27 @@ pub fn trace_packets_count(
         (0..grouped.ends.len())
             .into_par_iter()
             .with_min_len(per_task)
-            .map(|k| {
-                let rays = grouped.group(k);
-                if occluded {
-                    let mut blocked = [false; rt_packet::MAX_GROUP];
-                    let blocked = &mut blocked[..rays.len()];
-                    accel.occluded_group(rays, blocked);
-                    blocked.iter().filter(|&&b| b).count()
-                } else {
-                    let mut hits = [None; rt_packet::MAX_GROUP];
-                    let hits = &mut hits[..rays.len()];
-                    accel.intersect_group(rays, hits);
-                    hits.iter().filter(|h| h.is_some()).count()
-                }
-            })
+            .map_init(
+                // Answer buffers per task, not per group (a 2x2 group would clear 256 slots).
+                || {
+                    (
+                        vec![false; rt_packet::MAX_GROUP],
+                        vec![None; rt_packet::MAX_GROUP],
+                    )
+                },
+                |(blocked, hits), k| {
+                    let rays = grouped.group(k);
+                    if occluded {
+                        let blocked = &mut blocked[..rays.len()];
+                        accel.occluded_group(rays, blocked);
+                        blocked.iter().filter(|&&b| b).count()
+                    } else {
+                        let hits = &mut hits[..rays.len()];
+                        accel.intersect_group(rays, hits);
+                        hits.iter().filter(|h| h.is_some()).count()
+                    }
+                },
+            )
             .sum()
     });
     (hits, start.elapsed())

@@ -11,6 +11,13 @@ pub trait PacketTraversal {
     /// Whether each lane is blocked (lanes stop as soon as they are).
     fn occluded_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [bool; N];
 
+    /// Whether this structure traces packets of `lanes` lanes ray by ray (where the packet
+    /// traversal would lose to single rays): groups that small then skip filling a packet.
+    fn ray_by_ray(&self, lanes: usize) -> bool {
+        let _ = lanes;
+        false
+    }
+
     /// `intersect` of every ray, traced as packets of `N` consecutive rays.
     fn intersect_rays<const N: usize>(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
         let mut out = Vec::with_capacity(rays.len());
@@ -72,6 +79,16 @@ pub trait PacketAccel: Accel + Send + Sync {
 /// Largest group [`PacketAccel`] traces as one packet.
 pub const MAX_GROUP: usize = 256;
 
+/// The lanes of the packet [`PacketAccel`] traces a group of `n` rays in (4, 16, 64 or 256).
+fn packet_lanes(n: usize) -> usize {
+    match n {
+        0..=4 => 4,
+        5..=16 => 16,
+        17..=64 => 64,
+        _ => 256,
+    }
+}
+
 /// Traces `$rays` (at most 256) as one packet of the smallest size that holds them, binding
 /// the packet to `$p` in `$query`, and copies the lanes' answers to `$out`.
 macro_rules! as_one_packet {
@@ -79,16 +96,16 @@ macro_rules! as_one_packet {
         let (rays, out) = ($rays, $out);
         assert!(rays.len() <= MAX_GROUP && rays.len() == out.len());
         let n = rays.len();
-        match n {
-            0..=4 => {
+        match packet_lanes(n) {
+            4 => {
                 let $p = &mut RayPacket::<4>::new(rays);
                 out.copy_from_slice(&$query[..n])
             }
-            5..=16 => {
+            16 => {
                 let $p = &mut RayPacket::<16>::new(rays);
                 out.copy_from_slice(&$query[..n])
             }
-            17..=64 => {
+            64 => {
                 let $p = &mut RayPacket::<64>::new(rays);
                 out.copy_from_slice(&$query[..n])
             }
@@ -117,10 +134,22 @@ pub fn is_coherent(rays: &[Ray]) -> bool {
 /// packet of the smallest size that holds it, an incoherent one ray by ray.
 impl<T: PacketTraversal + Accel + Send + Sync> PacketAccel for T {
     fn intersect_packet_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        if self.ray_by_ray(packet_lanes(rays.len())) {
+            for (r, o) in rays.iter().zip(out) {
+                *o = self.intersect(r);
+            }
+            return;
+        }
         as_one_packet!(rays, out, |p| self.intersect_packet(p))
     }
 
     fn occluded_packet_group(&self, rays: &[Ray], out: &mut [bool]) {
+        if self.ray_by_ray(packet_lanes(rays.len())) {
+            for (r, o) in rays.iter().zip(out) {
+                *o = self.occluded(r);
+            }
+            return;
+        }
         as_one_packet!(rays, out, |p| self.occluded_packet(p))
     }
 }

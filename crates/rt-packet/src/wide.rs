@@ -11,7 +11,7 @@ use crate::bvh::{entering_range, lane_entry, test_leaf};
 use crate::lanes::PacketPrimitive;
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_bvh::{WideBvh, WideNode};
-use rt_geom::Hit;
+use rt_geom::{Accel, Hit};
 
 /// A pending child: `(parent node, child slot, first lane, last lane)`, the lanes those in the
 /// parent's range that entered the child's box when it was pushed.
@@ -99,14 +99,35 @@ fn traverse<
     }
 }
 
+/// Packets of at most this many lanes go through a wide BVH ray by ray: a wide node's single-ray
+/// test already fills the SIMD lanes with its children, and four lanes do not share enough
+/// of the packet's per-node work (`bvh8`, 2x2 tiles on teapot, bunny and sponza, 2 threads:
+/// 0.54-0.69x the single rays as packets, 0.88-0.96x ray by ray, the rest being the per-group
+/// work of the bench).
+pub const WIDE_RAY_BY_RAY: usize = 4;
+
 impl<P: PacketPrimitive, const K: usize> PacketTraversal for WideBvh<P, K> {
+    fn ray_by_ray(&self, lanes: usize) -> bool {
+        lanes <= WIDE_RAY_BY_RAY
+    }
+
     fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [Option<Hit>; N] {
+        if N <= WIDE_RAY_BY_RAY {
+            return std::array::from_fn(|i| {
+                packet.active[i]
+                    .then(|| self.intersect(&packet.ray(i)))
+                    .flatten()
+            });
+        }
         let mut best = [None; N];
         by_block_width!(N, W => traverse::<P, K, N, W, false>(self, packet, &mut best));
         best
     }
 
     fn occluded_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [bool; N] {
+        if N <= WIDE_RAY_BY_RAY {
+            return std::array::from_fn(|i| packet.active[i] && self.occluded(&packet.ray(i)));
+        }
         let mut best = [None; N];
         by_block_width!(N, W => traverse::<P, K, N, W, true>(self, packet, &mut best));
         best.map(|h| h.is_some())
