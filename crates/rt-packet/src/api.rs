@@ -117,15 +117,35 @@ macro_rules! as_one_packet {
     }};
 }
 
+/// Directions of a coherent group lie within this cosine of the first one's (about 26
+/// degrees): a camera tile's spread is a fraction of a degree, shadow rays toward a light
+/// from one tile's hit points a few degrees; small groups of diffuse bounces can share two
+/// octants yet point anywhere.
+pub const COHERENT_COS: f32 = 0.9;
+
 /// Whether a group of rays is worth a packet: their directions fall in at most two octants
 /// (a camera tile does, unless it straddles both of the image's centre lines; diffuse bounces
-/// spread over all eight). Invalid rays are ignored.
+/// spread over all eight) and within [`COHERENT_COS`] of the first ray's. Invalid rays are
+/// ignored. One pass, no square root.
 pub fn is_coherent(rays: &[Ray]) -> bool {
-    let mut seen = 0u8;
-    for r in rays.iter().filter(|r| r.is_valid()) {
+    let mut valid = rays.iter().filter(|r| r.is_valid());
+    let Some(first) = valid.next() else {
+        return true;
+    };
+    let d0 = first.dir();
+    let len0 = d0.length_squared();
+    let octant = |d: rt_geom::Vec3| {
+        1u8 << ((d.x < 0.0) as u8 | ((d.y < 0.0) as u8) << 1 | ((d.z < 0.0) as u8) << 2)
+    };
+    let mut seen = octant(d0);
+    for r in valid {
         let d = r.dir();
-        let octant = (d.x < 0.0) as u8 | ((d.y < 0.0) as u8) << 1 | ((d.z < 0.0) as u8) << 2;
-        seen |= 1 << octant;
+        seen |= octant(d);
+        // cos(d, d0) >= COHERENT_COS, squared: both sides are non-negative.
+        let dot = d.dot(d0);
+        if !(dot > 0.0 && dot * dot >= COHERENT_COS * COHERENT_COS * d.length_squared() * len0) {
+            return false;
+        }
     }
     seen.count_ones() <= 2
 }
@@ -175,6 +195,8 @@ mod tests {
             })
             .collect();
         assert!(!is_coherent(&spread));
+        // Two octants, but 90 degrees apart: diffuse bounces, not a tile.
+        assert!(!is_coherent(&[ray(1.0, 0.1, 0.1), ray(0.1, 1.0, 0.1)]));
         // Invalid rays do not count.
         let mut with_invalid = tile.to_vec();
         with_invalid.push(ray(0.0, 0.0, 0.0));

@@ -53,7 +53,7 @@ pub mod lanes;
 pub mod packet;
 pub mod wide;
 
-pub use api::{MAX_GROUP, PacketAccel, PacketTraversal, is_coherent};
+pub use api::{COHERENT_COS, MAX_GROUP, PacketAccel, PacketTraversal, is_coherent};
 pub use beam::Beam;
 pub use kd::{EntryPoint, MlrtaKdTree};
 pub use lanes::PacketPrimitive;
