@@ -45,10 +45,11 @@ pub trait PacketTraversal {
 /// bounces) lose nothing against single rays. The structure answers single rays too
 /// ([`Accel`]), with the same answers lane by lane.
 pub trait PacketAccel: Accel + Send + Sync {
-    /// Closest hit of every ray of the group into `out` (same length, at most 256), always as
-    /// one packet (what `verify` checks).
+    /// Closest hit of every ray of the group into `out` (same length, at most 256), as one
+    /// packet whatever the directions (what `verify` checks), or ray by ray where the
+    /// structure traces packets that small so ([`PacketTraversal::ray_by_ray`]).
     fn intersect_packet_group(&self, rays: &[Ray], out: &mut [Option<Hit>]);
-    /// Whether each ray of the group is blocked, always as one packet.
+    /// Whether each ray of the group is blocked, as [`Self::intersect_packet_group`] traces it.
     fn occluded_packet_group(&self, rays: &[Ray], out: &mut [bool]);
 
     /// Closest hit of every ray of the group: as one packet when the group is coherent, ray by
@@ -195,7 +196,7 @@ mod tests {
             })
             .collect();
         assert!(!is_coherent(&spread));
-        // Two octants, but 90 degrees apart: diffuse bounces, not a tile.
+        // One octant, but 80 degrees apart: diffuse bounces, not a tile.
         assert!(!is_coherent(&[ray(1.0, 0.1, 0.1), ray(0.1, 1.0, 0.1)]));
         // Invalid rays do not count.
         let mut with_invalid = tile.to_vec();
