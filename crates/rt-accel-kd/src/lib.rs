@@ -141,6 +141,7 @@ mod tests {
 
     rt_testkit::conformance_per_params!(KdTree::build {
         sah: KdParams::sah(),
+        wald_havran: KdParams::wald_havran(),
         sah_recursive: KdParams::sah().with_traversal(KdTraversal::Recursive),
         midpoint: KdParams::midpoint(),
         centroid: KdParams::centroid(),
@@ -245,7 +246,9 @@ mod tests {
     fn sah_beats_the_naive_planes() {
         let tris = rt_testkit::scenes::triangle_scene("teapot_in_stadium").prims;
         let cost = |p| KdTree::build(&tris, p).unwrap().stats().sah_cost.unwrap();
-        let sah = cost(KdParams::sah());
+        // `stats()` weighs a step and a test alike, close to Wald & Havran's 15:20; the
+        // default preset (15:7) minimises a cost with cheaper tests, not this one.
+        let sah = cost(KdParams::wald_havran());
         assert!(sah < cost(KdParams::midpoint()), "{sah}");
         assert!(sah < cost(KdParams::centroid()), "{sah}");
     }

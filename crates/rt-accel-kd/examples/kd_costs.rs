@@ -1,0 +1,102 @@
+//! The SAH constants against speed: builds one SAH kd-tree per `KT/KI/BONUS` (traversal cost,
+//! intersection cost, empty bonus) over an OBJ mesh, prints each one's build time and
+//! `stats()`, then the single-thread speed of each on the mesh's standard primary, shadow and
+//! diffuse rays (median of 5, the trees taking turns).
+//!
+//! `cargo run --release -p rt-accel-kd --example kd_costs -- path/to/mesh.obj 15/20/0.2 15/7/0.1 [SIDE]`
+//! (`SIDE`: camera resolution, default 512).
+
+use rt_accel_kd::{KdParams, KdTree};
+use rt_geom::{Accel, Triangle, load_obj};
+use rt_testkit::RaySets;
+use std::time::Instant;
+
+fn parse_costs(s: &str) -> Option<KdParams> {
+    let v: Vec<f32> = s.split('/').map(|x| x.parse().ok()).collect::<Option<_>>()?;
+    let [kt, ki, bonus] = v[..] else { return None };
+    Some(KdParams {
+        traversal_cost: kt,
+        intersection_cost: ki,
+        empty_bonus: bonus,
+        ..KdParams::sah()
+    })
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let usage = "usage: kd_costs MESH.obj KT/KI/BONUS... [SIDE]";
+    let Some(path) = args.first() else {
+        eprintln!("{usage}");
+        std::process::exit(2);
+    };
+    let side = args
+        .last()
+        .and_then(|s| s.parse::<usize>().ok())
+        .unwrap_or(512);
+    let params: Vec<KdParams> = args[1..].iter().filter_map(|s| parse_costs(s)).collect();
+    if params.is_empty() {
+        eprintln!("{usage}");
+        std::process::exit(2);
+    }
+    let tris: Vec<Triangle> = match load_obj(path) {
+        Ok(m) => m.triangles(),
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(1);
+        }
+    };
+    let mut trees = Vec::new();
+    for p in &params {
+        let start = Instant::now();
+        match KdTree::build(&tris, *p) {
+            Ok(kd) => {
+                println!(
+                    "{}/{}/{}: {:7.1} ms  {}",
+                    p.traversal_cost,
+                    p.intersection_cost,
+                    p.empty_bonus,
+                    start.elapsed().as_secs_f64() * 1e3,
+                    kd.stats()
+                );
+                trees.push(kd);
+            }
+            Err(e) => {
+                eprintln!("{e}");
+                std::process::exit(1);
+            }
+        }
+    }
+    let scene = std::path::Path::new(path)
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("");
+    let sets = RaySets::generate(scene, &tris, &trees[0], side, side, 7);
+    for (name, rays) in [
+        ("primary", &sets.primary),
+        ("shadow", &sets.shadow),
+        ("diffuse", &sets.diffuse),
+    ] {
+        let mut times = vec![Vec::new(); trees.len()];
+        for _ in 0..5 {
+            for (tree, times) in trees.iter().zip(&mut times) {
+                let t = Instant::now();
+                let n = if name == "shadow" {
+                    rays.iter().filter(|r| tree.occluded(r)).count()
+                } else {
+                    rays.iter().filter(|r| tree.intersect(r).is_some()).count()
+                };
+                std::hint::black_box(n);
+                times.push(t.elapsed().as_secs_f64());
+            }
+        }
+        for (p, times) in params.iter().zip(&mut times) {
+            times.sort_by(f64::total_cmp);
+            let rate = rays.len() as f64 / times[2] / 1e6;
+            let costs = format!(
+                "{}/{}/{}",
+                p.traversal_cost, p.intersection_cost, p.empty_bonus
+            );
+            println!("{costs:<14} {name:<8} {rate:7.2} Mrays/s");
+        }
+    }
+}
