@@ -261,28 +261,28 @@ const BASE: &[AccelEntry] = &[
     .with_packets(|p| packets_of(Bvh8::build(p, BvhParams::balanced()))),
     own(
         "bvh4-tri",
-        "rt BVH4 over SoA triangles, four watertight triangle tests at once (balanced build)",
-        |p| boxed(TriBvh4::build(p, BvhParams::balanced())),
+        "rt BVH4 over SoA triangles, four watertight triangle tests at once (balanced build, BvhParams::for_soa_leaves)",
+        |p| boxed(TriBvh4::build(p, BvhParams::balanced().for_soa_leaves())),
     ),
     own(
         "bvh8-tri",
-        "rt BVH8 over SoA triangles, four watertight triangle tests at once (balanced build)",
-        |p| boxed(TriBvh8::build(p, BvhParams::balanced())),
+        "rt BVH8 over SoA triangles, four watertight triangle tests at once (balanced build, BvhParams::for_soa_leaves)",
+        |p| boxed(TriBvh8::build(p, BvhParams::balanced().for_soa_leaves())),
     ),
     own(
         "bvh8-tri-spatial",
         "rt BVH8 over SoA triangles from the spatial-split BVH2",
-        |p| boxed(TriBvh8::build(p, BvhParams::spatial())),
+        |p| boxed(TriBvh8::build(p, BvhParams::spatial().for_soa_leaves())),
     ),
     own(
         "bvh8c-tri",
         "rt BVH8 with quantized child boxes over SoA triangles (bvh8c's nodes, bvh8-tri's leaves), balanced build",
-        |p| boxed(CompressedTriBvh8::build(p, BvhParams::balanced())),
+        |p| boxed(CompressedTriBvh8::build(p, BvhParams::balanced().for_soa_leaves())),
     ),
     own(
         "bvh8c-tri-spatial",
         "rt BVH8 with quantized child boxes over SoA triangles, from the spatial-split BVH2",
-        |p| boxed(CompressedTriBvh8::build(p, BvhParams::spatial())),
+        |p| boxed(CompressedTriBvh8::build(p, BvhParams::spatial().for_soa_leaves())),
     ),
     own(
         "bvh8-tri-fast",

@@ -262,7 +262,7 @@ mod tests {
     mod tri8 {
         use super::*;
         rt_testkit::conformance_tests!(
-            triangles: |p: &[Triangle]| TriBvh8::build(p, BvhParams::balanced()),
+            triangles: |p: &[Triangle]| TriBvh8::build(p, BvhParams::balanced().for_soa_leaves()),
         );
     }
 
@@ -276,7 +276,7 @@ mod tests {
     mod compressed_tri8_spatial {
         use super::*;
         rt_testkit::conformance_tests!(
-            triangles: |p: &[Triangle]| CompressedTriBvh8::build(p, BvhParams::spatial()),
+            triangles: |p: &[Triangle]| CompressedTriBvh8::build(p, BvhParams::spatial().for_soa_leaves()),
         );
     }
 
