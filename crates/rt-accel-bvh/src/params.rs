@@ -94,7 +94,11 @@ impl BvhParams {
     /// [`TriBvh4`]: crate::TriBvh4
     /// [`TriBvh8`]: crate::TriBvh8
     pub const fn for_soa_leaves(mut self) -> Self {
-        self.traversal_cost = if self.spatial_alpha.is_some() { 1.5 } else { 2.0 };
+        self.traversal_cost = if self.spatial_alpha.is_some() {
+            1.5
+        } else {
+            2.0
+        };
         self
     }
 

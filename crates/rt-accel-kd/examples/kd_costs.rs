@@ -12,7 +12,10 @@ use rt_testkit::RaySets;
 use std::time::Instant;
 
 fn parse_costs(s: &str) -> Option<KdParams> {
-    let v: Vec<f32> = s.split('/').map(|x| x.parse().ok()).collect::<Option<_>>()?;
+    let v: Vec<f32> = s
+        .split('/')
+        .map(|x| x.parse().ok())
+        .collect::<Option<_>>()?;
     let [kt, ki, bonus] = v[..] else { return None };
     Some(KdParams {
         traversal_cost: kt,
@@ -71,32 +74,13 @@ fn main() {
         .and_then(|s| s.to_str())
         .unwrap_or("");
     let sets = RaySets::generate(scene, &tris, &trees[0], side, side, 7);
-    for (name, rays) in [
-        ("primary", &sets.primary),
-        ("shadow", &sets.shadow),
-        ("diffuse", &sets.diffuse),
-    ] {
-        let mut times = vec![Vec::new(); trees.len()];
-        for _ in 0..5 {
-            for (tree, times) in trees.iter().zip(&mut times) {
-                let t = Instant::now();
-                let n = if name == "shadow" {
-                    rays.iter().filter(|r| tree.occluded(r)).count()
-                } else {
-                    rays.iter().filter(|r| tree.intersect(r).is_some()).count()
-                };
-                std::hint::black_box(n);
-                times.push(t.elapsed().as_secs_f64());
-            }
-        }
-        for (p, times) in params.iter().zip(&mut times) {
-            times.sort_by(f64::total_cmp);
-            let rate = rays.len() as f64 / times[2] / 1e6;
-            let costs = format!(
-                "{}/{}/{}",
-                p.traversal_cost, p.intersection_cost, p.empty_bonus
-            );
-            println!("{costs:<14} {name:<8} {rate:7.2} Mrays/s");
-        }
-    }
+    let accels: Vec<&dyn Accel> = trees.iter().map(|t| t as &dyn Accel).collect();
+    let labels: Vec<String> = params
+        .iter()
+        .map(|p| {
+            let (kt, ki, bonus) = (p.traversal_cost, p.intersection_cost, p.empty_bonus);
+            format!("{kt}/{ki}/{bonus}")
+        })
+        .collect();
+    sets.print_race(&accels, &labels, 5);
 }

@@ -80,33 +80,10 @@ fn walks(tree: &Octree<Triangle>, sets: &RaySets, only: Option<&str>, reps: usiz
         .filter(|w| only.is_none_or(|o| format!("{w:?}").eq_ignore_ascii_case(o)))
         .map(|w| tree.clone().with_traversal(w))
         .collect();
-    for (name, rays) in [
-        ("primary", &sets.primary),
-        ("shadow", &sets.shadow),
-        ("diffuse", &sets.diffuse),
-    ] {
-        // The walks take turns, so that a change of machine speed touches both alike.
-        let mut times = vec![Vec::new(); trees.len()];
-        for _ in 0..reps {
-            for (tree, times) in trees.iter().zip(&mut times) {
-                let t = Instant::now();
-                let n = if name == "shadow" {
-                    rays.iter().filter(|r| tree.occluded(r)).count()
-                } else {
-                    rays.iter().filter(|r| tree.intersect(r).is_some()).count()
-                };
-                std::hint::black_box(n);
-                times.push(t.elapsed().as_secs_f64());
-            }
-        }
-        let rates: Vec<f64> = times
-            .iter_mut()
-            .map(|t| {
-                t.sort_by(f64::total_cmp);
-                rays.len() as f64 / t[reps / 2] / 1e6
-            })
-            .collect();
-        for (tree, rate) in trees.iter().zip(&rates) {
+    let accels: Vec<&dyn Accel> = trees.iter().map(|t| t as &dyn Accel).collect();
+    let rates = sets.race(&accels, reps);
+    for (name, rates) in RaySets::NAMES.iter().zip(&rates) {
+        for (tree, rate) in trees.iter().zip(rates) {
             println!("{:?} {name:<8} {rate:7.2} Mrays/s", tree.params().traversal);
         }
         if let [a, b] = rates[..] {

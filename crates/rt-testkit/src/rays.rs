@@ -356,6 +356,47 @@ impl RaySets {
 
     pub const NAMES: [&'static str; 3] = ["primary", "shadow", "diffuse"];
 
+    /// Single-thread speed of each structure on each set (shadow rays as occlusion queries):
+    /// `rates[set][structure]` in Mrays/s, the median of `reps` runs in which the structures
+    /// take turns, so that a change of machine speed touches all alike. What the examples
+    /// that compare parameters (`kd_costs`, `grid_params`, `oct_stats`) print.
+    pub fn race(&self, accels: &[&dyn Accel], reps: usize) -> [Vec<f64>; 3] {
+        let reps = reps.max(1);
+        Self::NAMES.map(|name| {
+            let rays = self.by_name(name).unwrap_or_default();
+            let mut times = vec![Vec::with_capacity(reps); accels.len()];
+            for _ in 0..reps {
+                for (accel, times) in accels.iter().zip(&mut times) {
+                    let start = std::time::Instant::now();
+                    let n = if name == "shadow" {
+                        rays.iter().filter(|r| accel.occluded(r)).count()
+                    } else {
+                        rays.iter().filter(|r| accel.intersect(r).is_some()).count()
+                    };
+                    std::hint::black_box(n);
+                    times.push(start.elapsed().as_secs_f64());
+                }
+            }
+            times
+                .into_iter()
+                .map(|mut t| {
+                    t.sort_by(f64::total_cmp);
+                    rays.len() as f64 / t[reps / 2] / 1e6
+                })
+                .collect()
+        })
+    }
+
+    /// [`RaySets::race`], printed: one line per set and structure, `labels` naming them.
+    pub fn print_race(&self, accels: &[&dyn Accel], labels: &[String], reps: usize) {
+        let rates = self.race(accels, reps);
+        for (name, rates) in Self::NAMES.iter().zip(&rates) {
+            for (label, rate) in labels.iter().zip(rates) {
+                println!("{label:<24} {name:<8} {rate:7.2} Mrays/s");
+            }
+        }
+    }
+
     /// Groups of pixel indices (image tiles, say) as groups of the shadow (or diffuse) rays
     /// leaving those pixels; pixels whose primary ray missed have none, empty groups are left
     /// out.
