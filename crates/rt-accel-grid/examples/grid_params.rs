@@ -2,12 +2,12 @@
 //! one's build time and `stats()`, then the single-thread speed of each on the mesh's standard
 //! primary, shadow and diffuse rays (median of 5, the grids taking turns).
 //!
-//! `cargo run --release -p rt-accel-grid --example grid_params -- path/to/mesh.obj
+//! `cargo run --release -p rt-accel-grid --example grid_params -- path/to/mesh.obj (or sphere:N, stadium:N)
 //! uniform:DENSITY two-level:TOP_DENSITY:DENSITY adaptive:MAX_CELL_PRIMS:DENSITY ... [SIDE]`
 //! (`SIDE`: camera resolution, default 512), e.g. `two-level:0.02:0.5 adaptive:24:0.125`.
 
 use rt_accel_grid::{Grid, GridKind, GridParams};
-use rt_geom::{Accel, Triangle, load_obj};
+use rt_geom::{Accel, Triangle};
 use rt_testkit::RaySets;
 use std::time::Instant;
 
@@ -57,13 +57,10 @@ fn main() {
         eprintln!("{usage}");
         std::process::exit(2);
     }
-    let tris: Vec<Triangle> = match load_obj(path) {
-        Ok(m) => m.triangles(),
-        Err(e) => {
-            eprintln!("{e}");
-            std::process::exit(1);
-        }
-    };
+    let tris: Vec<Triangle> = rt_testkit::scenes::mesh_or_sphere(path).unwrap_or_else(|e| {
+        eprintln!("{e}");
+        std::process::exit(1);
+    });
     let mut grids = Vec::new();
     for (label, params) in &chosen {
         let start = Instant::now();

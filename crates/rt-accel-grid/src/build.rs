@@ -65,6 +65,17 @@ fn cells_of<P: Primitive>(p: &P, level: &Level, out: &mut Vec<u32>) {
     }
 }
 
+/// The box of what `ids` hold inside `cell`: their parts clipped to it. A sub-grid spans
+/// this box, not the whole cell, so that a small dense object in a large cell (the teapot
+/// in a stadium) gets the sub-grid's resolution for itself.
+fn content_box<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], cell: &Aabb) -> Aabb {
+    let content = ids.iter().fold(Aabb::EMPTY, |b, &id| {
+        b.union(ctx.prims[id as usize].clipped_bounds(cell))
+    });
+    let content = content.intersection(*cell);
+    if content.is_empty() { *cell } else { content }
+}
+
 /// Upper bound on the references of `ids` in `level` (their boxes' cell ranges).
 fn reference_bound<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], level: &Level) -> u64 {
     ids.par_iter()
@@ -136,7 +147,8 @@ pub(crate) fn build_level<P: Primitive>(
         }
     }
     drop(lists);
-    // Sub-grids; one that separates nothing (every primitive in one sub-cell) is not kept.
+    // Sub-grids; one that separates nothing (every non-empty sub-cell holds every primitive)
+    // is not kept.
     let refine: Vec<u32> = (0..count as u32)
         .filter(|&c| {
             refines(
@@ -155,14 +167,18 @@ pub(crate) fn build_level<P: Primitive>(
             let cell_ids = &refs[offsets[c as usize] as usize..offsets[c as usize + 1] as usize];
             let cell_box = level.cell_box(level.coords(c as usize));
             let share = (spare as u128 * count_of(c) as u128 / refined.max(1) as u128) as u64;
-            let child = build_level(ctx, cell_ids, cell_box, depth + 1, count_of(c) + share);
-            let fullest = child
+            let content = content_box(ctx, cell_ids, &cell_box);
+            let child = build_level(ctx, cell_ids, content, depth + 1, count_of(c) + share);
+            // Kept when some non-empty sub-cell holds fewer primitives than the cell: a ray
+            // through it tests fewer.
+            let leanest = child
                 .offsets
                 .windows(2)
                 .map(|w| (w[1] - w[0]) as usize)
-                .max()
+                .filter(|&n| n > 0)
+                .min()
                 .unwrap_or(0);
-            (fullest < cell_ids.len() || !child.children.is_empty()).then_some((c, child))
+            (leanest < cell_ids.len() || !child.children.is_empty()).then_some((c, child))
         })
         .collect();
     LevelBuild {

@@ -176,8 +176,8 @@ impl<P: Primitive> Accel for Grid<P> {
                 let cell = lv.cell_box(lv.coords(c));
                 if lv.first_child != NO_CHILD {
                     let child = self.children[lv.first_child as usize + c];
-                    if child != NO_CHILD && self.levels[child as usize].bounds != cell {
-                        err.get_or_insert(format!("sub-grid {child} does not cover its cell"));
+                    if child != NO_CHILD && !cell.contains(&self.levels[child as usize].bounds) {
+                        err.get_or_insert(format!("sub-grid {child} pokes out of its cell"));
                     }
                 }
                 for &p in self.cell_refs(lv, c) {
@@ -235,4 +235,53 @@ mod tests {
             ..GridParams::adaptive()
         },
     });
+}
+
+#[cfg(test)]
+mod content_tests {
+    use super::*;
+    use rt_geom::Vec3;
+
+    /// A sub-grid spans its cell's content: a small dense sphere floating between two far
+    /// walls gets a sub-grid of its own size, not the size of the huge top cell around it,
+    /// and still answers exactly.
+    #[test]
+    fn sub_grids_span_their_cells_content() {
+        let mut tris =
+            rt_testkit::scenes::tessellated_sphere(4000, Vec3::new(0.0, 0.02, 0.0), 0.01);
+        for x in [-500.0, 500.0] {
+            let p = |y: f32, z: f32| Vec3::new(x, y, z);
+            tris.push(rt_geom::Triangle::new(
+                p(-500.0, -500.0),
+                p(500.0, -500.0),
+                p(0.0, 500.0),
+            ));
+        }
+        for params in [GridParams::two_level(), GridParams::adaptive()] {
+            let grid = Grid::build(&tris, params).unwrap();
+            grid.validate().unwrap();
+            let top = &grid.levels()[0];
+            let cell_area = top.cell_box([0, 0, 0]).half_area();
+            let smallest = grid.levels()[1..]
+                .iter()
+                .map(|lv| lv.bounds.half_area())
+                .fold(f32::INFINITY, f32::min);
+            assert!(
+                smallest < 1e-4 * cell_area,
+                "{params:?}: smallest sub-grid {smallest}, top cell {cell_area}"
+            );
+            let brute = rt_geom::BruteForce::build(&tris).unwrap();
+            let eye = Vec3::new(3.0, 2.0, -5.0);
+            for k in 0..400 {
+                let (u, v) = ((k % 20) as f32 / 19.0 - 0.5, (k / 20) as f32 / 19.0 - 0.5);
+                let target = Vec3::new(0.03 * u, 0.02 + 0.03 * v, 0.0);
+                let ray = rt_geom::Ray::new(eye, target - eye);
+                assert_eq!(
+                    grid.intersect(&ray),
+                    brute.intersect(&ray),
+                    "{params:?} ray {k}"
+                );
+            }
+        }
+    }
 }

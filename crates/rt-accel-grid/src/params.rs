@@ -9,11 +9,11 @@ pub enum GridKind {
     Uniform,
     /// Two levels (Kalojanov, Billeter & Slusallek 2011): a coarse top grid of
     /// `top_density * N` cells; every non-empty top cell gets its own grid of
-    /// `density * n_cell` cells.
+    /// `density * n_cell` cells over the box of its content.
     TwoLevel { top_density: f32 },
     /// Adaptive (Jevans & Wyvill 1989, Klimaszewski & Sederberg 1997): a cell holding more
     /// than `max_cell_prims` primitives is subdivided into a grid of `density * n_cell`
-    /// cells, recursively, to at most `max_levels` levels.
+    /// cells over the box of its content, recursively, to at most `max_levels` levels.
     Adaptive {
         max_cell_prims: u32,
         max_levels: u32,
@@ -40,9 +40,12 @@ pub struct GridParams {
 
 impl GridParams {
     /// A uniform grid of one cell per primitive, no mailboxes. Cells test their triangles four
-    /// at a time, so coarser cells than the classic 2-5 per primitive pay: against 2, one
-    /// thread, primary / shadow / diffuse rays, bunny +12% / +3% / +6%, sponza +5% / +4% /
-    /// +3% (see [`GridParams::two_level`] for the command).
+    /// at a time, so coarser cells than the classic 2-5 per primitive pay. All presets were
+    /// measured on one thread, 512x512 rays, primary / shadow / diffuse, against the earlier
+    /// values, one run per mesh (`cargo run --release -p rt-accel-grid --example grid_params
+    /// -- MESH uniform:2 uniform:1 two-level:0.125:2 two-level:0.01:0.5 adaptive:8:1
+    /// adaptive:24:0.125`); here, 1 against 2: bunny +13% / +3% / +6%, sponza +6% / +3% /
+    /// +4%, dragon +14% / +8% / +6%.
     pub const fn uniform() -> Self {
         Self {
             kind: GridKind::Uniform,
@@ -53,24 +56,21 @@ impl GridParams {
         }
     }
 
-    /// Two levels: a top grid of one cell per 50 primitives, cells refined at one per 2
-    /// primitives. Against the earlier 1/8 and 2 (one thread, 512x512 rays, primary / shadow
-    /// / diffuse; `cargo run --release -p rt-accel-grid --example grid_params -- MESH
-    /// two-level:0.125:2 two-level:0.02:0.5`): bunny +23% / +19% / +13%, dragon +24% /
-    /// +14% / +13%, sponza +6% / +13% / +10%.
+    /// Two levels: a top grid of one cell per 100 primitives, each non-empty cell's content
+    /// refined at one cell per 2 primitives. Against 1/8 and 2 (see [`GridParams::uniform`]):
+    /// bunny +37% / +24% / +17%, sponza +28% / +16% / +7%, dragon +44% / +28% / +18%.
     pub const fn two_level() -> Self {
         Self {
-            kind: GridKind::TwoLevel { top_density: 0.02 },
+            kind: GridKind::TwoLevel { top_density: 0.01 },
             density: 0.5,
             ..Self::uniform()
         }
     }
 
     /// Adaptive: a uniform grid of one cell per 8 primitives; cells of more than 24
-    /// primitives refined the same way, to at most 4 levels. Against the earlier one cell per
-    /// primitive and 8 (same command as [`GridParams::two_level`], `adaptive:8:1` against
-    /// `adaptive:24:0.125`): bunny +46% / +31% / +23%, dragon +57% / +44% / +43%, sponza +27%
-    /// / +30% / +26%.
+    /// primitives refined the same way over their content, to at most 4 levels. Against one
+    /// cell per primitive and 8 (see [`GridParams::uniform`]): bunny +51% / +35% / +26%,
+    /// sponza +30% / +31% / +18%, dragon +65% / +48% / +44%.
     pub const fn adaptive() -> Self {
         Self {
             kind: GridKind::Adaptive {

@@ -1,6 +1,7 @@
 //! The 3D-DDA of Amanatides & Woo (1987), level by level: from the cell the ray enters,
 //! step to the neighbour across whichever cell wall the ray leaves through first. A refined
-//! cell hands the ray's interval in it to its sub-grid.
+//! cell hands the ray's interval in it, clipped to the sub-grid's box (the cell's content), to
+//! its sub-grid.
 //!
 //! Exactness with brute force rests on three rules:
 //! - the cell walls are the level's planes ([`Level::plane`]) and each exit distance is
@@ -105,9 +106,16 @@ impl<P: Primitive> Walk<'_, P> {
                 grid.children[lv.first_child as usize + c]
             };
             if child != NO_CHILD {
-                let sub_exit = pad_up(exit).min(t1);
-                if self.level::<ANY_HIT, MAILBOXES>(child as usize, entry.max(t0), sub_exit) {
-                    return true;
+                // The sub-grid spans the cell's content: the part of the ray in the cell,
+                // clipped to that box (padded, as every box test), or nothing.
+                let mut inside = self.ray;
+                inside.tmin = entry.max(t0);
+                inside.tmax = pad_up(exit).min(t1);
+                let sub = child as usize;
+                if let Some((s0, s1)) = grid.levels[sub].bounds.clip_ray(&inside) {
+                    if self.level::<ANY_HIT, MAILBOXES>(sub, s0, s1) {
+                        return true;
+                    }
                 }
             } else {
                 let first = lv.first as usize + c;

@@ -3,11 +3,11 @@
 //! `stats()`, then the single-thread speed of each on the mesh's standard primary, shadow and
 //! diffuse rays (median of 5, the trees taking turns).
 //!
-//! `cargo run --release -p rt-accel-kd --example kd_costs -- path/to/mesh.obj 15/20/0.2 15/7/0.1 [SIDE]`
+//! `cargo run --release -p rt-accel-kd --example kd_costs -- path/to/mesh.obj (or sphere:N, stadium:N) 15/20/0.2 15/7/0.1 [SIDE]`
 //! (`SIDE`: camera resolution, default 512).
 
 use rt_accel_kd::{KdParams, KdTree};
-use rt_geom::{Accel, Triangle, load_obj};
+use rt_geom::{Accel, Triangle};
 use rt_testkit::RaySets;
 use std::time::Instant;
 
@@ -41,13 +41,10 @@ fn main() {
         eprintln!("{usage}");
         std::process::exit(2);
     }
-    let tris: Vec<Triangle> = match load_obj(path) {
-        Ok(m) => m.triangles(),
-        Err(e) => {
-            eprintln!("{e}");
-            std::process::exit(1);
-        }
-    };
+    let tris: Vec<Triangle> = rt_testkit::scenes::mesh_or_sphere(path).unwrap_or_else(|e| {
+        eprintln!("{e}");
+        std::process::exit(1);
+    });
     let mut trees = Vec::new();
     for p in &params {
         let start = Instant::now();

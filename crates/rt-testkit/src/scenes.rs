@@ -441,11 +441,16 @@ impl rt_geom::Primitive for NoGeometry {
 }
 
 /// The triangles a command-line argument names: `sphere:N` for a tessellated unit sphere of
-/// about N triangles, anything else an OBJ file (the error names the file and line).
+/// about N triangles, `stadium:N` for [`teapot_in_stadium`], anything else an OBJ file (the
+/// error names the file and line).
 pub fn mesh_or_sphere(arg: &str) -> Result<Vec<Triangle>, String> {
-    match arg.strip_prefix("sphere:").map(str::parse::<usize>) {
-        Some(Ok(n)) => Ok(tessellated_sphere(n, Vec3::ZERO, 1.0)),
-        _ => rt_geom::load_obj(arg)
+    let count = |prefix: &str| arg.strip_prefix(prefix)?.parse::<usize>().ok();
+    if let Some(n) = count("sphere:") {
+        return Ok(tessellated_sphere(n, Vec3::ZERO, 1.0));
+    }
+    match count("stadium:") {
+        Some(n) => Ok(teapot_in_stadium(n)),
+        None => rt_geom::load_obj(arg)
             .map(|m| m.triangles())
             .map_err(|e| e.to_string()),
     }
