@@ -70,7 +70,11 @@ impl KdParams {
     }
 
     /// The SAH kd-tree with Wald & Havran's constants (traversal 15, test 20, empty bonus
-    /// 0.2): leaves of 2-3 triangles.
+    /// 0.2): leaves of 2-3 triangles. The packet paths of `rt-packet` build with these: a
+    /// packet tests a leaf one triangle per block of 8 lanes, so larger leaves cost it more
+    /// than they save (`cargo xtask bench --accels kd,kd-mlrta`, 2 threads, against
+    /// [`KdParams::sah`]: 2x2 primary packets 1.35x / 1.22x / 1.35x as fast on teapot /
+    /// bunny / sponza, 16x16 1.12x / 0.99x / 1.20x).
     pub const fn wald_havran() -> Self {
         Self {
             builder: KdBuilder::Sah,

@@ -25,29 +25,36 @@ pub enum Step {
     Both { first_end: f32, second_start: f32 },
 }
 
-/// True when the child below the plane is the first one the ray visits: the origin is below
-/// the plane, or on it with the ray heading up (it crosses at `t = 0`, coming from below).
+/// True when the child below the plane is the first one the ray visits: the one it is in
+/// before it crosses the plane, below for a ray heading up (a direction of `+0` counts as up,
+/// `-0` as down, as the sign of `1 / dir`). The ray's interval may start behind its origin
+/// (`tmin < 0`), so the order follows the direction, not the side the origin lies on.
 #[inline(always)]
-pub fn below_first(origin: f32, dir: f32, split: f32) -> bool {
-    (origin < split) | ((origin == split) & (dir > 0.0))
+pub fn below_first(dir: f32) -> bool {
+    !dir.is_sign_negative()
 }
 
-/// The step at a plane for one axis of a ray over `[t0, t1]`.
+/// The padded crossing `[lo, hi]` around `ts`, for either sign: the same two products as the
+/// box test's padding (`ts (1 -+ PAD)`), which keep `ts = +-inf` infinite; NaN stays NaN.
+#[inline(always)]
+pub fn padded_crossing(ts: f32) -> (f32, f32) {
+    let (a, b) = (ts * (1.0 - PAD), ts * (1.0 + PAD));
+    (a.min(b), a.max(b))
+}
+
+/// The step at a plane for one axis of a ray over `[t0, t1]`, first and second child as
+/// [`below_first`] orders them.
 ///
-/// The crossing `ts` is behind the origin (`ts < 0`: first only), beyond `t1` (which covers a
-/// ray parallel to the plane, `ts = inf`: first only), before `t0` (second only), or inside:
-/// both. A ray lying in the plane gives `ts = NaN`, which fails every comparison and lands in
-/// the last case, where `min`/`max` ignore the NaN: both children over the whole interval.
+/// The padded crossing (see [`padded_crossing`]) lies beyond `t1` (which covers a ray
+/// parallel to the plane on the first side, `ts = +inf`: first only), before `t0` (a crossing
+/// behind the interval, or a parallel ray on the second side, `ts = -inf`: second only), or
+/// inside: both. A ray lying in the plane gives `ts = NaN`, which fails every comparison and
+/// lands in the last case, where `min`/`max` ignore the NaN: both children over the whole
+/// interval.
 #[inline(always)]
 pub fn step(origin: f32, inv_dir: f32, split: f32, t0: f32, t1: f32) -> Step {
     let ts = (split - origin) * inv_dir;
-    if ts < 0.0 {
-        return Step::First;
-    }
-    // ts >= 0 (or NaN) here: the padding of `pad_down`/`pad_up` as one product each, which
-    // keeps ts = inf infinite.
-    let lo = ts * (1.0 - PAD);
-    let hi = ts * (1.0 + PAD);
+    let (lo, hi) = padded_crossing(ts);
     if lo > t1 {
         Step::First
     } else if hi < t0 {
@@ -242,8 +249,7 @@ impl<P: Primitive> SplitPlanes for KdTree<P> {
         let node = &self.nodes[i];
         let a = node.axis();
         let split = node.split();
-        let (first, second) =
-            ordered_children(i, node, below_first(ray.origin[a], ray.dir[a], split));
+        let (first, second) = ordered_children(i, node, below_first(ray.dir[a]));
         (
             first,
             second,
@@ -288,14 +294,16 @@ mod tests {
         };
         assert!(first_end >= 2.0 && second_start <= 2.0);
         assert!(first_end - 2.0 < 1e-5 && 2.0 - second_start < 1e-5);
-        // Crossing after the interval, before it, behind the origin.
+        // Crossing after the interval, before it, behind the origin (the ray heads away:
+        // it stays on the second side, the origin's).
         assert_eq!(step(0.0, 1.0, 20.0, 0.0, 10.0), Step::First);
         assert_eq!(step(0.0, 1.0, 2.0, 5.0, 10.0), Step::Second);
-        assert_eq!(step(0.0, -1.0, 2.0, 0.0, 10.0), Step::First);
-        // Parallel (1/0 = inf), on either side, with either zero sign.
+        assert_eq!(step(0.0, -1.0, 2.0, 0.0, 10.0), Step::Second);
+        // Parallel (1/0 = inf), on either side, with either zero sign: the origin's side.
         assert_eq!(step(0.0, f32::INFINITY, 2.0, 0.0, 10.0), Step::First);
-        assert_eq!(step(0.0, f32::NEG_INFINITY, 2.0, 0.0, 10.0), Step::First);
-        assert_eq!(step(3.0, f32::INFINITY, 2.0, 0.0, 10.0), Step::First);
+        assert_eq!(step(0.0, f32::NEG_INFINITY, 2.0, 0.0, 10.0), Step::Second);
+        assert_eq!(step(3.0, f32::INFINITY, 2.0, 0.0, 10.0), Step::Second);
+        assert_eq!(step(3.0, f32::NEG_INFINITY, 2.0, 0.0, 10.0), Step::First);
         // In the plane: both sides, whole interval.
         assert_eq!(
             step(2.0, f32::INFINITY, 2.0, 0.0, 10.0),
@@ -313,7 +321,20 @@ mod tests {
             }
         );
         assert_eq!(step(2.0, 1.0, 2.0, 0.5, 10.0), Step::Second);
-        assert!(below_first(2.0, 1.0, 2.0) && !below_first(2.0, -1.0, 2.0));
-        assert!(below_first(1.0, -1.0, 2.0) && !below_first(3.0, 1.0, 2.0));
+        // An interval starting behind the origin crosses a plane behind it too: the part
+        // before the crossing is on the first side.
+        let Step::Both {
+            first_end,
+            second_start,
+        } = step(0.0, 1.0, -2.0, -5.0, 10.0)
+        else {
+            panic!()
+        };
+        assert!(first_end >= -2.0 && second_start <= -2.0);
+        assert!(first_end + 2.0 < 1e-5 && -2.0 - second_start < 1e-5);
+        assert_eq!(step(0.0, 1.0, -2.0, -1.0, 10.0), Step::Second);
+        assert_eq!(step(0.0, -1.0, 2.0, -10.0, -5.0), Step::First);
+        assert!(below_first(1.0) && below_first(0.0));
+        assert!(!below_first(-1.0) && !below_first(-0.0));
     }
 }

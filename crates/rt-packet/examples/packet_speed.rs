@@ -90,7 +90,8 @@ fn main() -> Result<(), String> {
         let bvh8 = Bvh8::build(&tris, BvhParams::balanced()).map_err(|e| e.to_string())?;
         report("bvh8", &bvh8, &rays, size);
     }
-    let kd = || KdTree::build(&tris, KdParams::sah()).map_err(|e| e.to_string());
+    // The kd-tree the packet paths use (the registry's `kd` packets): smaller leaves.
+    let kd = || KdTree::build(&tris, KdParams::wald_havran()).map_err(|e| e.to_string());
     if wanted("kd") {
         report("kd", &kd()?, &rays, size);
     }

@@ -34,6 +34,7 @@ use crate::lanes::{
     test_block,
 };
 use crate::{PacketTraversal, RayPacket};
+use rt_accel_kd::traverse::padded_crossing;
 use rt_accel_kd::{KdTree, MAX_DEPTH};
 use rt_geom::aabb::PAD;
 use rt_geom::{Aabb, Hit, Ray};
@@ -144,7 +145,6 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
                 for h in (0..W).step_by(8) {
                     let r = step8(
                         split,
-                        negative,
                         as8(&o[h..]),
                         as8(&inv[h..]),
                         as8(&t0[h..]),
@@ -156,7 +156,7 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
                 }
             } else {
                 for l in 0..W {
-                    let [a, b, c, d] = step_lane(split, negative, o[l], inv[l], t0[l], t1[l]);
+                    let [a, b, c, d] = step_lane(split, o[l], inv[l], t0[l], t1[l]);
                     (n0[l], n1[l], f0[l], f1[l]) = (a, b, c, d);
                 }
             }
@@ -205,23 +205,19 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
 }
 
 /// `rt_accel_kd::traverse::step` for one lane over `[t0, t1]` at the plane `split`, as the
-/// intervals of the near and the far child (by the group's direction sign `negative`):
-/// `[near0, near1, far0, far1]`, an empty interval as `(inf, -inf)` (and an empty input
-/// interval gives two empty ones).
+/// intervals of the near and the far child: `[near0, near1, far0, far1]`, an empty interval as
+/// `(inf, -inf)` (and an empty input interval gives two empty ones). The near child (by the
+/// group's direction signs) is the single-ray walk's first child
+/// (`rt_accel_kd::traverse::below_first`).
 ///
 /// Without branches: after a crossing before `t0` (second child only), `lo` is below `t0`, so
 /// the second child's start `max(lo, t0)` is `t0` as it must be; `hi.min(t1)` and
 /// `lo.max(t0)` are comparisons (a NaN crossing, from a ray lying in the plane, gives the
-/// interval's ends). The child below the plane comes first when the origin is below it, or on
-/// it heading up (`rt_accel_kd::traverse::below_first`, with `1 / dir > 0` for `dir > 0`: they
-/// differ only for `dir = +0` at an origin on the plane, where both children get the whole
-/// interval).
+/// interval's ends).
 #[inline(always)]
-fn step_lane(split: f32, negative: bool, o: f32, inv: f32, t0: f32, t1: f32) -> [f32; 4] {
-    let ts = (split - o) * inv;
-    let lo = ts * (1.0 - PAD);
-    let hi = ts * (1.0 + PAD);
-    let first_only = (ts < 0.0) | (lo > t1);
+fn step_lane(split: f32, o: f32, inv: f32, t0: f32, t1: f32) -> [f32; 4] {
+    let (lo, hi) = padded_crossing((split - o) * inv);
+    let first_only = lo > t1;
     let second_only = !first_only & (hi < t0);
     let a0 = if second_only { f32::INFINITY } else { t0 };
     let a1 = if first_only | !(hi < t1) { t1 } else { hi };
@@ -229,42 +225,27 @@ fn step_lane(split: f32, negative: bool, o: f32, inv: f32, t0: f32, t1: f32) -> 
     let b0 = if lo > t0 { lo } else { t0 };
     let b0 = if first_only { f32::INFINITY } else { b0 };
     let b1 = if first_only { f32::NEG_INFINITY } else { t1 };
-    let below = (o < split) | ((o == split) & (inv > 0.0));
-    if below != negative {
-        [a0, a1, b0, b1]
-    } else {
-        [b0, b1, a0, a1]
-    }
+    [a0, a1, b0, b1]
 }
 
 /// [`step_lane`] for 8 lanes at once (`wide`: AVX where the build has it, two SSE halves or
 /// scalar code elsewhere), the same operations lane by lane.
 #[inline(always)]
-fn step8(
-    split: f32,
-    negative: bool,
-    o: &[f32; 8],
-    inv: &[f32; 8],
-    t0: &[f32; 8],
-    t1: &[f32; 8],
-) -> [[f32; 8]; 4] {
-    use wide::{CmpEq, CmpGt, CmpLt, f32x8};
+fn step8(split: f32, o: &[f32; 8], inv: &[f32; 8], t0: &[f32; 8], t1: &[f32; 8]) -> [[f32; 8]; 4] {
+    use wide::{CmpGt, CmpLt, f32x8};
     let (o, inv, t0, t1) = (
         f32x8::new(*o),
         f32x8::new(*inv),
         f32x8::new(*t0),
         f32x8::new(*t1),
     );
-    let (zero, inf, ninf) = (
-        f32x8::ZERO,
-        f32x8::splat(f32::INFINITY),
-        f32x8::splat(f32::NEG_INFINITY),
-    );
-    let s = f32x8::splat(split);
-    let ts = (s - o) * inv;
-    let lo = ts * f32x8::splat(1.0 - PAD);
-    let hi = ts * f32x8::splat(1.0 + PAD);
-    let first_only = ts.cmp_lt(zero) | lo.cmp_gt(t1);
+    let (inf, ninf) = (f32x8::splat(f32::INFINITY), f32x8::splat(f32::NEG_INFINITY));
+    let ts = (f32x8::splat(split) - o) * inv;
+    // `padded_crossing` lane by lane: the smaller and larger of the two products (a NaN
+    // crossing gives NaN either way, as `f32::min` of two NaNs does).
+    let (a, b) = (ts * f32x8::splat(1.0 - PAD), ts * f32x8::splat(1.0 + PAD));
+    let (lo, hi) = (a.cmp_lt(b).blend(a, b), a.cmp_gt(b).blend(a, b));
+    let first_only = lo.cmp_gt(t1);
     let second_only = !first_only & hi.cmp_lt(t0);
     let a0 = second_only.blend(inf, t0);
     let a1 = (first_only | !hi.cmp_lt(t1)).blend(t1, hi);
@@ -272,14 +253,7 @@ fn step8(
     let b0 = lo.cmp_gt(t0).blend(lo, t0);
     let b0 = first_only.blend(inf, b0);
     let b1 = first_only.blend(ninf, t1);
-    let below = o.cmp_lt(s) | (o.cmp_eq(s) & inv.cmp_gt(zero));
-    let first_is_near = if negative { !below } else { below };
-    [
-        first_is_near.blend(a0, b0).to_array(),
-        first_is_near.blend(a1, b1).to_array(),
-        first_is_near.blend(b0, a0).to_array(),
-        first_is_near.blend(b1, a1).to_array(),
-    ]
+    [a0.to_array(), a1.to_array(), b0.to_array(), b1.to_array()]
 }
 
 /// The first 8 lanes of a slice (of a block of a multiple of 8 lanes).
@@ -551,7 +525,11 @@ mod tests {
     fn conformance_rays_in_packets_equal_single_rays() {
         for scene in scenes::conformance_triangle_scenes() {
             let rays = conformance_rays(&scene.prims, 60, 7);
-            for params in [KdParams::sah(), KdParams::midpoint()] {
+            for params in [
+                KdParams::sah(),
+                KdParams::wald_havran(),
+                KdParams::midpoint(),
+            ] {
                 let kd = KdTree::build(&scene.prims, params).unwrap();
                 all_sizes(&kd, &rays, &scene.name);
                 all_sizes(

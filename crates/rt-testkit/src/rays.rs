@@ -98,6 +98,9 @@ pub enum RayKind {
     PlaneParallel,
     /// `tmin`/`tmax` placed on, just before and just after the closest hit.
     Limited,
+    /// Origin inside the scene's box, the interval starting far behind it (`tmin < 0`): the
+    /// ray crosses behind its origin the planes and cells it heads away from.
+    Behind,
     /// Zero, NaN or infinite directions and origins, NaN intervals: must miss.
     Invalid,
     /// Primary rays of the standard camera (mesh verification).
@@ -155,6 +158,11 @@ pub fn conformance_rays<P: SamplePoints>(
         if !bounds.is_empty() {
             let o = rng.point_in(bounds.min, bounds.max);
             push(Ray::new(o, rng.unit_vector()), RayKind::Inside);
+            let o = rng.point_in(bounds.min, bounds.max);
+            let t = target(&mut rng, false);
+            let back = -2.0 * (hi - lo).length() / (t - o).length().max(1e-30);
+            let far = if rng.chance(0.5) { f32::INFINITY } else { 0.5 };
+            push(Ray::segment(o, t - o, back, far), RayKind::Behind);
         }
         let o = rng.point_in(lo, hi);
         let t = target(&mut rng, false);
