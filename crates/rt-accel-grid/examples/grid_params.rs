@@ -7,9 +7,8 @@
 //! (`SIDE`: camera resolution, default 512), e.g. `two-level:0.02:0.5 adaptive:24:0.125`.
 
 use rt_accel_grid::{Grid, GridKind, GridParams};
-use rt_geom::{Accel, Triangle};
+use rt_geom::Triangle;
 use rt_testkit::RaySets;
-use std::time::Instant;
 
 fn parse_params(s: &str) -> Option<GridParams> {
     let mut parts = s.split(':');
@@ -38,50 +37,9 @@ fn parse_params(s: &str) -> Option<GridParams> {
 }
 
 fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage =
-        "usage: grid_params MESH.obj uniform:D | two-level:TOP:D | adaptive:MAX:D ... [SIDE]";
-    let Some(path) = args.first() else {
-        eprintln!("{usage}");
-        std::process::exit(2);
-    };
-    let side = args
-        .last()
-        .and_then(|s| s.parse::<usize>().ok())
-        .unwrap_or(512);
-    let chosen: Vec<(&String, GridParams)> = args[1..]
-        .iter()
-        .filter_map(|s| Some((s, parse_params(s)?)))
-        .collect();
-    if chosen.is_empty() {
-        eprintln!("{usage}");
-        std::process::exit(2);
-    }
-    let tris: Vec<Triangle> = rt_testkit::scenes::mesh_or_sphere(path).unwrap_or_else(|e| {
-        eprintln!("{e}");
-        std::process::exit(1);
-    });
-    let mut grids = Vec::new();
-    for (label, params) in &chosen {
-        let start = Instant::now();
-        match Grid::build(&tris, *params) {
-            Ok(grid) => {
-                let ms = start.elapsed().as_secs_f64() * 1e3;
-                println!("{label}: {ms:7.1} ms  {}", grid.stats());
-                grids.push(grid);
-            }
-            Err(e) => {
-                eprintln!("{label}: {e}");
-                std::process::exit(1);
-            }
-        }
-    }
-    let scene = std::path::Path::new(path)
-        .file_stem()
-        .and_then(|s| s.to_str())
-        .unwrap_or("");
-    let sets = RaySets::generate(scene, &tris, &grids[0], side, side, 7);
-    let accels: Vec<&dyn Accel> = grids.iter().map(|g| g as &dyn Accel).collect();
-    let labels: Vec<String> = chosen.iter().map(|(l, _)| l.to_string()).collect();
-    sets.print_race(&accels, &labels, 5);
+    RaySets::race_configs(
+        "usage: grid_params MESH.obj uniform:D | two-level:TOP:D | adaptive:MAX:D ... [SIDE]",
+        parse_params,
+        |tris: &[Triangle], params| Grid::build(tris, *params),
+    );
 }

@@ -7,9 +7,8 @@
 //! (`SIDE`: camera resolution, default 512).
 
 use rt_accel_kd::{KdParams, KdTree};
-use rt_geom::{Accel, Triangle};
+use rt_geom::Triangle;
 use rt_testkit::RaySets;
-use std::time::Instant;
 
 fn parse_costs(s: &str) -> Option<KdParams> {
     let v: Vec<f32> = s
@@ -26,58 +25,9 @@ fn parse_costs(s: &str) -> Option<KdParams> {
 }
 
 fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: kd_costs MESH.obj KT/KI/BONUS... [SIDE]";
-    let Some(path) = args.first() else {
-        eprintln!("{usage}");
-        std::process::exit(2);
-    };
-    let side = args
-        .last()
-        .and_then(|s| s.parse::<usize>().ok())
-        .unwrap_or(512);
-    let params: Vec<KdParams> = args[1..].iter().filter_map(|s| parse_costs(s)).collect();
-    if params.is_empty() {
-        eprintln!("{usage}");
-        std::process::exit(2);
-    }
-    let tris: Vec<Triangle> = rt_testkit::scenes::mesh_or_sphere(path).unwrap_or_else(|e| {
-        eprintln!("{e}");
-        std::process::exit(1);
-    });
-    let mut trees = Vec::new();
-    for p in &params {
-        let start = Instant::now();
-        match KdTree::build(&tris, *p) {
-            Ok(kd) => {
-                println!(
-                    "{}/{}/{}: {:7.1} ms  {}",
-                    p.traversal_cost,
-                    p.intersection_cost,
-                    p.empty_bonus,
-                    start.elapsed().as_secs_f64() * 1e3,
-                    kd.stats()
-                );
-                trees.push(kd);
-            }
-            Err(e) => {
-                eprintln!("{e}");
-                std::process::exit(1);
-            }
-        }
-    }
-    let scene = std::path::Path::new(path)
-        .file_stem()
-        .and_then(|s| s.to_str())
-        .unwrap_or("");
-    let sets = RaySets::generate(scene, &tris, &trees[0], side, side, 7);
-    let accels: Vec<&dyn Accel> = trees.iter().map(|t| t as &dyn Accel).collect();
-    let labels: Vec<String> = params
-        .iter()
-        .map(|p| {
-            let (kt, ki, bonus) = (p.traversal_cost, p.intersection_cost, p.empty_bonus);
-            format!("{kt}/{ki}/{bonus}")
-        })
-        .collect();
-    sets.print_race(&accels, &labels, 5);
+    RaySets::race_configs(
+        "usage: kd_costs MESH.obj KT/KI/BONUS... [SIDE]",
+        parse_costs,
+        |tris: &[Triangle], params| KdTree::build(tris, *params),
+    );
 }

@@ -405,6 +405,58 @@ impl RaySets {
         }
     }
 
+    /// The `main` of the examples that compare build parameters (`kd_costs`, `grid_params`):
+    /// arguments `MESH CONFIG... [SIDE]`, MESH as [`crate::scenes::mesh_or_sphere`] reads it,
+    /// each CONFIG as `parse` reads it (the others are skipped), SIDE the camera resolution
+    /// (default 512). Builds every configuration, printing its build time and `stats()`, then
+    /// races them on the mesh's standard rays ([`RaySets::print_race`], 5 runs each).
+    pub fn race_configs<C, A: Accel>(
+        usage: &str,
+        parse: impl Fn(&str) -> Option<C>,
+        build: impl Fn(&[Triangle], &C) -> Result<A, rt_geom::BuildError>,
+    ) {
+        let args: Vec<String> = std::env::args().skip(1).collect();
+        let fail = |message: &str, code| -> ! {
+            eprintln!("{message}");
+            std::process::exit(code)
+        };
+        let Some(path) = args.first() else {
+            fail(usage, 2)
+        };
+        let side = args
+            .last()
+            .and_then(|s| s.parse::<usize>().ok())
+            .unwrap_or(512);
+        let configs: Vec<(&String, C)> = args[1..]
+            .iter()
+            .filter_map(|s| Some((s, parse(s)?)))
+            .collect();
+        if configs.is_empty() {
+            fail(usage, 2);
+        }
+        let tris = crate::scenes::mesh_or_sphere(path).unwrap_or_else(|e| fail(&e, 1));
+        let mut built = Vec::new();
+        for (label, config) in &configs {
+            let start = std::time::Instant::now();
+            match build(&tris, config) {
+                Ok(accel) => {
+                    let ms = start.elapsed().as_secs_f64() * 1e3;
+                    println!("{label}: {ms:7.1} ms  {}", accel.stats());
+                    built.push(accel);
+                }
+                Err(e) => fail(&format!("{label}: {e}"), 1),
+            }
+        }
+        let scene = std::path::Path::new(path)
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("");
+        let sets = RaySets::generate(scene, &tris, &built[0], side, side, 7);
+        let accels: Vec<&dyn Accel> = built.iter().map(|a| a as &dyn Accel).collect();
+        let labels: Vec<String> = configs.iter().map(|(l, _)| l.to_string()).collect();
+        sets.print_race(&accels, &labels, 5);
+    }
+
     /// Groups of pixel indices (image tiles, say) as groups of the shadow (or diffuse) rays
     /// leaving those pixels; pixels whose primary ray missed have none, empty groups are left
     /// out.
