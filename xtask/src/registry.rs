@@ -10,9 +10,17 @@ use rt_accel_grid::{Grid, GridParams};
 use rt_accel_kd::{BspParams, BspTree, KdParams, KdTraversal, KdTree};
 use rt_accel_octree::{Octree, OctreeParams, OctreeTraversal};
 use rt_geom::{Aabb, Accel, BoundingSphere, BruteForce, BuildError, Kdop7, Shape, Triangle};
-use rt_packet::{MlrtaKdTree, PacketAccel};
+use rt_packet::{MlrtaKdTree, PacketAccel, WithSingleRays};
 
 /// A packet path (boxed as a `PacketAccel`).
+/// The kd-tree for packets (Wald & Havran's constants) and the one for single rays.
+fn kd_packets(p: &[Triangle]) -> Result<(KdTree<Triangle>, KdTree<Triangle>), BuildError> {
+    Ok((
+        KdTree::build(p, KdParams::wald_havran())?,
+        KdTree::build(p, KdParams::sah())?,
+    ))
+}
+
 fn packets_of<A: PacketAccel + 'static>(
     r: Result<A, BuildError>,
 ) -> Result<Box<dyn PacketAccel>, BuildError> {
@@ -380,15 +388,19 @@ const BASE: &[AccelEntry] = &[
         |p| boxed(KdTree::build(p, KdParams::sah())),
     )
     // Packets test a leaf's triangles one block of lanes per triangle: they run faster on
-    // the smaller leaves of Wald & Havran's constants (see `KdParams::wald_havran`).
-    .with_packets(|p| packets_of(KdTree::build(p, KdParams::wald_havran()))),
+    // the smaller leaves of Wald & Havran's constants (see `KdParams::wald_havran`); single
+    // rays (and incoherent groups) keep the `kd` tree.
+    .with_packets(|p| packets_of(kd_packets(p).map(|(packets, singles)| WithSingleRays { packets, singles }))),
     generic!(
         "kd-mlrta",
         "the SAH kd-tree's packets by multi-level ray tracing (Reshetov et al. 2005): each beam starts at its entry point; single rays are kd's",
         |p| boxed(KdTree::build(p, KdParams::sah())),
     )
     .with_packets(|p| {
-        packets_of(KdTree::build(p, KdParams::wald_havran()).map(MlrtaKdTree::new))
+        packets_of(kd_packets(p).map(|(packets, singles)| WithSingleRays {
+            packets: MlrtaKdTree::new(packets),
+            singles,
+        }))
     })
     .packet_only("kd"),
     generic!(

@@ -77,6 +77,53 @@ pub trait PacketAccel: Accel + Send + Sync {
     }
 }
 
+/// A packet path that answers single rays with a structure of its own: packets through
+/// `packets`, single rays (queries, and the ray-by-ray fallback of incoherent groups) through
+/// `singles`. For structures whose best build differs between the two, such as the kd-tree
+/// (packets run faster on Wald & Havran's small leaves, single rays on larger ones): both
+/// give the same answers, so the lanes still equal the single rays bit for bit. Holds both
+/// (`stats().bytes` counts both).
+#[derive(Clone, Debug)]
+pub struct WithSingleRays<Pk, S> {
+    pub packets: Pk,
+    pub singles: S,
+}
+
+impl<Pk: Accel, S: Accel> Accel for WithSingleRays<Pk, S> {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.singles.intersect(ray)
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        self.singles.occluded(ray)
+    }
+
+    fn stats(&self) -> rt_geom::AccelStats {
+        let mut stats = self.packets.stats();
+        stats.bytes += self.singles.stats().bytes;
+        stats
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        self.packets.validate()?;
+        self.singles.validate()
+    }
+}
+
+impl<Pk: PacketTraversal, S> PacketTraversal for WithSingleRays<Pk, S> {
+    fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [Option<Hit>; N] {
+        self.packets.intersect_packet(packet)
+    }
+
+    fn occluded_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [bool; N] {
+        self.packets.occluded_packet(packet)
+    }
+
+    fn ray_by_ray(&self, lanes: usize) -> bool {
+        self.packets.ray_by_ray(lanes)
+    }
+}
+
 /// Largest group [`PacketAccel`] traces as one packet.
 pub const MAX_GROUP: usize = 256;
 

@@ -571,6 +571,29 @@ mod tests {
         assert_eq!(empty.intersect_rays::<8>(&rays[..3]), vec![None; 3]);
     }
 
+    /// Packets through the small-leaf tree, single rays and incoherent groups through the
+    /// single-ray one: the same answers either way, and both trees' bytes counted.
+    #[test]
+    fn packets_with_their_own_single_ray_tree() {
+        use crate::WithSingleRays;
+        use rt_geom::Accel;
+        let tris = scenes::triangle_scene("torus").prims;
+        let build = |params| KdTree::build(&tris, params).unwrap();
+        let pair = WithSingleRays {
+            packets: MlrtaKdTree::new(build(KdParams::wald_havran())),
+            singles: build(KdParams::sah()),
+        };
+        let rays = conformance_rays(&tris, 60, 5);
+        all_sizes(&pair, &rays, "torus pair");
+        groups(&pair, &rays);
+        let bytes = |kd: &KdTree<rt_geom::Triangle>| kd.stats().bytes;
+        assert_eq!(
+            pair.stats().bytes,
+            bytes(pair.packets.tree()) + bytes(&pair.singles)
+        );
+        pair.validate().unwrap();
+    }
+
     #[test]
     fn entry_points_go_deep_for_a_narrow_beam() {
         // A 4x4 beam aimed at a small part of a big sphere starts in a leaf well below the
