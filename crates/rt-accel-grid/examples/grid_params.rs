@@ -4,17 +4,22 @@
 //!
 //! `cargo run --release -p rt-accel-grid --example grid_params -- path/to/mesh.obj (or sphere:N, stadium:N)
 //! uniform:DENSITY two-level:TOP_DENSITY:DENSITY adaptive:MAX_CELL_PRIMS:DENSITY ... [SIDE]`
-//! (`SIDE`: camera resolution, default 512), e.g. `two-level:0.02:0.5 adaptive:24:0.125`.
+//! (`SIDE`: camera resolution, default 512), e.g. `two-level:0.01:0.5 adaptive:24:0.125`; a
+//! `+mailbox` suffix turns on per-ray mailboxes (`two-level:0.01:0.5+mailbox`).
 
 use rt_accel_grid::{Grid, GridKind, GridParams};
 use rt_geom::Triangle;
 use rt_testkit::RaySets;
 
 fn parse_params(s: &str) -> Option<GridParams> {
+    let (s, mailbox) = match s.strip_suffix("+mailbox") {
+        Some(s) => (s, true),
+        None => (s, false),
+    };
     let mut parts = s.split(':');
     let kind = parts.next()?;
     let numbers: Vec<f32> = parts.map(|x| x.parse().ok()).collect::<Option<_>>()?;
-    Some(match (kind, &numbers[..]) {
+    let params = match (kind, &numbers[..]) {
         ("uniform", &[density]) => GridParams {
             density,
             ..GridParams::uniform()
@@ -33,12 +38,13 @@ fn parse_params(s: &str) -> Option<GridParams> {
             ..GridParams::adaptive()
         },
         _ => return None,
-    })
+    };
+    Some(params.with_mailbox(mailbox))
 }
 
 fn main() {
     RaySets::race_configs(
-        "usage: grid_params MESH.obj uniform:D | two-level:TOP:D | adaptive:MAX:D ... [SIDE]",
+        "usage: grid_params MESH.obj uniform:D | two-level:TOP:D | adaptive:MAX:D[+mailbox] ... [SIDE]",
         parse_params,
         |tris: &[Triangle], params| Grid::build(tris, *params),
     );
