@@ -11,7 +11,7 @@
 //! | `refit` | [`Bvh::refit`] after vertices move |
 //! | [`wide`] | [`Bvh4`], [`Bvh8`]: collapsed wide BVHs, all children tested at once ([`WideTree`]) |
 //! | [`compressed`] | [`CompressedBvh8`]: the 8-wide BVH with child boxes quantized to 8 bits per plane, 128-byte nodes ([`CompressedNode`], topology [`CompressedTree`]) |
-//! | [`tri`] | [`TriBvh4`], [`TriBvh8`], [`CompressedTriBvh8`]: wide BVHs over triangles stored leaf by leaf as SoA ([`TriangleSoa`]), four tested at once |
+//! | [`tri`] | [`TriBvh4`], [`TriBvh8`], [`CompressedTriBvh8`]: wide BVHs over triangles stored leaf by leaf as SoA ([`TriangleSoa`], from rt-geom), four tested at once |
 //!
 //! ```
 //! use rt_accel_bvh::{Bvh, BvhParams};
@@ -42,7 +42,8 @@ pub use bvlist::{BvList, BvListParams, Grouping};
 pub use compressed::{CompressedBvh8, CompressedNode, CompressedTree};
 pub use node::BvhNode;
 pub use params::{BvhBuilder, BvhParams, MAX_DEPTH};
-pub use tri::{CompressedTriBvh8, TriBvh, TriBvh4, TriBvh8, TriangleSoa};
+pub use rt_geom::TriangleSoa;
+pub use tri::{CompressedTriBvh8, TriBvh, TriBvh4, TriBvh8};
 pub use wide::{Bvh4, Bvh8, WideBvh, WideNode, WideTopology, WideTree};
 
 use rt_geom::{Accel, AccelStats, BuildError, Hit, Primitive, Ray, check_primitives};

@@ -30,7 +30,9 @@ pub use level::Level;
 pub use params::{GridKind, GridParams};
 
 use level::NO_CHILD;
-use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, Primitive, Ray, check_primitives};
+use rt_geom::{
+    Aabb, Accel, AccelStats, BuildError, Hit, LeafPrims, Primitive, Ray, check_primitives,
+};
 
 /// A grid over primitives `P`: uniform, two-level or adaptive (see [`GridKind`]).
 #[derive(Clone, Debug)]
@@ -40,6 +42,8 @@ pub struct Grid<P> {
     children: Vec<u32>,
     refs: Vec<u32>,
     prims: Vec<P>,
+    /// The primitives of every cell, in `refs` order, laid out for the cell test.
+    listed: LeafPrims<P>,
     params: GridParams,
 }
 
@@ -60,7 +64,14 @@ impl<P: Primitive> Grid<P> {
             let root = build::build_level(&ctx, &ids, bounds, 0, budget.max(prims.len() as u64));
             build::flatten(&root, &mut flat);
         }
+        // Every cell's range of `refs`, level by level.
+        let lists = flat.levels.iter().flat_map(|lv| {
+            let cells = &flat.offsets[lv.first as usize..=lv.first as usize + lv.cell_count()];
+            cells.windows(2).map(|w| (w[0], w[1] - w[0]))
+        });
+        let listed = LeafPrims::new(prims, &flat.refs, lists);
         Ok(Self {
+            listed,
             levels: flat.levels,
             offsets: flat.offsets,
             children: flat.children,
@@ -127,7 +138,8 @@ impl<P: Primitive> Accel for Grid<P> {
                 + std::mem::size_of_val(self.offsets.as_slice())
                 + std::mem::size_of_val(self.children.as_slice())
                 + std::mem::size_of_val(self.refs.as_slice())
-                + std::mem::size_of_val(self.prims.as_slice()),
+                + std::mem::size_of_val(self.prims.as_slice())
+                + self.listed.bytes(),
             ..AccelStats::default()
         };
         if self.levels.is_empty() {
@@ -179,6 +191,13 @@ impl<P: Primitive> Accel for Grid<P> {
                     if child != NO_CHILD && !cell.contains(&self.levels[child as usize].bounds) {
                         err.get_or_insert(format!("sub-grid {child} pokes out of its cell"));
                     }
+                }
+                let (s, e) = (
+                    self.offsets[lv.first as usize + c],
+                    self.offsets[lv.first as usize + c + 1],
+                );
+                if let Err(e) = self.listed.check_list(&self.prims, &self.refs, (s, e - s)) {
+                    err.get_or_insert(format!("level {l}, cell {c}: {e}"));
                 }
                 for &p in self.cell_refs(lv, c) {
                     match self.prims.get(p as usize) {

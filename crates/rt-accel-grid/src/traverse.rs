@@ -21,7 +21,7 @@
 use crate::Grid;
 use crate::level::NO_CHILD;
 use rt_geom::aabb::{pad_down, pad_up};
-use rt_geom::{Hit, Mailbox, Primitive, Ray, test_primitives};
+use rt_geom::{Hit, Mailbox, Primitive, Ray};
 
 /// Mailbox slots per ray.
 const MAILBOX: usize = 8;
@@ -37,13 +37,16 @@ struct Walk<'a, P> {
 }
 
 impl<P: Primitive> Walk<'_, P> {
-    /// Tests primitives `ids`; true when `ANY_HIT` and something was hit.
+    /// Tests the primitives at places `s..e` of `refs` (a cell); true when `ANY_HIT` and
+    /// something was hit.
     #[inline(always)]
-    fn test<const ANY_HIT: bool, const MAILBOXES: bool>(&mut self, ids: &[u32]) -> bool {
+    fn test<const ANY_HIT: bool, const MAILBOXES: bool>(&mut self, (s, e): (usize, usize)) -> bool {
         let mailbox = &mut self.mailbox;
-        test_primitives::<P, ANY_HIT>(&self.grid.prims, ids, &mut self.ray, &mut self.best, |p| {
-            MAILBOXES && mailbox.seen(p)
-        })
+        let grid = self.grid;
+        grid.listed
+            .test::<ANY_HIT>((s, e - s), &grid.refs, &mut self.ray, &mut self.best, |p| {
+                MAILBOXES && mailbox.seen(p)
+            })
     }
 
     /// The distance at which the ray crosses the wall ahead of cell `i` along axis `a`,
@@ -123,7 +126,7 @@ impl<P: Primitive> Walk<'_, P> {
                     grid.offsets[first] as usize,
                     grid.offsets[first + 1] as usize,
                 );
-                if self.test::<ANY_HIT, MAILBOXES>(&grid.refs[s..e]) {
+                if self.test::<ANY_HIT, MAILBOXES>((s, e)) {
                     return true;
                 }
             }

@@ -34,7 +34,9 @@ pub use bsp::{BspParams, BspTree, SplitPlane};
 pub use node::KdNode;
 pub use params::{KdBuilder, KdParams, KdTraversal, MAX_DEPTH};
 
-use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, Primitive, Ray, check_primitives};
+use rt_geom::{
+    Aabb, Accel, AccelStats, BuildError, Hit, LeafPrims, Primitive, Ray, check_primitives,
+};
 
 /// A kd-tree over primitives `P`: 8-byte nodes flattened depth-first, leaves referring to the
 /// primitives by index (a primitive cut by planes is in several leaves).
@@ -45,6 +47,9 @@ pub struct KdTree<P> {
     indices: Vec<u32>,
     /// The caller's primitives, in the caller's order.
     prims: Vec<P>,
+    /// The primitives of the leaves of several, in `indices` order, laid out for the leaf
+    /// test.
+    listed: LeafPrims<P>,
     bounds: Aabb,
     params: KdParams,
 }
@@ -72,10 +77,12 @@ impl<P: Primitive> KdTree<P> {
                 });
             }
         }
+        let listed = LeafPrims::new(prims, &indices, nodes.iter().filter_map(KdNode::list));
         Ok(Self {
             nodes,
             indices,
             prims: prims.to_vec(),
+            listed,
             bounds,
             params,
         })
@@ -116,13 +123,14 @@ impl<P: Primitive> Accel for KdTree<P> {
     #[inline]
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let t = self.params.traversal;
-        traverse::query::<_, _, false>(self, &self.prims, &self.bounds, t, ray)
+        traverse::query::<_, _, false>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
     }
 
     #[inline]
     fn occluded(&self, ray: &Ray) -> bool {
         let t = self.params.traversal;
-        traverse::query::<_, _, true>(self, &self.prims, &self.bounds, t, ray).is_some()
+        traverse::query::<_, _, true>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
+            .is_some()
     }
 
     fn stats(&self) -> AccelStats {

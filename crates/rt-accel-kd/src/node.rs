@@ -100,6 +100,12 @@ impl KdNode {
         }
     }
 
+    /// A leaf of several primitives: its range `(first, count)` of the index array.
+    #[inline]
+    pub fn list(&self) -> Option<(u32, u32)> {
+        (self.is_leaf() && self.count() > 1).then(|| (self.data, self.count() as u32))
+    }
+
     /// Raw data word (split bits, primitive or offset).
     #[inline]
     pub fn data(&self) -> u32 {

@@ -29,7 +29,8 @@ impl<P: Primitive> KdTree<P> {
             nodes: self.nodes.len(),
             bytes: std::mem::size_of_val(self.nodes.as_slice())
                 + std::mem::size_of_val(self.indices.as_slice())
-                + std::mem::size_of_val(self.prims.as_slice()),
+                + std::mem::size_of_val(self.prims.as_slice())
+                + self.listed.bytes(),
             ..AccelStats::default()
         };
         if self.nodes.is_empty() {
@@ -69,8 +70,10 @@ impl<P: Primitive> KdTree<P> {
                 }
                 return;
             }
-            if n.count() > 1 && n.data() as usize + n.count() > self.indices.len() {
-                return fail(format!("leaf {i} points past the index array"));
+            if let Some(list) = n.list() {
+                if let Err(e) = self.listed.check_list(&self.prims, &self.indices, list) {
+                    return fail(format!("leaf {i}: {e}"));
+                }
             }
             // A referenced primitive really touches the cell.
             for &p in n.leaf_prims(&self.indices) {

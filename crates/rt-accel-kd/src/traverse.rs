@@ -12,7 +12,7 @@
 use crate::params::{KdTraversal, MAX_DEPTH};
 use crate::{KdNode, KdTree};
 use rt_geom::aabb::PAD;
-use rt_geom::{Aabb, Hit, Primitive, Ray, test_primitives};
+use rt_geom::{Aabb, Hit, LeafPrims, Primitive, Ray, test_primitives};
 
 /// Which children of an inner node the ray visits, first = on the side of the origin.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -89,23 +89,34 @@ pub(crate) fn ordered_children(i: usize, node: &KdNode, below_first: bool) -> (u
     (children[f], children[f ^ 1])
 }
 
-/// Tests a leaf's primitives against `r`, shrinking `r.tmax` to the closest hit. Returns true
-/// when `ANY_HIT` and something was hit.
+/// What leaves test: the caller's primitives (a leaf of one names it in its node) and the
+/// listed copies of the leaves of several ([`LeafPrims`], ranges of the index array).
+pub(crate) type LeafData<'a, P> = (&'a [P], &'a LeafPrims<P>);
+
+/// Tests leaf `node`'s primitives against `r`, shrinking `r.tmax` to the closest hit.
+/// Returns true when `ANY_HIT` and something was hit.
 #[inline(always)]
 fn test_leaf<P: Primitive, const ANY_HIT: bool>(
-    prims: &[P],
-    ids: &[u32],
+    (prims, listed): LeafData<'_, P>,
+    node: &KdNode,
+    indices: &[u32],
     r: &mut Ray,
     best: &mut Option<Hit>,
 ) -> bool {
-    test_primitives::<P, ANY_HIT>(prims, ids, r, best, |_| false)
+    match node.list() {
+        Some((first, count)) => {
+            let places = (first as usize, count as usize);
+            listed.test::<ANY_HIT>(places, indices, r, best, |_| false)
+        }
+        None => test_primitives::<P, ANY_HIT>(prims, node.leaf_prims(indices), r, best, |_| false),
+    }
 }
 
 /// Iterative front-to-back traversal with an explicit stack of pending far cells, from the
 /// ray's interval `[t0, t1]` inside the root cell.
 pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     tree: &T,
-    prims: &[P],
+    leaves: LeafData<'_, P>,
     ray: &Ray,
     (mut t0, mut t1): (f32, f32),
 ) -> Option<Hit> {
@@ -137,7 +148,7 @@ pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
                 }
                 continue;
             }
-            if test_leaf::<P, ANY_HIT>(prims, nodes[i].leaf_prims(indices), &mut r, &mut best) {
+            if test_leaf::<P, ANY_HIT>(leaves, &nodes[i], indices, &mut r, &mut best) {
                 return best;
             }
             // The next pending cell that starts before the closest hit.
@@ -166,13 +177,13 @@ thread_local! {
 /// the far child, the far child.
 pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     tree: &T,
-    prims: &[P],
+    leaves: LeafData<'_, P>,
     ray: &Ray,
     (t0, t1): (f32, f32),
 ) -> Option<Hit> {
     struct Walk<'a, T: SplitPlanes, P> {
         tree: &'a T,
-        prims: &'a [P],
+        leaves: LeafData<'a, P>,
         data: T::RayData,
         r: Ray,
         best: Option<Hit>,
@@ -182,8 +193,14 @@ pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
         fn visit<const ANY_HIT: bool>(&mut self, i: usize, t0: f32, t1: f32) -> bool {
             let node = &self.tree.nodes()[i];
             if node.is_leaf() {
-                let ids = node.leaf_prims(self.tree.indices());
-                return test_leaf::<P, ANY_HIT>(self.prims, ids, &mut self.r, &mut self.best);
+                let indices = self.tree.indices();
+                return test_leaf::<P, ANY_HIT>(
+                    self.leaves,
+                    node,
+                    indices,
+                    &mut self.r,
+                    &mut self.best,
+                );
             }
             let (first, second, step) = self.tree.at(&self.data, i, t0, t1);
             match step {
@@ -206,7 +223,7 @@ pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     }
     let mut walk = Walk {
         tree,
-        prims,
+        leaves,
         data: T::ray_data(ray),
         r: *ray,
         best: None,
@@ -263,7 +280,7 @@ impl<P: Primitive> SplitPlanes for KdTree<P> {
 #[inline]
 pub(crate) fn query<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     tree: &T,
-    prims: &[P],
+    leaves: LeafData<'_, P>,
     bounds: &Aabb,
     traversal: KdTraversal,
     ray: &Ray,
@@ -273,8 +290,8 @@ pub(crate) fn query<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     }
     let span = bounds.clip_ray(ray)?;
     match traversal {
-        KdTraversal::Iterative => iterative::<T, P, ANY_HIT>(tree, prims, ray, span),
-        KdTraversal::Recursive => recursive::<T, P, ANY_HIT>(tree, prims, ray, span),
+        KdTraversal::Iterative => iterative::<T, P, ANY_HIT>(tree, leaves, ray, span),
+        KdTraversal::Recursive => recursive::<T, P, ANY_HIT>(tree, leaves, ray, span),
     }
 }
 

@@ -30,7 +30,9 @@ pub use node::{ChildRef, OctLeaf, OctNode};
 pub use params::{MAX_DEPTH, OctreeParams, OctreeTraversal};
 
 use node::{MAX_NODES, octant};
-use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, Primitive, Ray, Vec3, check_primitives};
+use rt_geom::{
+    Aabb, Accel, AccelStats, BuildError, Hit, LeafPrims, Primitive, Ray, Vec3, check_primitives,
+};
 
 /// An octree over primitives `P`.
 #[derive(Clone, Debug)]
@@ -41,6 +43,8 @@ pub struct Octree<P> {
     /// The root node (unused when there are no primitives).
     root: ChildRef,
     prims: Vec<P>,
+    /// The listed primitives in `indices` order, laid out for the leaf test.
+    leaf_prims: LeafPrims<P>,
     /// The root cube.
     bounds: Aabb,
     params: OctreeParams,
@@ -72,7 +76,9 @@ impl<P: Primitive> Octree<P> {
             let tree = build::build(&ctx, (0..n as u32).collect(), bounds, 0, budget);
             root = flat.add_root(&tree, &bounds);
         }
+        let lists = flat.leaves.iter().map(|l| (l.first, l.count));
         Ok(Self {
+            leaf_prims: LeafPrims::new(prims, &flat.indices, lists),
             nodes: flat.nodes,
             leaves: flat.leaves,
             indices: flat.indices,
@@ -155,7 +161,8 @@ impl<P: Primitive> Accel for Octree<P> {
             bytes: std::mem::size_of_val(self.nodes.as_slice())
                 + std::mem::size_of_val(self.leaves.as_slice())
                 + std::mem::size_of_val(self.indices.as_slice())
-                + std::mem::size_of_val(self.prims.as_slice()),
+                + std::mem::size_of_val(self.prims.as_slice())
+                + self.leaf_prims.bytes(),
             ..AccelStats::default()
         };
         if self.leaves.is_empty() {
@@ -215,8 +222,9 @@ impl<P: Primitive> Accel for Octree<P> {
                 err.get_or_insert(format!("leaf {i} out of range"));
                 return;
             };
-            if leaf.prims().end > self.indices.len() {
-                err.get_or_insert(format!("leaf {i} points past the index array"));
+            let list = (leaf.first, leaf.count);
+            if let Err(e) = self.leaf_prims.check_list(&self.prims, &self.indices, list) {
+                err.get_or_insert(format!("leaf {i}: {e}"));
                 return;
             }
             for &p in &self.indices[leaf.prims()] {

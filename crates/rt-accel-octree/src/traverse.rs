@@ -30,7 +30,7 @@ use crate::MAX_DEPTH;
 use crate::Octree;
 use crate::node::{ChildRef, OctNode, content_box, octant, octant_at};
 use rt_geom::aabb::PAD;
-use rt_geom::{Aabb, Hit, Mailbox, Primitive, Ray, Vec3, test_primitives};
+use rt_geom::{Aabb, Hit, Mailbox, Primitive, Ray, Vec3};
 use wide::{CmpEq, CmpGt, CmpLe, CmpLt, CmpNe, f32x8};
 
 struct Walk<'a, P> {
@@ -57,18 +57,23 @@ impl<P: Primitive> Walk<'_, P> {
     /// Tests leaf `i`; true when `ANY_HIT` and something was hit.
     fn leaf<const ANY_HIT: bool>(&mut self, i: usize) -> bool {
         let tree = self.tree;
-        let ids = &tree.indices[tree.leaves[i].prims()];
-        let mailbox = &mut self.mailbox;
-        let skip_seen = tree.params.mailbox;
-        test_primitives::<P, ANY_HIT>(&tree.prims, ids, &mut self.ray, &mut self.best, |p| {
-            skip_seen && mailbox.seen(p)
-        })
+        let leaf = tree.leaves[i];
+        let places = (leaf.first as usize, leaf.count as usize);
+        let (ray, best) = (&mut self.ray, &mut self.best);
+        // Two instances: without mailboxes, no per-primitive question at all.
+        if tree.params.mailbox {
+            let mailbox = &mut self.mailbox;
+            let seen = |p| mailbox.seen(p);
+            tree.leaf_prims.test::<ANY_HIT>(places, &tree.indices, ray, best, seen)
+        } else {
+            tree.leaf_prims.test::<ANY_HIT>(places, &tree.indices, ray, best, |_| false)
+        }
     }
 
     /// True when a pending part of the ray entered at `t` cannot hold a closer hit.
     #[inline]
     fn beyond(&self, t: f32) -> bool {
-        // `test_primitives` lowers `ray.tmax` to every hit it keeps.
+        // The leaf test lowers `ray.tmax` to every hit it keeps.
         t > self.ray.tmax
     }
 

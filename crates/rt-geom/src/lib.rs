@@ -16,6 +16,7 @@
 //! | [`primitive`] | [`Primitive`]: what structures need of their elements |
 //! | [`accel`] | [`Accel`], [`AccelStats`], [`BuildError`] |
 //! | [`brute`] | [`BruteForce`] |
+//! | [`leaf_prims`] | [`TriangleSoa`] (triangles leaf by leaf as structure of arrays, tested four at a time) and [`LeafPrims`] (the listed primitives of kd-trees, octrees and grids, laid out for the leaf test) |
 //! | [`mesh`] | [`Mesh`], [`load_obj`] (through tobj), [`MeshError`] |
 //!
 //! ```
@@ -33,6 +34,7 @@ pub mod aabb;
 pub mod accel;
 pub mod brute;
 pub mod cone;
+pub mod leaf_prims;
 pub mod mesh;
 pub mod primitive;
 pub mod ray;
@@ -49,6 +51,7 @@ pub use accel::{
 pub use brute::BruteForce;
 pub use cone::Cone;
 pub use glam::{self, Vec3};
+pub use leaf_prims::{LeafPrims, TriangleSoa};
 pub use mesh::{Mesh, MeshError, MeshGroup, load_obj, parse_obj};
 pub use primitive::Primitive;
 pub use ray::{Hit, PrimHit, Ray, replaces, test_each, test_primitives};

@@ -35,6 +35,14 @@ pub trait Primitive: Clone + Send + Sync + 'static {
         None
     }
 
+    /// This primitive as a triangle whose [`Primitive::intersect`] is the triangle's own
+    /// watertight kernel: layouts that test triangles four at a time ([`crate::LeafPrims`])
+    /// store such primitives as SoA. `None` by default.
+    #[inline]
+    fn as_triangle(&self) -> Option<&Triangle> {
+        None
+    }
+
     /// [`crate::test_primitives`]: tests `prims[id]` for the `ids` that `skip` lets through,
     /// in order, keeping the closest hit in `best` (ties by [`crate::replaces`]) and lowering
     /// `ray.tmax` to it; with `ANY_HIT`, stops at the first hit and returns true. One at a
@@ -53,6 +61,11 @@ pub trait Primitive: Clone + Send + Sync + 'static {
 }
 
 impl Primitive for Triangle {
+    #[inline]
+    fn as_triangle(&self) -> Option<&Triangle> {
+        Some(self)
+    }
+
     /// Four triangles at a time in SIMD lanes ([`crate::triangle::watertight_lanes`]).
     #[inline(always)]
     fn test_all<const ANY_HIT: bool>(

@@ -63,6 +63,14 @@ macro_rules! each {
 
 impl Primitive for Shape {
     #[inline]
+    fn as_triangle(&self) -> Option<&Triangle> {
+        match self {
+            Shape::Triangle(t) => Primitive::as_triangle(t),
+            _ => None,
+        }
+    }
+
+    #[inline]
     fn bounds(&self) -> Aabb {
         each!(self, p => p.bounds())
     }

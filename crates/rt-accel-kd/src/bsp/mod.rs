@@ -16,7 +16,9 @@ use crate::{KdNode, KdParams};
 use build::{Side, classify, clip_cell};
 use rt_geom::aabb::{pad_down, pad_up};
 use rt_geom::glam::DVec3;
-use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, Primitive, Ray, Vec3, check_primitives};
+use rt_geom::{
+    Aabb, Accel, AccelStats, BuildError, Hit, LeafPrims, Primitive, Ray, Vec3, check_primitives,
+};
 
 /// A splitting plane `normal . p = d` (unit normal), with the band `|normal . p - d| <=
 /// margin` inside which rounding cannot tell the sides apart.
@@ -106,6 +108,8 @@ pub struct BspTree<P> {
     planes: Vec<SplitPlane>,
     indices: Vec<u32>,
     prims: Vec<P>,
+    /// The primitives of the leaves of several, laid out for the leaf test ([`LeafPrims`]).
+    listed: LeafPrims<P>,
     bounds: Aabb,
     params: BspParams,
 }
@@ -148,11 +152,13 @@ impl<P: Primitive> BspTree<P> {
                 });
             }
         }
+        let listed = LeafPrims::new(prims, &indices, nodes.iter().filter_map(KdNode::list));
         Ok(Self {
             nodes,
             planes,
             indices,
             prims: prims.to_vec(),
+            listed,
             bounds,
             params,
         })
@@ -276,12 +282,13 @@ impl<P: Primitive> SplitPlanes for BspTree<P> {
 impl<P: Primitive> Accel for BspTree<P> {
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let t = self.params.traversal;
-        traverse::query::<_, _, false>(self, &self.prims, &self.bounds, t, ray)
+        traverse::query::<_, _, false>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
     }
 
     fn occluded(&self, ray: &Ray) -> bool {
         let t = self.params.traversal;
-        traverse::query::<_, _, true>(self, &self.prims, &self.bounds, t, ray).is_some()
+        traverse::query::<_, _, true>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
+            .is_some()
     }
 
     fn stats(&self) -> AccelStats {
@@ -291,7 +298,8 @@ impl<P: Primitive> Accel for BspTree<P> {
             bytes: std::mem::size_of_val(self.nodes.as_slice())
                 + std::mem::size_of_val(self.planes.as_slice())
                 + std::mem::size_of_val(self.indices.as_slice())
-                + std::mem::size_of_val(self.prims.as_slice()),
+                + std::mem::size_of_val(self.prims.as_slice())
+                + self.listed.bytes(),
             ..AccelStats::default()
         };
         if self.nodes.is_empty() {
@@ -338,8 +346,11 @@ impl<P: Primitive> Accel for BspTree<P> {
                 {
                     err = Some(format!("inner node {i} has a child or plane out of range"));
                 }
-            } else if n.count() > 1 && n.data() as usize + n.count() > self.indices.len() {
-                err = Some(format!("leaf {i} points past the index array"));
+            } else if let Some(Err(e)) = n
+                .list()
+                .map(|l| self.listed.check_list(&self.prims, &self.indices, l))
+            {
+                err = Some(format!("leaf {i}: {e}"));
             } else {
                 for &p in n.leaf_prims(&self.indices) {
                     let Some(prim) = self.prims.get(p as usize) else {

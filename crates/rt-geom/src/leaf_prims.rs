@@ -1,0 +1,370 @@
+//! Primitives stored leaf by leaf for the leaf test: [`TriangleSoa`], triangles as structure
+//! of arrays tested four at a time ([`watertight_lanes`]) with exactly the answers of the
+//! scalar kernel (the leaves of rt's wide BVHs over triangles), and [`LeafPrims`], the same
+//! for structures whose leaves list primitives by id (kd-trees, BSP trees, octrees, grids):
+//! a copy of each listed primitive in listing order, so that a leaf test reads its leaf's
+//! bytes in a row instead of gathering primitives through the ids.
+//!
+//! [`TriangleSoa`] layout: one `f32` array holding, leaf after leaf, each leaf's triangles as
+//! structure of arrays. A leaf `(first, count)` (triangles `first .. first + count` in leaf
+//! order) occupies `9 * count` floats from `9 * first`: the `count` values of `v0.x`, then of
+//! `v0.y`, ... `v2.z`. A leaf's bytes are as contiguous as an array of triangles (the same
+//! cache lines), and the four-lane window of triangles `k .. k + 4` reads coordinate `j` at
+//! `9 * first + j * count + k`; lanes past the leaf read its next row (or the next leaf, or
+//! the [`LANES`] floats of padding at the end) and are masked off.
+
+use crate::triangle::keep;
+use crate::{
+    Hit, PrimHit, Primitive, Ray, Triangle, TriangleLanes, Vec3, replaces, watertight_edges,
+    watertight_lanes,
+};
+
+/// Triangles tested together (the SIMD lanes of the leaf test).
+pub const LANES: usize = 4;
+
+/// Leaf-ordered triangles, each leaf as structure of arrays (see the module documentation).
+#[derive(Clone, Debug, Default)]
+pub struct TriangleSoa {
+    data: Vec<f32>,
+    len: usize,
+}
+
+impl TriangleSoa {
+    /// Lays out the leaf-ordered `tris`; `leaves` are the `(first, count)` ranges that cover
+    /// them (each triangle in exactly one).
+    pub fn new(tris: &[Triangle], leaves: impl IntoIterator<Item = (u32, u32)>) -> Self {
+        let mut data = vec![0.0; 9 * tris.len() + LANES];
+        for (first, count) in leaves {
+            let (first, count) = (first as usize, count as usize);
+            for (k, t) in tris[first..first + count].iter().enumerate() {
+                for j in 0..9 {
+                    data[9 * first + j * count + k] = t.v[j / 3][j % 3];
+                }
+            }
+        }
+        Self {
+            data,
+            len: tris.len(),
+        }
+    }
+
+    /// Number of triangles.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Triangle `k` of the leaf `(first, count)`.
+    #[inline]
+    pub fn get(&self, first: usize, count: usize, k: usize) -> Triangle {
+        let c = |j: usize| self.data[9 * first + j * count + k];
+        Triangle::new(
+            Vec3::new(c(0), c(1), c(2)),
+            Vec3::new(c(3), c(4), c(5)),
+            Vec3::new(c(6), c(7), c(8)),
+        )
+    }
+
+    /// Bytes of the triangle data.
+    pub fn bytes(&self) -> usize {
+        self.data.len() * 4
+    }
+
+    /// Tests triangles `first .. first + count` against the ray, in order: the edge functions
+    /// and their sign test for four triangles at once (SIMD lanes, one bit mask), then the
+    /// scalar kernel's own [`Triangle::finish_watertight`] for the lanes that may hit, each
+    /// hit handed to `keep(hit, id, ray)` (ids from `ids[first..]`), which records it and
+    /// says whether the search is over. Triangles whose id `skip` names (mailboxes: asked
+    /// in order, before their window is tested) are not tested. Returns true when `keep` did.
+    #[inline(always)]
+    pub fn test_range(
+        &self,
+        (first, count): (usize, usize),
+        ids: &[u32],
+        r: &mut Ray,
+        mut skip: impl FnMut(u32) -> bool,
+        mut keep: impl FnMut(PrimHit, u32, &mut Ray) -> bool,
+    ) -> bool {
+        let leaf = &self.data[9 * first..9 * (first + count) + LANES];
+        let ids = &ids[first..first + count];
+        let mut k = 0;
+        while k < count {
+            // Lanes past the leaf belong to the next one.
+            let mut lanes = (1u32 << (count - k).min(LANES)) - 1;
+            for (l, &id) in ids[k..].iter().take(LANES).enumerate() {
+                if skip(id) {
+                    lanes &= !(1 << l);
+                }
+            }
+            let w: TriangleLanes = std::array::from_fn(|j| {
+                let c: [f32; LANES] = leaf[j * count + k..][..LANES].try_into().expect("padded");
+                wide::f32x4::from(c)
+            });
+            let (may_hit, sheared) = watertight_lanes(&w, r);
+            let mut may_hit = may_hit & lanes;
+            while may_hit != 0 {
+                let l = may_hit.trailing_zeros() as usize;
+                may_hit &= may_hit - 1;
+                let edges = watertight_edges(sheared.map(|x| x[l]));
+                if let Some(h) = self.get(first, count, k + l).finish_watertight(r, edges) {
+                    if keep(h, ids[k + l], r) {
+                        return true;
+                    }
+                }
+            }
+            k += LANES;
+        }
+        false
+    }
+
+    /// [`Self::test_range`] keeping the closest hit in `best` (ties by [`replaces`]) and
+    /// lowering `r.tmax` to it; with `ANY_HIT`, the first hit ends the search (true).
+    #[inline(always)]
+    pub fn intersect_range<const ANY_HIT: bool>(
+        &self,
+        first: usize,
+        count: usize,
+        r: &mut Ray,
+        ids: &[u32],
+        best: &mut Option<(PrimHit, u32)>,
+    ) -> bool {
+        self.test_range(
+            (first, count),
+            ids,
+            r,
+            |_| false,
+            |h, id, r| {
+                if ANY_HIT {
+                    *best = Some((h, id));
+                    return true;
+                }
+                if replaces(h.t, id, best.map(|(b, id)| (b.t, id))) {
+                    *best = Some((h, id));
+                    r.tmax = h.t;
+                }
+                false
+            },
+        )
+    }
+}
+
+/// The primitives of a structure whose leaves list them by id (ranges of an index array):
+/// a copy of each listed primitive at its place in the list, laid out for the leaf test.
+/// Triangles ([`Primitive::as_triangle`]) are stored as [`TriangleSoa`] and tested four at a
+/// time with no gathering; other primitives as an array, tested one by one. Either way a
+/// leaf's primitives are contiguous, and every answer is the primitive's own kernel's.
+///
+/// Costs a copy of each primitive per listing (36 bytes per reference for triangles) on top
+/// of the index array; buys a leaf test that reads its leaf in a row instead of gathering
+/// through the ids.
+#[derive(Clone, Debug, Default)]
+pub struct LeafPrims<P> {
+    soa: Option<TriangleSoa>,
+    listed: Vec<P>,
+}
+
+impl<P: Primitive> LeafPrims<P> {
+    /// Lays out `prims[indices[i]]` at place `i`, for leaves that test the ranges `lists` of
+    /// `indices` (`(first, count)`, disjoint); places outside every list are never tested.
+    pub fn new(prims: &[P], indices: &[u32], lists: impl IntoIterator<Item = (u32, u32)>) -> Self {
+        let listed: Vec<P> = indices.iter().map(|&i| prims[i as usize].clone()).collect();
+        let tris: Option<Vec<Triangle>> = listed.iter().map(|p| p.as_triangle().copied()).collect();
+        match tris {
+            Some(tris) if !tris.is_empty() => Self {
+                soa: Some(TriangleSoa::new(&tris, lists)),
+                listed: Vec::new(),
+            },
+            _ => Self { soa: None, listed },
+        }
+    }
+
+    /// Tests the primitives at places `first .. first + count` (ids `indices[first..]`),
+    /// skipping the ids `skip` names, keeping the closest hit in `best` (ties by
+    /// [`replaces`]) and lowering `ray.tmax` to it: what [`crate::test_primitives`] does with
+    /// the ids `indices[first..first + count]`. With `ANY_HIT`, stops at the first hit (true).
+    #[inline(always)]
+    pub fn test<const ANY_HIT: bool>(
+        &self,
+        (first, count): (usize, usize),
+        indices: &[u32],
+        ray: &mut Ray,
+        best: &mut Option<Hit>,
+        mut skip: impl FnMut(u32) -> bool,
+    ) -> bool {
+        let keep = |h, id, r: &mut Ray| keep::<ANY_HIT>(h, id, r, best);
+        if let Some(soa) = &self.soa {
+            return soa.test_range((first, count), indices, ray, skip, keep);
+        }
+        let mut keep = keep;
+        let ids = &indices[first..first + count];
+        for (p, &id) in self.listed[first..first + count].iter().zip(ids) {
+            if skip(id) {
+                continue;
+            }
+            if let Some(h) = p.intersect(ray) {
+                if keep(h, id, ray) {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// Checks that the copies at places `first .. first + count` are `prims[indices[i]]`
+    /// (for the structures' `validate`): the same triangles, or primitives with the same
+    /// bounds.
+    pub fn check_list(
+        &self,
+        prims: &[P],
+        indices: &[u32],
+        (first, count): (u32, u32),
+    ) -> Result<(), String> {
+        let (first, count) = (first as usize, count as usize);
+        let Some(ids) = indices.get(first..first + count) else {
+            return Err(format!("list {first}+{count} runs past the index array"));
+        };
+        for (k, &id) in ids.iter().enumerate() {
+            let Some(p) = prims.get(id as usize) else {
+                return Err(format!(
+                    "list {first}+{count} names primitive {id}, out of range"
+                ));
+            };
+            let same = match &self.soa {
+                Some(soa) => {
+                    first + count <= soa.len() && p.as_triangle() == Some(&soa.get(first, count, k))
+                }
+                None => self.listed.get(first + k).map(Primitive::bounds) == Some(p.bounds()),
+            };
+            if !same {
+                return Err(format!(
+                    "the copy at place {} is not primitive {id}",
+                    first + k
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Bytes of the copies.
+    pub fn bytes(&self) -> usize {
+        self.soa.as_ref().map_or(0, TriangleSoa::bytes)
+            + std::mem::size_of_val(self.listed.as_slice())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small deterministic generator (rt-geom has no test-kit dependency).
+    fn lcg(seed: &mut u64) -> f32 {
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (*seed >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    /// `LeafPrims::test` against `test_primitives` over the same ids: same hit, same `tmax`,
+    /// same answer, closest and any hit, with and without skipped ids.
+    fn same_as_by_id<P: Primitive + std::fmt::Debug>(prims: &[P], seed: &mut u64) {
+        // Lists of 1 to 9 references, ids repeating across lists (as cells share primitives).
+        let mut indices = Vec::new();
+        let mut lists = Vec::new();
+        while indices.len() < 200 {
+            let count = 1 + (lcg(seed) * 9.0) as u32;
+            lists.push((indices.len() as u32, count));
+            for _ in 0..count {
+                indices.push((lcg(seed) * prims.len() as f32) as u32 % prims.len() as u32);
+            }
+        }
+        let leaf = LeafPrims::new(prims, &indices, lists.iter().copied());
+        let mut v = || Vec3::new(lcg(seed), lcg(seed), lcg(seed));
+        for k in 0..300 {
+            let o = v() * 4.0 - 2.0;
+            let ray = Ray::segment(
+                o,
+                v() - o,
+                0.0,
+                if k % 3 == 0 { 0.8 } else { f32::INFINITY },
+            );
+            for &(first, count) in &lists {
+                let ids = &indices[first as usize..(first + count) as usize];
+                for skip_every in [0, 3] {
+                    let skip = |p: u32| skip_every != 0 && p % skip_every == 0;
+                    let (mut r1, mut r2) = (ray, ray);
+                    let (mut b1, mut b2) = (None, None);
+                    let places = (first as usize, count as usize);
+                    let a1 = leaf.test::<false>(places, &indices, &mut r1, &mut b1, skip);
+                    let a2 = crate::test_primitives::<P, false>(prims, ids, &mut r2, &mut b2, skip);
+                    assert_eq!((a1, b1, r1.tmax), (a2, b2, r2.tmax), "{ray:?} {ids:?}");
+                    let (mut b1, mut b2) = (None, None);
+                    let a1 = leaf.test::<true>(places, &indices, &mut ray.clone(), &mut b1, skip);
+                    let a2 = crate::test_primitives::<P, true>(
+                        prims,
+                        ids,
+                        &mut ray.clone(),
+                        &mut b2,
+                        skip,
+                    );
+                    assert_eq!((a1, b1.is_some()), (a2, b2.is_some()), "{ray:?} {ids:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn listed_triangles_and_spheres_answer_as_by_id() {
+        let mut seed = 7;
+        let v = |s: &mut u64| Vec3::new(lcg(s), lcg(s), lcg(s));
+        let tris: Vec<Triangle> = (0..30)
+            .map(|_| {
+                let a = v(&mut seed) * 2.0 - 1.0;
+                Triangle::new(a, a + v(&mut seed) * 0.8, a + v(&mut seed) * 0.8)
+            })
+            .collect();
+        same_as_by_id(&tris, &mut seed);
+        let spheres: Vec<crate::Sphere> = (0..30)
+            .map(|_| crate::Sphere::new(v(&mut seed) * 2.0 - 1.0, 0.05 + lcg(&mut seed) * 0.3))
+            .collect();
+        same_as_by_id(&spheres, &mut seed);
+        // Triangles among other shapes: no SoA, the listed copies answer.
+        let shapes: Vec<crate::Shape> = tris
+            .iter()
+            .map(|&t| crate::Shape::Triangle(t))
+            .chain(spheres.iter().map(|&s| crate::Shape::Sphere(s)))
+            .collect();
+        same_as_by_id(&shapes, &mut seed);
+        // `check_list` finds copies that are not the primitives named.
+        let indices = [3, 1, 4, 1];
+        let leaf = LeafPrims::new(&tris, &indices, [(0, 2), (2, 2)]);
+        assert!(leaf.check_list(&tris, &indices, (0, 2)).is_ok());
+        assert!(leaf.check_list(&tris, &[3, 2, 4, 1], (0, 2)).is_err());
+        assert!(leaf.check_list(&tris, &indices, (3, 2)).is_err());
+    }
+
+    #[test]
+    fn soa_round_trips() {
+        let tris: Vec<Triangle> = (0..10)
+            .map(|i| {
+                let f = i as f32;
+                Triangle::new(
+                    Vec3::new(f, 1.0, 2.0),
+                    Vec3::new(3.0, f, 4.0),
+                    Vec3::new(5.0, 6.0, -f),
+                )
+            })
+            .collect();
+        let leaves = [(0, 3), (3, 1), (4, 6)];
+        let soa = TriangleSoa::new(&tris, leaves);
+        assert_eq!(soa.len(), 10);
+        for (first, count) in leaves {
+            for k in 0..count {
+                let t = tris[(first + k) as usize];
+                assert_eq!(soa.get(first as usize, count as usize, k as usize), t);
+            }
+        }
+    }
+}
