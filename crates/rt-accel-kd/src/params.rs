@@ -54,16 +54,20 @@ pub const MAX_DEPTH: u32 = 64;
 
 impl KdParams {
     /// The SAH kd-tree with constants measured for rt's traversal: a traversal step costs
-    /// about twice a primitive test (15 against 7), since leaves test triangles four at a
-    /// time, and empty space is cut off at 90% of the cost. Against [`KdParams::wald_havran`]
-    /// (one thread, 512x512 rays, `cargo run --release -p rt-accel-kd --example kd_costs --
-    /// MESH 15/20/0.2 15/7/0.1`): bunny primary / shadow / diffuse rays 14% / 26% / 15%
-    /// faster, dragon 13% / 15% / 15%, sponza -4% / +3% / +2%; leaves of 5-8 triangles instead
-    /// of 2-3, a third of the memory, builds 40% shorter.
+    /// about five primitive tests (15 against 3), since leaves test their triangles four at a
+    /// time from a copy laid out for it ([`rt_geom::LeafPrims`]), and empty space is cut off
+    /// at 90% of the cost. One thread, 512x512 rays, `cargo run --release -p rt-accel-kd
+    /// --example kd_costs -- MESH 15/7/0.1 15/3/0.1` (primary / shadow / diffuse rays, against
+    /// the 15/7/0.1 of the leaf test that gathered triangles by id): bunny +9% / +19% / +2%,
+    /// dragon +8% / +7% / +7%, sponza -13% / 0% / -1%; leaves of 9 triangles instead of 4,
+    /// dragon built in 0.63 s instead of 0.76 s. Against Wald & Havran's 15/20/0.2
+    /// ([`KdParams::wald_havran`]) the earlier 15/7/0.1 had already gained 14% / 26% / 15% on
+    /// bunny. Lower costs (15/2) or another empty bonus (0, 0.05, 0.3) lost on two models of
+    /// three.
     pub const fn sah() -> Self {
         Self {
             traversal_cost: 15.0,
-            intersection_cost: 7.0,
+            intersection_cost: 3.0,
             empty_bonus: 0.1,
             ..Self::wald_havran()
         }
