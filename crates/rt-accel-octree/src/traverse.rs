@@ -64,9 +64,11 @@ impl<P: Primitive> Walk<'_, P> {
         if tree.params.mailbox {
             let mailbox = &mut self.mailbox;
             let seen = |p| mailbox.seen(p);
-            tree.leaf_prims.test::<ANY_HIT>(places, &tree.indices, ray, best, seen)
+            tree.leaf_prims
+                .test::<ANY_HIT>(places, &tree.indices, ray, best, seen)
         } else {
-            tree.leaf_prims.test::<ANY_HIT>(places, &tree.indices, ray, best, |_| false)
+            tree.leaf_prims
+                .test::<ANY_HIT>(places, &tree.indices, ray, best, |_| false)
         }
     }
 

@@ -13,11 +13,13 @@
 //! `9 * first + j * count + k`; lanes past the leaf read its next row (or the next leaf, or
 //! the [`LANES`] floats of padding at the end) and are masked off.
 
+use crate::triangle::SimdLanes;
 use crate::triangle::keep;
 use crate::{
     Hit, PrimHit, Primitive, Ray, Triangle, TriangleLanes, Vec3, replaces, watertight_edges,
     watertight_lanes,
 };
+use wide::{f32x4, f32x8};
 
 /// Triangles tested together (the SIMD lanes of the leaf test).
 pub const LANES: usize = 4;
@@ -74,11 +76,12 @@ impl TriangleSoa {
     }
 
     /// Tests triangles `first .. first + count` against the ray, in order: the edge functions
-    /// and their sign test for four triangles at once (SIMD lanes, one bit mask), then the
-    /// scalar kernel's own [`Triangle::finish_watertight`] for the lanes that may hit, each
-    /// hit handed to `keep(hit, id, ray)` (ids from `ids[first..]`), which records it and
-    /// says whether the search is over. Triangles whose id `skip` names (mailboxes: asked
-    /// in order, before their window is tested) are not tested. Returns true when `keep` did.
+    /// and their sign test for eight triangles at once while more than four remain, then
+    /// four (SIMD lanes, one bit mask), then the scalar kernel's own
+    /// [`Triangle::finish_watertight`] for the lanes that may hit, each hit handed to
+    /// `keep(hit, id, ray)` (ids from `ids[first..]`), which records it and says whether the
+    /// search is over. Triangles whose id `skip` names (mailboxes: asked in order, before
+    /// their window is tested) are not tested. Returns true when `keep` did.
     #[inline(always)]
     pub fn test_range(
         &self,
@@ -88,34 +91,56 @@ impl TriangleSoa {
         mut skip: impl FnMut(u32) -> bool,
         mut keep: impl FnMut(PrimHit, u32, &mut Ray) -> bool,
     ) -> bool {
-        let leaf = &self.data[9 * first..9 * (first + count) + LANES];
+        let leaf = (first, count);
         let ids = &ids[first..first + count];
         let mut k = 0;
         while k < count {
-            // Lanes past the leaf belong to the next one.
-            let mut lanes = (1u32 << (count - k).min(LANES)) - 1;
-            for (l, &id) in ids[k..].iter().take(LANES).enumerate() {
-                if skip(id) {
-                    lanes &= !(1 << l);
+            let over = if count - k > LANES {
+                self.test_window::<f32x8>(leaf, k, ids, r, &mut skip, &mut keep)
+            } else {
+                self.test_window::<f32x4>(leaf, k, ids, r, &mut skip, &mut keep)
+            };
+            if over {
+                return true;
+            }
+            k += if count - k > LANES { 8 } else { LANES };
+        }
+        false
+    }
+
+    /// Triangles `k .. k + L::WIDTH` of leaf `(first, count)` (those in the leaf), as
+    /// [`Self::test_range`] tests them. Windows of eight stay inside the leaf's rows and the
+    /// padding (they are taken only while more than four triangles remain).
+    #[inline(always)]
+    fn test_window<L: SimdLanes>(
+        &self,
+        (first, count): (usize, usize),
+        k: usize,
+        ids: &[u32],
+        r: &mut Ray,
+        skip: &mut impl FnMut(u32) -> bool,
+        keep: &mut impl FnMut(PrimHit, u32, &mut Ray) -> bool,
+    ) -> bool {
+        let leaf = &self.data[9 * first..9 * (first + count) + LANES];
+        // Lanes past the leaf belong to the next one.
+        let mut lanes = (1u32 << (count - k).min(L::WIDTH)) - 1;
+        for (l, &id) in ids[k..].iter().take(L::WIDTH).enumerate() {
+            if skip(id) {
+                lanes &= !(1 << l);
+            }
+        }
+        let w: TriangleLanes<L> = std::array::from_fn(|j| L::load(&leaf[j * count + k..]));
+        let (may_hit, sheared) = watertight_lanes(&w, r);
+        let mut may_hit = may_hit & lanes;
+        while may_hit != 0 {
+            let l = may_hit.trailing_zeros() as usize;
+            may_hit &= may_hit - 1;
+            let edges = watertight_edges(sheared.map(|x| x[l]));
+            if let Some(h) = self.get(first, count, k + l).finish_watertight(r, edges) {
+                if keep(h, ids[k + l], r) {
+                    return true;
                 }
             }
-            let w: TriangleLanes = std::array::from_fn(|j| {
-                let c: [f32; LANES] = leaf[j * count + k..][..LANES].try_into().expect("padded");
-                wide::f32x4::from(c)
-            });
-            let (may_hit, sheared) = watertight_lanes(&w, r);
-            let mut may_hit = may_hit & lanes;
-            while may_hit != 0 {
-                let l = may_hit.trailing_zeros() as usize;
-                may_hit &= may_hit - 1;
-                let edges = watertight_edges(sheared.map(|x| x[l]));
-                if let Some(h) = self.get(first, count, k + l).finish_watertight(r, edges) {
-                    if keep(h, ids[k + l], r) {
-                        return true;
-                    }
-                }
-            }
-            k += LANES;
         }
         false
     }

@@ -333,27 +333,75 @@ pub fn watertight_edges([ax, ay, bx, by, cx, cy]: [f32; 6]) -> (f32, f32, f32) {
     (u, v, w)
 }
 
-/// Four triangles in SIMD lanes: coordinate `j` of `[v0.x, v0.y, v0.z, v1.x, .., v2.z]` in
-/// vector `j`, lane `l` holding triangle `l`.
-pub type TriangleLanes = [f32x4; 9];
+/// The SIMD vectors the triangle lane kernel runs on: four lanes (`wide::f32x4`, SSE) or
+/// eight (`wide::f32x8`: one AVX register in builds for such CPUs, two SSE registers
+/// elsewhere). Only what [`watertight_lanes`] needs.
+pub trait SimdLanes:
+    Copy + std::ops::Add<Output = Self> + std::ops::Sub<Output = Self> + std::ops::Mul<Output = Self>
+{
+    /// Number of lanes.
+    const WIDTH: usize;
+    /// The lanes as an array.
+    type Array: Copy + std::ops::Index<usize, Output = f32>;
+    fn splat(x: f32) -> Self;
+    /// Lanes from `WIDTH` consecutive floats.
+    fn load(src: &[f32]) -> Self;
+    fn to_lanes(self) -> Self::Array;
+    /// Bits of the lanes where some of `a`, `b`, `c` is below zero, above zero, zero.
+    fn sign_bits(a: Self, b: Self, c: Self) -> (u32, u32, u32);
+}
 
-/// The watertight test's edge functions for four triangles at once ([`TriangleLanes`]),
-/// with the scalar kernel's arithmetic (vertex minus origin, dotted with the ray's
-/// [`Ray::watertight_rows`] in the order of `Vec3::dot`), and their sign test. Returns the
-/// lanes the sign test cannot reject (signs that agree, or an edge function exactly zero,
-/// which [`watertight_edges`] recomputes in `f64`) as bits, and the sheared coordinates
-/// `[ax, ay, bx, by, cx, cy]` of every lane: for such a lane `l`,
+macro_rules! simd_lanes {
+    ($t:ty, $n:expr) => {
+        impl SimdLanes for $t {
+            const WIDTH: usize = $n;
+            type Array = [f32; $n];
+            #[inline(always)]
+            fn splat(x: f32) -> Self {
+                <$t>::splat(x)
+            }
+            #[inline(always)]
+            fn load(src: &[f32]) -> Self {
+                let a: [f32; $n] = src[..$n].try_into().expect("WIDTH floats");
+                <$t>::from(a)
+            }
+            #[inline(always)]
+            fn to_lanes(self) -> [f32; $n] {
+                self.to_array()
+            }
+            #[inline(always)]
+            fn sign_bits(a: Self, b: Self, c: Self) -> (u32, u32, u32) {
+                use wide::{CmpEq, CmpGt, CmpLt};
+                let z = <$t>::ZERO;
+                (
+                    (a.cmp_lt(z) | b.cmp_lt(z) | c.cmp_lt(z)).move_mask() as u32,
+                    (a.cmp_gt(z) | b.cmp_gt(z) | c.cmp_gt(z)).move_mask() as u32,
+                    (a.cmp_eq(z) | b.cmp_eq(z) | c.cmp_eq(z)).move_mask() as u32,
+                )
+            }
+        }
+    };
+}
+simd_lanes!(f32x4, 4);
+simd_lanes!(wide::f32x8, 8);
+
+/// Triangles in SIMD lanes (four by default): coordinate `j` of `[v0.x, v0.y, v0.z, v1.x,
+/// .., v2.z]` in vector `j`, lane `l` holding triangle `l`.
+pub type TriangleLanes<L = f32x4> = [L; 9];
+
+/// The watertight test's edge functions for four (or eight) triangles at once
+/// ([`TriangleLanes`]), with the scalar kernel's arithmetic (vertex minus origin, dotted with
+/// the ray's [`Ray::watertight_rows`] in the order of `Vec3::dot`), and their sign test.
+/// Returns the lanes the sign test cannot reject (signs that agree, or an edge function
+/// exactly zero, which [`watertight_edges`] recomputes in `f64`) as bits, and the sheared
+/// coordinates `[ax, ay, bx, by, cx, cy]` of every lane: for such a lane `l`,
 /// `tri.finish_watertight(ray, watertight_edges(sheared.map(|x| x[l])))` is exactly what
 /// [`Triangle::intersect_watertight`] returns.
 #[inline(always)]
-pub fn watertight_lanes(w: &TriangleLanes, ray: &Ray) -> (u32, [[f32; 4]; 6]) {
-    use wide::{CmpEq, CmpGt, CmpLt};
-    let o = ray.origin().to_array().map(f32x4::splat);
+pub fn watertight_lanes<L: SimdLanes>(w: &TriangleLanes<L>, ray: &Ray) -> (u32, [L::Array; 6]) {
+    let o = ray.origin().to_array().map(L::splat);
     let [mx, my, _] = ray.watertight_rows();
-    let (mx, my) = (
-        mx.to_array().map(f32x4::splat),
-        my.to_array().map(f32x4::splat),
-    );
+    let (mx, my) = (mx.to_array().map(L::splat), my.to_array().map(L::splat));
     let shear = |v: usize| {
         let d = [w[3 * v] - o[0], w[3 * v + 1] - o[1], w[3 * v + 2] - o[2]];
         (
@@ -365,12 +413,9 @@ pub fn watertight_lanes(w: &TriangleLanes, ray: &Ray) -> (u32, [[f32; 4]; 6]) {
     let u = cx * by - cy * bx;
     let v = ax * cy - ay * cx;
     let w = bx * ay - by * ax;
-    let zero = f32x4::ZERO;
-    let neg = (u.cmp_lt(zero) | v.cmp_lt(zero) | w.cmp_lt(zero)).move_mask();
-    let pos = (u.cmp_gt(zero) | v.cmp_gt(zero) | w.cmp_gt(zero)).move_mask();
-    let on_edge = (u.cmp_eq(zero) | v.cmp_eq(zero) | w.cmp_eq(zero)).move_mask();
-    let may_hit = (!(neg & pos) | on_edge) as u32 & 0b1111;
-    (may_hit, [ax, ay, bx, by, cx, cy].map(|x| x.to_array()))
+    let (neg, pos, on_edge) = L::sign_bits(u, v, w);
+    let may_hit = (!(neg & pos) | on_edge) & ((1 << L::WIDTH) - 1);
+    (may_hit, [ax, ay, bx, by, cx, cy].map(L::to_lanes))
 }
 
 /// The leaf test of [`crate::test_primitives`] for triangles: the ids that `skip` lets
