@@ -31,7 +31,9 @@ pub struct GridParams {
     pub max_cells: u32,
     /// The whole grid (all levels) holds at most `max_refs_per_prim * N` references: a level
     /// whose cells would hold more (large triangles in fine cells) is made coarser, and
-    /// sub-grids share what their parent leaves. With `max_cells`, the memory bound.
+    /// sub-grids share what their parent leaves. With `max_cells`, the memory bound (each
+    /// reference: a 4-byte index and a copy of its primitive for the cell test,
+    /// [`rt_geom::LeafPrims`]).
     pub max_refs_per_prim: f32,
     /// Skip a primitive already tested by this ray (a small per-ray cache of the last ids),
     /// instead of testing it again in every cell it spans. Off in every preset: with

@@ -42,7 +42,8 @@ pub struct KdParams {
     /// The tree holds at most `reference_budget * N` primitive references (each split
     /// duplicates the primitives it cuts); a split that would exceed its node's share is not
     /// made. This is the memory bound on pathological input: at most `reference_budget * N`
-    /// indices, and `2 * max_depth` nodes per reference.
+    /// indices and as many copies of the primitives for the leaf test (36 bytes each for a
+    /// triangle, [`rt_geom::LeafPrims`]), and `2 * max_depth` nodes per reference.
     pub reference_budget: f32,
     /// Subtrees with more primitives than this are built in parallel (rayon).
     pub parallel_threshold: usize,

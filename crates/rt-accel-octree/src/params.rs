@@ -23,7 +23,8 @@ pub struct OctreeParams {
     pub max_depth: u32,
     /// At most `reference_budget * N` references in all: a split that would exceed its
     /// node's share (shared down in proportion to the children's counts) is not made. With
-    /// the depth cap, the memory bound on pathological input.
+    /// the depth cap, the memory bound on pathological input (each reference: a 4-byte index
+    /// and a copy of its primitive for the leaf test, [`rt_geom::LeafPrims`]).
     pub reference_budget: f32,
     /// Nodes with more primitives than this build their octants in parallel.
     pub parallel_threshold: usize,

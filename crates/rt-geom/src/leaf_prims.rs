@@ -1,5 +1,5 @@
 //! Primitives stored leaf by leaf for the leaf test: [`TriangleSoa`], triangles as structure
-//! of arrays tested four at a time ([`watertight_lanes`]) with exactly the answers of the
+//! of arrays tested four or eight at a time ([`watertight_lanes`]) with exactly the answers of the
 //! scalar kernel (the leaves of rt's wide BVHs over triangles), and [`LeafPrims`], the same
 //! for structures whose leaves list primitives by id (kd-trees, BSP trees, octrees, grids):
 //! a copy of each listed primitive in listing order, so that a leaf test reads its leaf's
@@ -11,17 +11,17 @@
 //! `v0.y`, ... `v2.z`. A leaf's bytes are as contiguous as an array of triangles (the same
 //! cache lines), and the four-lane window of triangles `k .. k + 4` reads coordinate `j` at
 //! `9 * first + j * count + k`; lanes past the leaf read its next row (or the next leaf, or
-//! the [`LANES`] floats of padding at the end) and are masked off.
+//! the [`LANES`] floats of padding at the end) and are masked off. Eight-lane windows are
+//! taken only while more than four triangles remain, so they stay inside the same bounds.
 
-use crate::triangle::SimdLanes;
 use crate::triangle::keep;
 use crate::{
-    Hit, PrimHit, Primitive, Ray, Triangle, TriangleLanes, Vec3, replaces, watertight_edges,
-    watertight_lanes,
+    Hit, PrimHit, Primitive, Ray, SimdLanes, Triangle, TriangleLanes, Vec3, replaces,
+    watertight_edges, watertight_lanes,
 };
 use wide::{f32x4, f32x8};
 
-/// Triangles tested together (the SIMD lanes of the leaf test).
+/// Triangles tested together in the narrow window (and the floats of padding at the end).
 pub const LANES: usize = 4;
 
 /// Leaf-ordered triangles, each leaf as structure of arrays (see the module documentation).
