@@ -1,6 +1,6 @@
 //! The `Primitive` trait: what every acceleration structure needs to know about its elements.
 
-use crate::{Aabb, PrimHit, Ray, Sphere, Triangle};
+use crate::{Aabb, Hit, PrimHit, Ray, Sphere, Triangle};
 use glam::Vec3;
 
 /// Something a ray can hit. Structures are generic over it; triangles and spheres implement it.
@@ -42,12 +42,40 @@ pub trait Primitive: Clone + Send + Sync + 'static {
     fn as_triangle(&self) -> Option<&Triangle> {
         None
     }
+
+    /// [`crate::test_primitives`]: tests `prims[id]` for the `ids` that `skip` lets through,
+    /// in order, keeping the closest hit in `best` (ties by [`crate::replaces`]) and lowering
+    /// `ray.tmax` to it; with `ANY_HIT`, stops at the first hit and returns true. One at a
+    /// time by default ([`crate::ray::test_each`]); primitives with a SIMD kernel override it
+    /// with the same answers.
+    #[inline(always)]
+    fn test_all<const ANY_HIT: bool>(
+        prims: &[Self],
+        ids: &[u32],
+        ray: &mut Ray,
+        best: &mut Option<Hit>,
+        skip: impl FnMut(u32) -> bool,
+    ) -> bool {
+        crate::ray::test_each::<Self, ANY_HIT>(prims, ids, ray, best, skip)
+    }
 }
 
 impl Primitive for Triangle {
     #[inline]
     fn as_triangle(&self) -> Option<&Triangle> {
         Some(self)
+    }
+
+    /// Four triangles at a time in SIMD lanes ([`crate::triangle::watertight_lanes`]).
+    #[inline(always)]
+    fn test_all<const ANY_HIT: bool>(
+        prims: &[Self],
+        ids: &[u32],
+        ray: &mut Ray,
+        best: &mut Option<Hit>,
+        skip: impl FnMut(u32) -> bool,
+    ) -> bool {
+        crate::triangle::test_triangles::<ANY_HIT>(prims, ids, ray, best, skip)
     }
 
     #[inline]

@@ -177,15 +177,25 @@ pub fn replaces(t: f32, prim: u32, best: Option<(f32, u32)>) -> bool {
     }
 }
 
-/// Tests primitives `ids` of `prims` against `ray` in order, one at a time with
-/// [`Primitive::intersect`](crate::Primitive::intersect), skipping ids for which `skip` says
-/// so (mailboxes), updating `best` by [`replaces`] and shrinking `ray.tmax` to it. With
-/// `ANY_HIT`, stops at the first hit and returns true. Structures that list primitives by id
-/// test their leaves through [`LeafPrims`](crate::LeafPrims) instead (the same answers, from
-/// copies laid out for SIMD tests); this is its reference and the test of lists too short
-/// to copy.
+/// Tests primitives `ids` of `prims` against `ray` in order, skipping ids for which `skip`
+/// says so (mailboxes), updating `best` by [`replaces`] and shrinking `ray.tmax` to it. With
+/// `ANY_HIT`, stops at the first hit and returns true. The leaf test of every structure that
+/// lists primitive ids in its cells; [`Primitive::test_all`](crate::Primitive::test_all),
+/// so that a primitive with a SIMD kernel (triangles) runs it.
 #[inline(always)]
 pub fn test_primitives<P: crate::Primitive, const ANY_HIT: bool>(
+    prims: &[P],
+    ids: &[u32],
+    ray: &mut Ray,
+    best: &mut Option<Hit>,
+    skip: impl FnMut(u32) -> bool,
+) -> bool {
+    P::test_all::<ANY_HIT>(prims, ids, ray, best, skip)
+}
+
+/// [`test_primitives`] one primitive at a time, with [`Primitive::intersect`](crate::Primitive::intersect).
+#[inline(always)]
+pub fn test_each<P: crate::Primitive, const ANY_HIT: bool>(
     prims: &[P],
     ids: &[u32],
     ray: &mut Ray,

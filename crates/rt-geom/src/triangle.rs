@@ -418,6 +418,77 @@ pub fn watertight_lanes<L: SimdLanes>(w: &TriangleLanes<L>, ray: &Ray) -> (u32, 
     (may_hit, [ax, ay, bx, by, cx, cy].map(L::to_lanes))
 }
 
+/// The leaf test of [`crate::test_primitives`] for triangles: the ids that `skip` lets
+/// through, four at a time (gathered into [`TriangleLanes`], edge functions and sign test in
+/// SIMD lanes, the scalar kernel's own steps for the lanes that pass), the last one to three
+/// one by one. Same answers, same order, same `ray.tmax` updates as testing each in turn.
+///
+/// Lists of fewer than four ids (the leaves of kd-trees, mostly) take the scalar loop inline;
+/// longer ones the batched loop, out of line, so that it does not weigh on the callers'
+/// traversal loops.
+#[inline(always)]
+pub(crate) fn test_triangles<const ANY_HIT: bool>(
+    tris: &[Triangle],
+    ids: &[u32],
+    ray: &mut Ray,
+    best: &mut Option<Hit>,
+    skip: impl FnMut(u32) -> bool,
+) -> bool {
+    if ids.len() < 4 {
+        crate::test_each::<Triangle, ANY_HIT>(tris, ids, ray, best, skip)
+    } else {
+        test_in_batches::<ANY_HIT>(tris, ids, ray, best, skip)
+    }
+}
+
+/// [`test_triangles`] four at a time.
+#[inline(never)]
+fn test_in_batches<const ANY_HIT: bool>(
+    tris: &[Triangle],
+    ids: &[u32],
+    ray: &mut Ray,
+    best: &mut Option<Hit>,
+    mut skip: impl FnMut(u32) -> bool,
+) -> bool {
+    if !ray.is_valid() {
+        return false;
+    }
+    let mut batch = [0u32; 4];
+    let mut n = 0;
+    for &p in ids {
+        if skip(p) {
+            continue;
+        }
+        batch[n] = p;
+        n += 1;
+        if n == 4 {
+            n = 0;
+            let lanes: [&Triangle; 4] = batch.map(|p| &tris[p as usize]);
+            let w: TriangleLanes =
+                std::array::from_fn(|j| f32x4::from(lanes.map(|t| t.v[j / 3][j % 3])));
+            let (mut may_hit, sheared) = watertight_lanes(&w, ray);
+            while may_hit != 0 {
+                let l = may_hit.trailing_zeros() as usize;
+                may_hit &= may_hit - 1;
+                let edges = watertight_edges(sheared.map(|x| x[l]));
+                if let Some(h) = lanes[l].finish_watertight(ray, edges) {
+                    if keep::<ANY_HIT>(h, batch[l], ray, best) {
+                        return true;
+                    }
+                }
+            }
+        }
+    }
+    for &p in &batch[..n] {
+        if let Some(h) = tris[p as usize].intersect_watertight(ray) {
+            if keep::<ANY_HIT>(h, p, ray, best) {
+                return true;
+            }
+        }
+    }
+    false
+}
+
 /// Records hit `h` of primitive `p` as [`crate::test_primitives`] does; true when `ANY_HIT`
 /// (the search is over).
 #[inline(always)]
@@ -655,10 +726,9 @@ mod tests {
         );
     }
 
-    /// The SIMD leaf test (`LeafPrims`: windows of eight and four lanes) against the scalar
-    /// one: same hit, same `tmax`, same any-hit answer, on a grid of triangles sharing edges
-    /// and vertices (rays through them), with degenerate and duplicated triangles, skipped
-    /// ids, and every window remainder.
+    /// The four-lane leaf test against the scalar one: same hit, same `tmax`, same any-hit
+    /// answer, on a grid of triangles sharing edges and vertices (rays through them), with
+    /// degenerate and duplicated triangles, skipped ids, and every batch remainder.
     #[test]
     fn lanes_test_equals_one_at_a_time() {
         let mut tris = Vec::new();
@@ -696,18 +766,17 @@ mod tests {
             }
             let n = case % (tris.len() + 1);
             let ids: Vec<u32> = (0..n as u32).rev().collect();
-            let listed = crate::LeafPrims::new(&tris, &ids, [(0, n as u32)]);
             let skip = |p: u32| case % 4 == 0 && p % 5 == 1;
             let (mut r1, mut r2) = (ray, ray);
             let (mut b1, mut b2) = (None, None);
-            let a1 = listed.test::<false>((0, n), &ids, &mut r1, &mut b1, skip);
-            let a2 = crate::test_primitives::<Triangle, false>(&tris, &ids, &mut r2, &mut b2, skip);
+            let a1 = test_triangles::<false>(&tris, &ids, &mut r1, &mut b1, skip);
+            let a2 = crate::test_each::<Triangle, false>(&tris, &ids, &mut r2, &mut b2, skip);
             assert_eq!((a1, b1, r1.tmax), (a2, b2, r2.tmax), "case {case}");
             hits += b1.is_some() as usize;
             let (mut r1, mut r2) = (ray, ray);
             let (mut b1, mut b2) = (None, None);
-            let a1 = listed.test::<true>((0, n), &ids, &mut r1, &mut b1, skip);
-            let a2 = crate::test_primitives::<Triangle, true>(&tris, &ids, &mut r2, &mut b2, skip);
+            let a1 = test_triangles::<true>(&tris, &ids, &mut r1, &mut b1, skip);
+            let a2 = crate::test_each::<Triangle, true>(&tris, &ids, &mut r2, &mut b2, skip);
             assert_eq!((a1, b1), (a2, b2), "case {case} (any hit)");
         }
         assert!(hits > 500, "{hits} hits: the rays must meet the triangles");
