@@ -44,17 +44,20 @@ pub struct GridParams {
 }
 
 impl GridParams {
-    /// A uniform grid of one cell per primitive, no mailboxes. Cells test their triangles four
-    /// at a time, so coarser cells than the classic 2-5 per primitive pay. All presets were
-    /// measured on one thread, 512x512 rays, primary / shadow / diffuse, against the earlier
-    /// values, one run per mesh (`cargo run --release -p rt-accel-grid --example grid_params
-    /// -- MESH uniform:2 uniform:1 two-level:0.125:2 two-level:0.01:0.5 adaptive:8:1
-    /// adaptive:24:0.125`); here, 1 against 2: bunny +13% / +3% / +6%, sponza +6% / +3% /
-    /// +4%, dragon +14% / +8% / +6%.
+    /// A uniform grid of one cell per two primitives, no mailboxes. Cells test their
+    /// triangles four or eight at a time from copies laid out for it
+    /// ([`rt_geom::LeafPrims`]), so coarser cells than the classic 2-5 per primitive pay. All
+    /// presets were measured on one thread, 512x512 rays, primary / shadow / diffuse, against
+    /// the earlier values, one run per mesh (`cargo run --release -p rt-accel-grid --example
+    /// grid_params -- MESH uniform:1 uniform:0.5 two-level:0.125:2 two-level:0.01:0.5
+    /// adaptive:8:1 adaptive:24:0.125`); 0.5 against 1 (itself measured against 2 before the
+    /// cell copies) also in `cargo xtask bench --accels grid --threads 2`, two builds
+    /// interleaved: bunny +13-22% / +9-16% / +11-14%, sponza +9-15% / +6-10% / 0-2%, dragon
+    /// +17% / +8-9% / +1-5%; 0.35 and 0.25 were no better in the example.
     pub const fn uniform() -> Self {
         Self {
             kind: GridKind::Uniform,
-            density: 1.0,
+            density: 0.5,
             max_cells: 1 << 25,
             max_refs_per_prim: 32.0,
             mailbox: false,
