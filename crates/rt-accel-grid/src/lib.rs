@@ -113,9 +113,16 @@ impl<P: Primitive> Grid<P> {
         }
     }
 
-    fn cell_refs(&self, lv: &Level, c: usize) -> &[u32] {
+    /// Cell `c` of level `lv` as `(first, count)` places of `refs`.
+    fn cell_list(&self, lv: &Level, c: usize) -> (u32, u32) {
         let first = lv.first as usize + c;
-        &self.refs[self.offsets[first] as usize..self.offsets[first + 1] as usize]
+        let (s, e) = (self.offsets[first], self.offsets[first + 1]);
+        (s, e - s)
+    }
+
+    fn cell_refs(&self, lv: &Level, c: usize) -> &[u32] {
+        let (s, n) = self.cell_list(lv, c);
+        &self.refs[s as usize..(s + n) as usize]
     }
 }
 
@@ -192,11 +199,8 @@ impl<P: Primitive> Accel for Grid<P> {
                         err.get_or_insert(format!("sub-grid {child} pokes out of its cell"));
                     }
                 }
-                let (s, e) = (
-                    self.offsets[lv.first as usize + c],
-                    self.offsets[lv.first as usize + c + 1],
-                );
-                if let Err(e) = self.listed.check_list(&self.prims, &self.refs, (s, e - s)) {
+                let list = self.cell_list(lv, c);
+                if let Err(e) = self.listed.check_list(&self.prims, &self.refs, list) {
                     err.get_or_insert(format!("level {l}, cell {c}: {e}"));
                 }
                 for &p in self.cell_refs(lv, c) {
