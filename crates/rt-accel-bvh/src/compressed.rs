@@ -28,6 +28,7 @@ use crate::wide::{
     WideLanes, WideNode, WideTopology, WideTree, lane_entries, test_leaf, traverse_nodes,
 };
 use crate::{Bvh8, BvhParams};
+use rt_geom::aabb::SlabRay;
 use rt_geom::{
     Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray, Vec3, all_referenced,
 };
@@ -126,14 +127,7 @@ impl CompressedNode {
 
 impl WideLanes<8> for CompressedNode {
     #[inline(always)]
-    fn entries(
-        &self,
-        o: &[f32; 3],
-        inv: &[f32; 3],
-        neg: &[bool; 3],
-        tmin: f32,
-        tmax: f32,
-    ) -> [f32; 8] {
+    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> [f32; 8] {
         let dequantize = |q: &[[u8; 8]; 3]| -> [[f32; 8]; 3] {
             std::array::from_fn(|a| {
                 let step = self.step(a);
@@ -143,9 +137,7 @@ impl WideLanes<8> for CompressedNode {
         lane_entries(
             &dequantize(&self.qmin),
             &dequantize(&self.qmax),
-            o,
-            inv,
-            neg,
+            ray,
             tmin,
             tmax,
         )

@@ -3,52 +3,13 @@
 use crate::Bvh;
 use crate::node::BvhNode;
 use crate::params::MAX_DEPTH;
-use rt_geom::aabb::{pad_down, pad_up};
-use rt_geom::{Hit, PrimHit, Primitive, Ray, Vec3, replaces};
+use rt_geom::aabb::SlabRay;
+use rt_geom::{Hit, PrimHit, Primitive, Ray, replaces};
 
-/// Per-ray constants of the slab test.
-struct RayBoxes {
-    origin: Vec3,
-    inv: Vec3,
-    /// `dir[axis] < 0` (or `-0.0`): the near plane is the box's max.
-    neg: [bool; 3],
-}
-
-impl RayBoxes {
-    fn new(ray: &Ray) -> Self {
-        let inv = ray.inv_dir();
-        Self {
-            origin: ray.origin(),
-            inv,
-            neg: [
-                inv.x.is_sign_negative(),
-                inv.y.is_sign_negative(),
-                inv.z.is_sign_negative(),
-            ],
-        }
-    }
-
-    /// Entry distance into the node's box within `[tmin, tmax]`, padded as
-    /// [`Aabb::clip_ray`](rt_geom::Aabb::clip_ray) (same answers, fewer branches).
-    #[inline(always)]
-    fn entry(&self, node: &BvhNode, tmin: f32, tmax: f32) -> Option<f32> {
-        let mut t0 = tmin;
-        let mut t1 = tmax;
-        for a in 0..3 {
-            let (near, far) = if self.neg[a] {
-                (node.max[a], node.min[a])
-            } else {
-                (node.min[a], node.max[a])
-            };
-            let tn = (near - self.origin[a]) * self.inv[a];
-            let tf = (far - self.origin[a]) * self.inv[a];
-            // NaN (origin on the plane, zero direction) leaves the interval unchanged.
-            t0 = if tn > t0 { tn } else { t0 };
-            t1 = if tf < t1 { tf } else { t1 };
-        }
-        let t0 = pad_down(t0);
-        (t0 <= pad_up(t1)).then_some(t0.max(tmin))
-    }
+/// Entry distance into the node's box within `[tmin, tmax]` ([`SlabRay::entry`]).
+#[inline(always)]
+fn entry(boxes: &SlabRay, node: &BvhNode, tmin: f32, tmax: f32) -> Option<f32> {
+    boxes.entry(&node.min, &node.max, tmin, tmax)
 }
 
 impl<P: Primitive> Bvh<P> {
@@ -60,9 +21,9 @@ impl<P: Primitive> Bvh<P> {
         if self.nodes.is_empty() || !ray.is_valid() {
             return None;
         }
-        let boxes = RayBoxes::new(ray);
+        let boxes = SlabRay::new(ray);
         let mut r = *ray;
-        boxes.entry(&self.nodes[0], r.tmin, r.tmax)?;
+        entry(&boxes, &self.nodes[0], r.tmin, r.tmax)?;
         let mut best: Option<(PrimHit, u32)> = None;
         // The build caps depth at MAX_DEPTH, so the far children pending never exceed it.
         let mut stack = [(0u32, 0.0f32); MAX_DEPTH + 1];
@@ -89,8 +50,8 @@ impl<P: Primitive> Bvh<P> {
                 }
             } else {
                 let (a, b) = (index + 1, node.offset as usize);
-                let ta = boxes.entry(&self.nodes[a], r.tmin, r.tmax);
-                let tb = boxes.entry(&self.nodes[b], r.tmin, r.tmax);
+                let ta = entry(&boxes, &self.nodes[a], r.tmin, r.tmax);
+                let tb = entry(&boxes, &self.nodes[b], r.tmin, r.tmax);
                 match (ta, tb) {
                     (Some(ta), Some(tb)) => {
                         let (near, far, tfar) = if ta <= tb { (a, b, tb) } else { (b, a, ta) };

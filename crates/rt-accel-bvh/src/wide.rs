@@ -19,7 +19,7 @@ use crate::node::BvhNode;
 use crate::params::MAX_DEPTH;
 use crate::stats::check_leaf_primitive;
 use crate::{Bvh, BvhParams};
-use rt_geom::aabb::{pad_down, pad_up};
+use rt_geom::aabb::{SlabRay, pad_interval};
 use rt_geom::all_referenced;
 use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray, replaces};
 
@@ -345,14 +345,7 @@ impl<const N: usize> WideTree<N> {
 /// A wide node as the traversal sees it: one entry distance per lane, and each lane's child.
 pub(crate) trait WideLanes<const N: usize> {
     /// Entry distance per lane into `[tmin, tmax]`, NaN for lanes the ray misses.
-    fn entries(
-        &self,
-        o: &[f32; 3],
-        inv: &[f32; 3],
-        neg: &[bool; 3],
-        tmin: f32,
-        tmax: f32,
-    ) -> [f32; N];
+    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> [f32; N];
     /// Inner child: node index; leaf: first primitive; `u32::MAX` for an empty lane.
     fn child(&self, lane: usize) -> u32;
     /// 0 for an inner child, else the leaf's primitive count.
@@ -385,15 +378,8 @@ fn hit_lanes<const N: usize>(t: &[f32; N]) -> u32 {
 
 impl<const N: usize> WideLanes<N> for WideNode<N> {
     #[inline(always)]
-    fn entries(
-        &self,
-        o: &[f32; 3],
-        inv: &[f32; 3],
-        neg: &[bool; 3],
-        tmin: f32,
-        tmax: f32,
-    ) -> [f32; N] {
-        lane_entries(&self.min, &self.max, o, inv, neg, tmin, tmax)
+    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> [f32; N] {
+        lane_entries(&self.min, &self.max, ray, tmin, tmax)
     }
 
     #[inline(always)]
@@ -445,9 +431,7 @@ pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: 
     if nodes.is_empty() {
         return None;
     }
-    let o = ray.origin().to_array();
-    let inv = ray.inv_dir().to_array();
-    let neg = inv.map(f32::is_sign_negative);
+    let slab = SlabRay::new(ray);
     STACK.with(|cell| {
         let mut stack = cell.borrow_mut();
         // At most N - 1 pending siblings per level.
@@ -467,7 +451,7 @@ pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: 
                     }
                 } else {
                     let node = &nodes[child as usize];
-                    let t = node.entries(&o, &inv, &neg, r.tmin, r.tmax);
+                    let t = node.entries(&slab, r.tmin, r.tmax);
                     let mut mask = hit_lanes(&t) & node.used_mask();
                     if mask != 0 {
                         let lane = mask.trailing_zeros() as usize;
@@ -514,38 +498,41 @@ thread_local! {
 
 /// Entry distance per lane into the boxes `min..max` (per axis, per lane), NaN for lanes the
 /// ray misses (written as plain lane loops: one SIMD operation each after vectorisation).
-/// Same arithmetic and padding as `Aabb::clip_ray`.
+/// Conservative like [`SlabRay::entry`]: the entry returned is never later
+/// than the true one and never before `tmin`.
 #[inline(always)]
 pub(crate) fn lane_entries<const N: usize>(
     min: &[[f32; N]; 3],
     max: &[[f32; N]; 3],
-    o: &[f32; 3],
-    inv: &[f32; 3],
-    neg: &[bool; 3],
+    ray: &SlabRay,
     tmin: f32,
     tmax: f32,
 ) -> [f32; N] {
     let mut t0 = [tmin; N];
     let mut t1 = [tmax; N];
     for a in 0..3 {
-        let (near, far) = if neg[a] {
+        let (near, far) = if ray.neg[a] {
             (&max[a], &min[a])
         } else {
             (&min[a], &max[a])
         };
+        let (o, inv_near, inv_far) = (ray.origin[a], ray.inv_near[a], ray.inv_far[a]);
         for l in 0..N {
-            let tn = (near[l] - o[a]) * inv[a];
-            let tf = (far[l] - o[a]) * inv[a];
+            let tn = (near[l] - o) * inv_near;
+            let tf = (far[l] - o) * inv_far;
             // NaN (origin on the plane, zero direction) leaves the interval unchanged.
             t0[l] = if tn > t0[l] { tn } else { t0[l] };
             t1[l] = if tf < t1[l] { tf } else { t1[l] };
         }
     }
+    if ray.pad_after {
+        for l in 0..N {
+            (t0[l], t1[l]) = pad_interval(t0[l], t1[l], tmin);
+        }
+    }
     let mut out = [f32::NAN; N];
     for l in 0..N {
-        let lo = pad_down(t0[l]);
-        let hi = pad_up(t1[l]);
-        out[l] = if lo <= hi { lo.max(tmin) } else { f32::NAN };
+        out[l] = if t0[l] <= t1[l] { t0[l] } else { f32::NAN };
     }
     out
 }

@@ -30,6 +30,82 @@ pub fn pad_up(t: f32) -> f32 {
     t + t.abs() * PAD
 }
 
+/// The per-ray constants of the slab test, computed once per ray for traversals that test
+/// many boxes ([`SlabRay::entry`], and the lane loops of wide BVH nodes).
+///
+/// The padding of [`Aabb::clip_ray`] (relative [`PAD`]) is folded into the reciprocal
+/// direction: `inv_near = inv (1 - PAD)` and `inv_far = inv (1 + PAD)` scale the magnitude of
+/// every plane distance down (near planes) or up (far planes), which saves the two paddings
+/// per box. Plane distances keep their exact sign (a rounded difference or product never
+/// changes sign), so a positive entry moves towards the ray's start and a positive exit away
+/// from it; the four roundings involved (difference, reciprocal, scaled reciprocal, product)
+/// stay below `PAD = 2 gamma(3)`. Negative distances move the wrong way, but while
+/// `tmin >= 0` they only lose against `tmin` (entries) or mean a box behind the ray (exits).
+/// Rays with `tmin < 0` keep the plain reciprocal and pad the interval afterwards
+/// (`pad_after`), as `clip_ray` does.
+#[derive(Clone, Copy, Debug)]
+pub struct SlabRay {
+    pub origin: [f32; 3],
+    pub inv_near: [f32; 3],
+    pub inv_far: [f32; 3],
+    /// Per axis: the direction is negative (`-0.0` included): the near plane is the box's max.
+    pub neg: [bool; 3],
+    /// The interval is padded after the planes (rays with `tmin < 0`).
+    pub pad_after: bool,
+}
+
+impl SlabRay {
+    #[inline(always)]
+    pub fn new(ray: &Ray) -> Self {
+        let inv = ray.inv_dir().to_array();
+        let pad_after = !(ray.tmin >= 0.0);
+        let (near, far) = if pad_after {
+            (1.0, 1.0)
+        } else {
+            (1.0 - PAD, 1.0 + PAD)
+        };
+        Self {
+            origin: ray.origin().to_array(),
+            inv_near: inv.map(|i| i * near),
+            inv_far: inv.map(|i| i * far),
+            neg: inv.map(f32::is_sign_negative),
+            pad_after,
+        }
+    }
+
+    /// The entry distance into the box `min..max` within `[tmin, tmax]` (never before
+    /// `tmin`, never after the true entry), or `None` when the ray misses it: the answers of
+    /// [`Aabb::clip_ray`] up to its last ulps, without branches on the data.
+    #[inline(always)]
+    pub fn entry(&self, min: &[f32; 3], max: &[f32; 3], tmin: f32, tmax: f32) -> Option<f32> {
+        let (mut t0, mut t1) = (tmin, tmax);
+        for a in 0..3 {
+            let (near, far) = if self.neg[a] {
+                (max[a], min[a])
+            } else {
+                (min[a], max[a])
+            };
+            let tn = (near - self.origin[a]) * self.inv_near[a];
+            let tf = (far - self.origin[a]) * self.inv_far[a];
+            // NaN (origin on the plane, zero direction) leaves the interval unchanged.
+            t0 = if tn > t0 { tn } else { t0 };
+            t1 = if tf < t1 { tf } else { t1 };
+        }
+        if self.pad_after {
+            (t0, t1) = pad_interval(t0, t1, tmin);
+        }
+        (t0 <= t1).then_some(t0)
+    }
+}
+
+/// `[t0, t1]` padded outward by [`PAD`], the start clamped to `tmin`; a start of NaN when the
+/// padded interval is empty (`pad_down(+inf)` is NaN: a ray parallel to a slab outside it).
+#[inline(always)]
+pub fn pad_interval(t0: f32, t1: f32, tmin: f32) -> (f32, f32) {
+    let (lo, hi) = (pad_down(t0), pad_up(t1));
+    (if lo <= hi { lo.max(tmin) } else { f32::NAN }, hi)
+}
+
 /// An axis-aligned box. The empty box has `min = +inf`, `max = -inf`, so that `union` with it is
 /// the identity. A box may be flat (zero extent along an axis): planar geometry has flat boxes.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -284,5 +360,83 @@ mod tests {
                 "{r:?}"
             );
         }
+    }
+
+    /// The exact (f64) interval of the ray in the box, with the same conventions as the slab
+    /// test (NaN planes ignored).
+    fn exact(b: &Aabb, r: &Ray) -> Option<(f64, f64)> {
+        let (o, d) = (r.origin(), r.dir());
+        let (mut t0, mut t1) = (r.tmin as f64, r.tmax as f64);
+        for a in 0..3 {
+            let (lo, hi) = (b.min[a] as f64, b.max[a] as f64);
+            if d[a] == 0.0 {
+                if (o[a] as f64) < lo || (o[a] as f64) > hi {
+                    return None;
+                }
+                continue;
+            }
+            let (ta, tb) = (
+                (lo - o[a] as f64) / d[a] as f64,
+                (hi - o[a] as f64) / d[a] as f64,
+            );
+            t0 = t0.max(ta.min(tb));
+            t1 = t1.min(ta.max(tb));
+        }
+        (t0 <= t1).then_some((t0, t1))
+    }
+
+    #[test]
+    fn slab_ray_is_conservative_and_agrees_with_clip_ray() {
+        // Random boxes and rays, many of them grazing: origins on box planes, axis-parallel
+        // directions, boxes just touched; intervals starting at 0, inside, and behind (tmin < 0).
+        let mut state = 987654321u32;
+        let mut rnd = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state as f32 / u32::MAX as f32
+        };
+        let (mut hits, mut differ) = (0, 0);
+        for i in 0..200_000 {
+            let c = Vec3::new(rnd(), rnd(), rnd()) * 20.0 - 10.0;
+            let e = Vec3::new(rnd(), rnd(), rnd()) * [3.0, 0.01, 1.0][i % 3];
+            let b = Aabb::new(c - e, c + e);
+            let mut o = Vec3::new(rnd(), rnd(), rnd()) * 30.0 - 15.0;
+            if i % 5 == 0 {
+                o[i % 3] = b.min[i % 3];
+            }
+            let target = b.min + (b.max - b.min) * Vec3::new(rnd(), rnd(), rnd()) * 1.2;
+            let mut d = target - o;
+            if i % 7 == 0 {
+                d[(i / 7) % 3] = if i % 2 == 0 { 0.0 } else { -0.0 };
+            }
+            let tmin = [0.0, 0.5 * rnd(), -rnd()][i % 3];
+            let r = Ray::segment(o, d, tmin, [f32::INFINITY, 1.0, 2.0 * rnd()][i % 3]);
+            if !r.is_valid() {
+                continue;
+            }
+            let got = SlabRay::new(&r).entry(&b.min.to_array(), &b.max.to_array(), r.tmin, r.tmax);
+            if let Some((t0, _)) = exact(&b, &r) {
+                hits += 1;
+                let t = got.unwrap_or_else(|| panic!("missed {b:?} {r:?}"));
+                assert!(
+                    t as f64 <= t0 && t >= r.tmin,
+                    "late entry {t} > {t0}: {b:?} {r:?}"
+                );
+            }
+            // clip_ray pads `tmax` too: its entries beyond `tmax` are culled by every caller.
+            let clip = b.clip_ray(&r).map(|(t0, _)| t0).filter(|&t| t <= r.tmax);
+            if got.is_some() != clip.is_some() {
+                differ += 1;
+            } else if let (Some(x), Some(y)) = (got, clip) {
+                assert!(
+                    (x - y).abs() <= 4.0 * PAD * x.abs().max(y.abs()),
+                    "{x} vs {y}"
+                );
+            }
+        }
+        assert!(hits > 20_000, "{hits} hits");
+        // Only boxes touched within the padding may be judged differently.
+        assert!(differ < 10, "{differ} differ from clip_ray");
     }
 }
