@@ -390,8 +390,8 @@ simd_lanes!(wide::f32x8, 8);
 pub type TriangleLanes<L = f32x4> = [L; 9];
 
 /// The watertight test's edge functions for four (or eight) triangles at once
-/// ([`TriangleLanes`]), with the scalar kernel's arithmetic (vertex minus origin, dotted with
-/// the ray's [`Ray::watertight_rows`] in the order of `Vec3::dot`), and their sign test.
+/// ([`TriangleLanes`]), with the scalar kernel's numbers (vertex minus origin, sheared by the
+/// ray's [`Ray::watertight_shear`] along its [`Ray::watertight_axes`]), and their sign test.
 /// Returns the lanes the sign test cannot reject (signs that agree, or an edge function
 /// exactly zero, which [`watertight_edges`] recomputes in `f64`) as bits, and the sheared
 /// coordinates `[ax, ay, bx, by, cx, cy]` of every lane: for such a lane `l`,
@@ -399,15 +399,19 @@ pub type TriangleLanes<L = f32x4> = [L; 9];
 /// [`Triangle::intersect_watertight`] returns.
 #[inline(always)]
 pub fn watertight_lanes<L: SimdLanes>(w: &TriangleLanes<L>, ray: &Ray) -> (u32, [L::Array; 6]) {
-    let o = ray.origin().to_array().map(L::splat);
-    let [mx, my, _] = ray.watertight_rows();
-    let (mx, my) = (mx.to_array().map(L::splat), my.to_array().map(L::splat));
+    // The lanes hold one coordinate per row of `w`, so the ray's axes pick rows (loads at a
+    // run-time offset) and the shear takes two products per vertex, not the six of the dot
+    // products with the shear rows that the scalar kernel computes: the same numbers, since
+    // the rows' other terms are exact zeros (up to the sign of a zero, which no comparison
+    // or later step sees).
+    let [kx, ky, kz] = ray.watertight_axes();
+    let o = ray.origin().to_array();
+    let (ox, oy, oz) = (L::splat(o[kx]), L::splat(o[ky]), L::splat(o[kz]));
+    let s = ray.watertight_shear();
+    let (sx, sy) = (L::splat(s.x), L::splat(s.y));
     let shear = |v: usize| {
-        let d = [w[3 * v] - o[0], w[3 * v + 1] - o[1], w[3 * v + 2] - o[2]];
-        (
-            d[0] * mx[0] + d[1] * mx[1] + d[2] * mx[2],
-            d[0] * my[0] + d[1] * my[1] + d[2] * my[2],
-        )
+        let dz = w[3 * v + kz] - oz;
+        (w[3 * v + kx] - ox - sx * dz, w[3 * v + ky] - oy - sy * dz)
     };
     let ((ax, ay), (bx, by), (cx, cy)) = (shear(0), shear(1), shear(2));
     let u = cx * by - cy * bx;
