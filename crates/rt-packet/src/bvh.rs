@@ -22,7 +22,8 @@ use rt_geom::Hit;
 use rt_geom::aabb::{pad_down, pad_up};
 
 /// Whether lane `i` of `p` enters `node`'s box within its `[tmin, tmax]` (the single-ray
-/// traversal's padded slab test; NaN from an origin on a slab plane leaves the interval as is).
+/// traversal's padded slab test, [`rt_geom::aabb::SlabRay::entry`], with the packet's folded
+/// reciprocals; NaN from an origin on a slab plane leaves the interval as is).
 #[inline(always)]
 pub(crate) fn lane_enters<const N: usize>(b: Bounds<'_>, p: &RayPacket<'_, N>, i: usize) -> bool {
     lane_entry(b, p, i).is_some()
@@ -31,7 +32,8 @@ pub(crate) fn lane_enters<const N: usize>(b: Bounds<'_>, p: &RayPacket<'_, N>, i
 /// A box as `(min, max)` arrays.
 pub(crate) type Bounds<'a> = (&'a [f32; 3], &'a [f32; 3]);
 
-/// Lane `i`'s padded entry into the box `b` when it enters (the single-ray slab test).
+/// Lane `i`'s padded entry into the box `b` when it enters (the single-ray slab test, see
+/// [`lane_enters`]).
 #[inline(always)]
 pub(crate) fn lane_entry<const N: usize>(
     (min, max): Bounds<'_>,
@@ -41,18 +43,22 @@ pub(crate) fn lane_entry<const N: usize>(
     let mut t0 = p.tmin[i];
     let mut t1 = p.tmax[i];
     for a in 0..3 {
-        let inv = p.inv_dir[a][i];
-        let (near, far) = if inv.is_sign_negative() {
-            (max[a], min[a])
+        let (inv_lo, inv_hi) = (p.inv_lo[a][i], p.inv_hi[a][i]);
+        let (near, far) = if inv_lo.is_sign_negative() {
+            ((max[a], inv_hi), (min[a], inv_lo))
         } else {
-            (min[a], max[a])
+            ((min[a], inv_lo), (max[a], inv_hi))
         };
-        let tn = (near - p.origin[a][i]) * inv;
-        let tf = (far - p.origin[a][i]) * inv;
+        let tn = (near.0 - p.origin[a][i]) * near.1;
+        let tf = (far.0 - p.origin[a][i]) * far.1;
         t0 = if tn > t0 { tn } else { t0 };
         t1 = if tf < t1 { tf } else { t1 };
     }
-    (pad_down(t0) <= pad_up(t1)).then_some(pad_down(t0))
+    if p.pad_after {
+        (pad_down(t0) <= pad_up(t1)).then_some(pad_down(t0))
+    } else {
+        (t0 <= t1).then_some(t0)
+    }
 }
 
 /// The first and the last active lane in `lanes` (inclusive) that enter `node`, if any: the

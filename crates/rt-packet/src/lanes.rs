@@ -51,9 +51,9 @@ fn select(c: f32x8, a: f32x8, b: f32x8) -> f32x8 {
 }
 
 /// The slab test of 8 lanes from `base` (4 for `W` = 4) against the box `[min, max]`, each lane
-/// over `[tmin, tmax]` of the packet: the unpadded entry and exit, computed as
-/// [`rt_geom::Aabb::clip_ray`] computes them (same operations, in the same order, on 8 lanes
-/// at once).
+/// over `[tmin, tmax]` of the packet: the entry and exit by the packet's folded reciprocals
+/// (`inv_lo`, `inv_hi`), computed as [`rt_geom::aabb::SlabRay::entry`] computes them; unpadded
+/// for the lanes that do not fold (see `RayPacket::pad_after`).
 #[inline(always)]
 fn slabs<const N: usize, const W: usize>(
     min: &[f32; 3],
@@ -65,13 +65,16 @@ fn slabs<const N: usize, const W: usize>(
     let mut t1 = load::<N, W>(&p.tmax, base);
     for a in 0..3 {
         let o = load::<N, W>(&p.origin[a], base);
-        let inv = load::<N, W>(&p.inv_dir[a], base);
+        let (inv_lo, inv_hi) = (
+            load::<N, W>(&p.inv_lo[a], base),
+            load::<N, W>(&p.inv_hi[a], base),
+        );
         // Both planes, then the near one by the sign of the direction (`inv < 0` is
         // `is_sign_negative` for every active lane: an inverse of -0 or NaN belongs to an
         // invalid ray).
-        let t_lo = (f32x8::splat(min[a]) - o) * inv;
-        let t_hi = (f32x8::splat(max[a]) - o) * inv;
-        let neg = inv.cmp_lt(f32x8::ZERO);
+        let t_lo = (f32x8::splat(min[a]) - o) * inv_lo;
+        let t_hi = (f32x8::splat(max[a]) - o) * inv_hi;
+        let neg = inv_lo.cmp_lt(f32x8::ZERO);
         let tn = select(neg, t_hi, t_lo);
         let tf = select(neg, t_lo, t_hi);
         // `if tn > t0 { tn } else { t0 }`: NaN keeps the interval as it is.
@@ -90,7 +93,7 @@ fn pad(t: f32x8, up: bool) -> f32x8 {
 
 /// The lanes of the block at `base` that are active and enter the box `[min, max]` within
 /// their `[tmin, tmax]`: the single-ray traversal's padded slab test
-/// ([`rt_geom::Aabb::clip_ray`]) lane by lane.
+/// ([`rt_geom::aabb::SlabRay::entry`]) lane by lane.
 #[inline(always)]
 pub(crate) fn enter_mask<const N: usize, const W: usize>(
     min: &[f32; 3],
@@ -101,13 +104,19 @@ pub(crate) fn enter_mask<const N: usize, const W: usize>(
     let mut mask = 0;
     for half in (0..W).step_by(8) {
         let (t0, t1) = slabs::<N, W>(min, max, p, base + half);
-        mask |= bits::<W>(pad(t0, false).cmp_le(pad(t1, true))) << half;
+        let (t0, t1) = if p.pad_after {
+            (pad(t0, false), pad(t1, true))
+        } else {
+            (t0, t1)
+        };
+        mask |= bits::<W>(t0.cmp_le(t1)) << half;
     }
     mask & active_mask::<N, W>(p, base)
 }
 
-/// [`rt_geom::Aabb::clip_ray`] of the block's lanes: the padded entry and exit of each lane,
-/// and the mask of the active lanes that enter.
+/// [`rt_geom::aabb::SlabRay::entry`] of the block's lanes (with `pad_after`,
+/// [`rt_geom::Aabb::clip_ray`]): the padded entry and exit of each lane, and the mask of the
+/// active lanes that enter.
 #[inline(always)]
 pub(crate) fn clip_block<const N: usize, const W: usize>(
     min: &[f32; 3],
@@ -118,11 +127,17 @@ pub(crate) fn clip_block<const N: usize, const W: usize>(
     let (mut near, mut far, mut mask) = ([0.0; W], [0.0; W], 0);
     for half in (0..W).step_by(8) {
         let (t0, t1) = slabs::<N, W>(min, max, p, base + half);
-        let (t0, t1) = (pad(t0, false), pad(t1, true));
+        let (t0, t1) = if p.pad_after {
+            let (t0, t1) = (pad(t0, false), pad(t1, true));
+            // `t0.max(tmin)` of `clip_ray` (t0 is never NaN for a lane that enters).
+            let tmin = load::<N, W>(&p.tmin, base + half);
+            (select(tmin.cmp_gt(t0), tmin, t0), t1)
+        } else {
+            // Never below `tmin`: the slabs start from it and only raise it.
+            (t0, t1)
+        };
         mask |= bits::<W>(t0.cmp_le(t1)) << half;
-        // `t0.max(tmin)` of `clip_ray` (t0 is never NaN for a lane that enters).
-        let tmin = load::<N, W>(&p.tmin, base + half);
-        let t0 = select(tmin.cmp_gt(t0), tmin, t0).to_array();
+        let t0 = t0.to_array();
         let n = W.min(8);
         near[half..half + n].copy_from_slice(&t0[..n]);
         far[half..half + n].copy_from_slice(&t1.to_array()[..n]);
@@ -398,6 +413,7 @@ impl PacketPrimitive for Shape {}
 mod tests {
     use super::*;
     use rt_geom::Ray;
+    use rt_geom::aabb::SlabRay;
 
     #[test]
     fn triangle_lanes_equal_the_scalar_kernel() {
@@ -498,26 +514,42 @@ mod tests {
     }
 
     #[test]
-    fn block_clip_equals_clip_ray() {
+    fn block_clip_equals_single_ray_slab_tests() {
+        // Entries as `SlabRay::entry` computes them (intervals from 0); with an interval
+        // starting behind the origin, every lane unfolded and padded afterwards: exactly
+        // `clip_ray`, entry and exit.
         let b = rt_geom::Aabb::new(Vec3::ZERO, Vec3::ONE);
-        let rays: Vec<Ray> = (0..16)
-            .map(|i| {
-                let f = i as f32 / 16.0;
-                Ray::new(
-                    Vec3::new(-1.0, f * 1.5 - 0.2, 0.5),
-                    Vec3::new(1.0, 0.0, f - 0.5),
-                )
-            })
-            .collect();
-        let p = RayPacket::<16>::new(&rays);
-        for base in [0, 8] {
-            let (t0, t1, m) = clip_block::<16, 8>(&b.min.to_array(), &b.max.to_array(), &p, base);
-            for l in 0..8 {
-                let expect = b.clip_ray(&rays[base + l]);
-                assert_eq!(m >> l & 1 == 1, expect.is_some(), "lane {}", base + l);
-                if let Some((a, b)) = expect {
-                    assert_eq!((t0[l], t1[l]), (a, b), "lane {}", base + l);
+        for tmin in [0.0, -0.5] {
+            let rays: Vec<Ray> = (0..16)
+                .map(|i| {
+                    let f = i as f32 / 16.0;
+                    let d = Vec3::new(1.0 - 2.0 * (i % 2) as f32, 0.0, f - 0.5);
+                    let o = Vec3::new(0.5 - 1.5 * d.x, f * 1.5 - 0.2, 0.5);
+                    Ray::segment(o, d, tmin, f32::INFINITY)
+                })
+                .collect();
+            let p = RayPacket::<16>::new(&rays);
+            assert_eq!(p.pad_after, tmin < 0.0);
+            for base in [0, 8] {
+                let (min, max) = (b.min.to_array(), b.max.to_array());
+                let (t0, t1, m) = clip_block::<16, 8>(&min, &max, &p, base);
+                for l in 0..8 {
+                    let r = &rays[base + l];
+                    if tmin < 0.0 {
+                        let expect = b.clip_ray(r);
+                        assert_eq!(m >> l & 1 == 1, expect.is_some(), "lane {}", base + l);
+                        if let Some((a, b)) = expect {
+                            assert_eq!((t0[l], t1[l]), (a, b), "lane {}", base + l);
+                        }
+                    } else {
+                        let expect = SlabRay::new(r).entry(&min, &max, r.tmin, r.tmax);
+                        assert_eq!(m >> l & 1 == 1, expect.is_some(), "lane {}", base + l);
+                        if let Some(a) = expect {
+                            assert_eq!(t0[l], a, "lane {}", base + l);
+                        }
+                    }
                 }
+                assert_eq!(enter_mask::<16, 8>(&min, &max, &p, base), m);
             }
         }
     }

@@ -2,6 +2,7 @@
 //! vectorises over), an active mask, and packets cut from image tiles.
 
 use rt_geom::Ray;
+use rt_geom::aabb::PAD;
 
 /// The packet sizes of the seeds: square tiles of 2x2 to 16x16 pixels.
 pub const TILE_SIDES: [usize; 4] = [2, 4, 8, 16];
@@ -19,6 +20,15 @@ pub struct RayPacket<'a, const N: usize> {
     pub dir: [[f32; N]; 3],
     /// `1 / dir` per axis (`+-inf` for zero components, as `Ray::inv_dir`).
     pub inv_dir: [[f32; N]; 3],
+    /// The slab test's reciprocals for a box's min and max plane, with the padding folded in
+    /// as [`rt_geom::aabb::SlabRay`] folds it: `inv_dir` scaled by `1 - PAD` for the plane
+    /// the lane enters by and `1 + PAD` for the one it leaves by; plain `inv_dir` for the
+    /// lanes with `tmin < 0`, which set `pad_after`.
+    pub inv_lo: [[f32; N]; 3],
+    pub inv_hi: [[f32; N]; 3],
+    /// Some active lane has `tmin < 0`: box tests pad their intervals afterwards (lanes with
+    /// folded reciprocals are then padded twice, which stays conservative).
+    pub pad_after: bool,
     /// The watertight triangle test's shear rows per lane ([`Ray::watertight_rows`]): `x`, `y`,
     /// `z` of row 0, then of row 1.
     pub shear: [[f32; N]; 6],
@@ -46,18 +56,41 @@ impl<'a, const N: usize> RayPacket<'a, N> {
                 lanes(rays, 0.0, |r| f(r).z),
             ]
         };
+        let inv_dir = axis3(Ray::inv_dir);
+        let tmin = lanes(rays, 0.0, |r| r.tmin);
+        let active: [bool; N] = std::array::from_fn(|i| {
+            rays.get(i)
+                .is_some_and(|r| r.is_valid() && r.tmin <= r.tmax)
+        });
+        // Per lane, the factors of the min and the max plane (1 -+ PAD by the direction's
+        // sign, or 1 and 1 for an interval starting behind the origin).
+        let folded: [bool; N] = std::array::from_fn(|i| tmin[i] >= 0.0);
+        let scale = |upper: bool| -> [[f32; N]; 3] {
+            std::array::from_fn(|a| {
+                std::array::from_fn(|i| {
+                    let inv = inv_dir[a][i];
+                    let entering = inv.is_sign_negative() == upper;
+                    let f = match (folded[i], entering) {
+                        (false, _) => 1.0,
+                        (true, true) => 1.0 - PAD,
+                        (true, false) => 1.0 + PAD,
+                    };
+                    inv * f
+                })
+            })
+        };
         Self {
             rays,
             origin: axis3(Ray::origin),
             dir: axis3(Ray::dir),
-            inv_dir: axis3(Ray::inv_dir),
+            inv_lo: scale(false),
+            inv_hi: scale(true),
+            pad_after: (0..N).any(|i| active[i] && !folded[i]),
+            inv_dir,
             shear: std::array::from_fn(|k| lanes(rays, 0.0, |r| r.watertight_rows()[k / 3][k % 3])),
-            tmin: lanes(rays, 0.0, |r| r.tmin),
+            tmin,
             tmax: lanes(rays, f32::NEG_INFINITY, |r| r.tmax),
-            active: std::array::from_fn(|i| {
-                rays.get(i)
-                    .is_some_and(|r| r.is_valid() && r.tmin <= r.tmax)
-            }),
+            active,
         }
     }
 
