@@ -29,14 +29,20 @@
 use crate::MAX_DEPTH;
 use crate::Octree;
 use crate::node::{ChildRef, OctNode, content_box, octant, octant_at};
-use rt_geom::aabb::PAD;
+use rt_geom::aabb::{PAD, SlabRay};
 use rt_geom::{Aabb, Hit, Mailbox, Primitive, Ray, Vec3};
 use wide::{CmpEq, CmpGt, CmpLe, CmpLt, CmpNe, f32x8};
 
 struct Walk<'a, P> {
     tree: &'a Octree<P>,
     origin: [f32; 3],
-    inv: [f32; 3],
+    /// Per axis, the reciprocal direction for planes met as a cell's lower and upper plane,
+    /// with the box test's padding folded in ([`SlabRay`]: the near one scaled by `1 - PAD`,
+    /// the far one by `1 + PAD`; both plain when `pad_after`).
+    inv_lo: [f32; 3],
+    inv_hi: [f32; 3],
+    /// The intervals are padded after the planes (rays with `tmin < 0`, see [`SlabRay`]).
+    pad_after: bool,
     /// Per axis: the ray runs towards -a.
     neg: [bool; 3],
     /// Bit `k`: the `k`-th octant of Revelles' sequence (see [`SEQUENCE_MASKS`]), by the
@@ -188,14 +194,17 @@ impl<P: Primitive> Walk<'_, P> {
         self.narrow_along(1, node, planes(1), &mut t);
         self.narrow_along(2, node, planes(2), &mut t);
         let (t0, t1) = t;
+        let nan = f32x8::splat(f32::NAN);
+        if !self.pad_after {
+            // Padded by the reciprocals, and never below `tmin` (the intervals start there).
+            return t0.cmp_le(t1).blend(t0, nan).to_array();
+        }
         let pad = f32x8::splat(PAD);
         let (t0, t1) = (t0 - t0.abs() * pad, t1 + t1.abs() * pad);
         let entry = t0
             .cmp_gt(f32x8::splat(self.ray.tmin))
             .blend(t0, f32x8::splat(self.ray.tmin));
-        t0.cmp_le(t1)
-            .blend(entry, f32x8::splat(f32::NAN))
-            .to_array()
+        t0.cmp_le(t1).blend(entry, nan).to_array()
     }
 
     /// Narrows the eight intervals `t` to the octants' slabs along axis `a`, and to their
@@ -209,26 +218,24 @@ impl<P: Primitive> Walk<'_, P> {
         (lo, mid, hi): (f32, f32, f32),
         t: &mut (f32x8, f32x8),
     ) {
-        let (o, inv) = (f32x8::splat(self.origin[a]), f32x8::splat(self.inv[a]));
-        let dist = |x: f32x8| (x - o) * inv;
-        // The three parameters of this axis; per lane, the octant's slab is the lower or
-        // the upper half.
+        let o = f32x8::splat(self.origin[a]);
+        let (inv_lo, inv_hi) = (f32x8::splat(self.inv_lo[a]), f32x8::splat(self.inv_hi[a]));
+        // Distances to planes met as an octant's lower and upper plane.
+        let (dist_lo, dist_hi) = (|x: f32x8| (x - o) * inv_lo, |x: f32x8| (x - o) * inv_hi);
+        // The three parameters of this axis (the centre plane is both); per lane, the
+        // octant's slab is the lower or the upper half.
         let upper = self.upper_half[a];
         let half = |below: f32, above: f32| upper.blend(f32x8::splat(above), f32x8::splat(below));
-        let (t_lo, t_mid, t_hi) = (
-            dist(f32x8::splat(lo)),
-            dist(f32x8::splat(mid)),
-            dist(f32x8::splat(hi)),
-        );
-        let slab_a = upper.blend(t_mid, t_lo);
-        let slab_b = upper.blend(t_hi, t_mid);
+        let centre = f32x8::splat(mid);
+        let slab_a = upper.blend(dist_lo(centre), dist_lo(f32x8::splat(lo)));
+        let slab_b = upper.blend(dist_hi(f32x8::splat(hi)), dist_hi(centre));
         // Content codes count steps of 1/254 of the octant's side from its low corner
         // (`node::content_box`, the same arithmetic).
         let base = half(lo, mid);
         let step = half((mid - lo) * (1.0 / 254.0), (hi - mid) * (1.0 / 254.0));
         let code = |q: &[u8; 8]| f32x8::from(q.map(f32::from));
-        let box_a = dist(base + code(&node.lo[a]) * step);
-        let box_b = dist(base + code(&node.hi[a]) * step);
+        let box_a = dist_lo(base + code(&node.lo[a]) * step);
+        let box_b = dist_hi(base + code(&node.hi[a]) * step);
         let (near, far, box_near, box_far) = if self.neg[a] {
             (slab_b, slab_a, box_b, box_a)
         } else {
@@ -334,13 +341,27 @@ impl<P: Primitive> Octree<P> {
             return None;
         }
         self.bounds.clip_ray(ray)?;
-        let dir = ray.dir();
-        let neg = [0, 1, 2].map(|a| dir[a].is_sign_negative());
+        let slab = SlabRay::new(ray);
+        let neg = slab.neg;
         let mirror = (0..3).fold(0, |m, a| m | ((neg[a] as usize) << a));
         let mut walk = Walk {
             tree: self,
-            origin: ray.origin().to_array(),
-            inv: ray.inv_dir().to_array(),
+            origin: slab.origin,
+            inv_lo: [0, 1, 2].map(|a| {
+                if neg[a] {
+                    slab.inv_far[a]
+                } else {
+                    slab.inv_near[a]
+                }
+            }),
+            inv_hi: [0, 1, 2].map(|a| {
+                if neg[a] {
+                    slab.inv_near[a]
+                } else {
+                    slab.inv_far[a]
+                }
+            }),
+            pad_after: slab.pad_after,
             neg,
             sequence: &SEQUENCE_MASKS[mirror],
             octant_at_step: SEQUENCE_ORDER.map(|j| j ^ mirror as u8),

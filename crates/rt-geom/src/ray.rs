@@ -26,8 +26,9 @@ pub struct Ray {
     /// `dir[kz] < 0`, which keeps the winding of the projected triangle).
     axes: [u8; 3],
     /// The shear as three row vectors, `p . rows[0] = p[kx] - Sx p[kz]`, `p . rows[1] =
-    /// p[ky] - Sy p[kz]`, `p . rows[2] = Sz p[kz]`: the same numbers (bit for bit: the other
-    /// terms are exact zeros) without indexing by a run-time axis.
+    /// p[ky] - Sy p[kz]`, `p . rows[2] = Sz p[kz]`: the same numbers (the other terms are
+    /// exact zeros) without indexing by a run-time axis, for SIMD lanes of rays whose axes
+    /// differ (packets).
     shear_rows: [Vec3; 3],
     valid: bool,
 }
