@@ -405,8 +405,8 @@ impl<const N: usize> WideLanes<N> for WideNode<N> {
 /// Per inner node: one SIMD slab test of all lanes, a bit mask of the lanes hit, and then
 /// - no lane: the next entry is popped from the stack;
 /// - one lane (the common case deep in the tree): that child is visited next, no stack traffic;
-/// - several: all are pushed far to near (closest-hit queries; any-hit queries push them
-///   unordered) and the nearest is popped.
+/// - several: all are pushed far to near and the nearest is popped (closest-hit queries);
+///   any-hit queries push the inner children, then the leaves, and pop a leaf first.
 ///
 /// Popped entries whose entry distance lies beyond the closest hit found since are skipped.
 #[inline(always)]
@@ -461,22 +461,42 @@ pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: 
                             next = item;
                             continue;
                         }
-                        stack[sp] = item;
-                        sp += 1;
-                        let base = sp - 1;
-                        while mask != 0 {
-                            let lane = mask.trailing_zeros() as usize;
-                            mask &= mask - 1;
-                            let te = t[lane];
-                            let item = (node.child(lane), node.count(lane), te);
-                            let mut k = sp;
-                            // Any-hit queries stop at the first hit anywhere: no ordering.
-                            while !ANY_HIT && k > base && stack[k - 1].2 < te {
-                                stack[k] = stack[k - 1];
-                                k -= 1;
+                        if ANY_HIT {
+                            // Any hit ends the query: leaves go on top of the stack (tested
+                            // first), inner children under them, each group in lane order.
+                            mask |= 1 << lane;
+                            let mut leaves = 0u32;
+                            let mut m = mask;
+                            while m != 0 {
+                                let l = m.trailing_zeros() as usize;
+                                m &= m - 1;
+                                leaves |= ((node.count(l) > 0) as u32) << l;
                             }
-                            stack[k] = item;
+                            for mut group in [mask & !leaves, mask & leaves] {
+                                while group != 0 {
+                                    let l = group.trailing_zeros() as usize;
+                                    group &= group - 1;
+                                    stack[sp] = (node.child(l), node.count(l), t[l]);
+                                    sp += 1;
+                                }
+                            }
+                        } else {
+                            stack[sp] = item;
                             sp += 1;
+                            let base = sp - 1;
+                            while mask != 0 {
+                                let lane = mask.trailing_zeros() as usize;
+                                mask &= mask - 1;
+                                let te = t[lane];
+                                let item = (node.child(lane), node.count(lane), te);
+                                let mut k = sp;
+                                while k > base && stack[k - 1].2 < te {
+                                    stack[k] = stack[k - 1];
+                                    k -= 1;
+                                }
+                                stack[k] = item;
+                                sp += 1;
+                            }
                         }
                     }
                 }

@@ -97,16 +97,22 @@ impl Triangle {
         if !ray.is_valid() {
             return None;
         }
-        let [kx, ky, kz] = ray.watertight_axes();
-        let s = ray.watertight_shear();
+        let [mx, my, _] = ray.watertight_rows();
         let o = ray.origin();
-        // p[kx] - Sx p[kz] and p[ky] - Sy p[kz] of p = vertex - origin.
-        let shear = |v: Vec3| {
-            let d = (v - o).to_array();
-            (d[kx] - s.x * d[kz], d[ky] - s.y * d[kz])
-        };
-        let ((ax, ay), (bx, by), (cx, cy)) = (shear(self.v[0]), shear(self.v[1]), shear(self.v[2]));
-        self.finish_watertight(ray, watertight_edges([ax, ay, bx, by, cx, cy]))
+        let a = self.v[0] - o;
+        let b = self.v[1] - o;
+        let c = self.v[2] - o;
+        // a[kx] - Sx a[kz] and a[ky] - Sy a[kz], as dot products with exact zero terms (a
+        // `Vec3` indexed by a run-time axis costs more than the products).
+        let sheared = [
+            a.dot(*mx),
+            a.dot(*my),
+            b.dot(*mx),
+            b.dot(*my),
+            c.dot(*mx),
+            c.dot(*my),
+        ];
+        self.finish_watertight(ray, watertight_edges(sheared))
     }
 
     /// The rest of the watertight test once the edge functions `(U, V, W)` are known (from
@@ -395,7 +401,10 @@ pub type TriangleLanes<L = f32x4> = [L; 9];
 #[inline(always)]
 pub fn watertight_lanes<L: SimdLanes>(w: &TriangleLanes<L>, ray: &Ray) -> (u32, [L::Array; 6]) {
     // The lanes hold one coordinate per row of `w`, so the ray's axes pick rows (loads at a
-    // run-time offset): the scalar kernel's operations, lane by lane.
+    // run-time offset) and the shear takes two products per vertex, not the six of the dot
+    // products with the shear rows that the scalar kernel computes: the same numbers, since
+    // the rows' other terms are exact zeros (up to the sign of a zero, which no comparison
+    // or later step sees).
     let [kx, ky, kz] = ray.watertight_axes();
     let o = ray.origin().to_array();
     let (ox, oy, oz) = (L::splat(o[kx]), L::splat(o[ky]), L::splat(o[kz]));
