@@ -11,7 +11,7 @@
 
 use crate::params::{KdTraversal, MAX_DEPTH};
 use crate::{KdNode, KdTree};
-use rt_geom::aabb::PAD;
+use rt_geom::aabb::{PAD, SlabRay};
 use rt_geom::{Aabb, Hit, LeafPrims, Primitive, Ray, test_primitives};
 
 /// Which children of an inner node the ray visits, first = on the side of the origin.
@@ -53,8 +53,19 @@ pub fn padded_crossing(ts: f32) -> (f32, f32) {
 /// interval.
 #[inline(always)]
 pub fn step(origin: f32, inv_dir: f32, split: f32, t0: f32, t1: f32) -> Step {
-    let ts = (split - origin) * inv_dir;
-    let (lo, hi) = padded_crossing(ts);
+    let (lo, hi) = padded_crossing((split - origin) * inv_dir);
+    step_between(lo, hi, t0, t1)
+}
+
+/// [`step`] from the padded crossing `[lo, hi]`.
+///
+/// Walks of rays with `tmin >= 0` get it cheaper from the reciprocals with the padding folded
+/// in ([`SlabRay`]): `lo = (split - origin) inv_near`, `hi = (split - origin) inv_far` is the
+/// padded crossing when it lies ahead of the origin; behind it, both are negative (in the
+/// wrong order), so the crossing lies before `t0 >= 0` either way: [`Step::Second`], as with
+/// [`padded_crossing`].
+#[inline(always)]
+pub fn step_between(lo: f32, hi: f32, t0: f32, t1: f32) -> Step {
     if lo > t1 {
         Step::First
     } else if hi < t0 {
@@ -64,6 +75,17 @@ pub fn step(origin: f32, inv_dir: f32, split: f32, t0: f32, t1: f32) -> Step {
             first_end: hi.min(t1),
             second_start: lo.max(t0),
         }
+    }
+}
+
+/// [`step`] with the ray's [`SlabRay`] reciprocals (see [`step_between`]).
+#[inline(always)]
+fn step_folded(slab: &SlabRay, a: usize, split: f32, t0: f32, t1: f32) -> Step {
+    let d = split - slab.origin[a];
+    if slab.pad_after {
+        step(slab.origin[a], slab.inv_near[a], split, t0, t1)
+    } else {
+        step_between(d * slab.inv_near[a], d * slab.inv_far[a], t0, t1)
     }
 }
 
@@ -235,9 +257,9 @@ pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
 /// The ray as the kd-tree's planes need it. Arrays, not `Vec3`: indexing by the node's axis
 /// is then a load, not a branch.
 pub(crate) struct AxisRay {
-    origin: [f32; 3],
     dir: [f32; 3],
-    inv: [f32; 3],
+    /// The reciprocals with the padding folded in, or plain ones with `pad_after`.
+    slab: SlabRay,
 }
 
 impl<P: Primitive> SplitPlanes for KdTree<P> {
@@ -245,9 +267,8 @@ impl<P: Primitive> SplitPlanes for KdTree<P> {
 
     fn ray_data(ray: &Ray) -> AxisRay {
         AxisRay {
-            origin: ray.origin().to_array(),
             dir: ray.dir().to_array(),
-            inv: ray.inv_dir().to_array(),
+            slab: SlabRay::new(ray),
         }
     }
 
@@ -267,11 +288,7 @@ impl<P: Primitive> SplitPlanes for KdTree<P> {
         let a = node.axis();
         let split = node.split();
         let (first, second) = ordered_children(i, node, below_first(ray.dir[a]));
-        (
-            first,
-            second,
-            step(ray.origin[a], ray.inv[a], split, t0, t1),
-        )
+        (first, second, step_folded(&ray.slab, a, split, t0, t1))
     }
 }
 
@@ -298,6 +315,64 @@ pub(crate) fn query<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn folded_steps_are_as_conservative_as_padded_ones() {
+        // Random planes and intervals from t0 >= 0, many of them with the crossing on an end
+        // or behind the origin: the folded step takes the same children as the padded one
+        // except within the padding, and never cuts a child's interval short of the exact
+        // (f64) crossing.
+        let mut state = 4242u32;
+        let mut rnd = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state as f32 / u32::MAX as f32
+        };
+        let mut differ = 0;
+        for i in 0..200_000 {
+            let o = rnd() * 20.0 - 10.0;
+            let d = [rnd() * 2.0 - 1.0, 0.0, -0.0][(i % 9 == 0) as usize + (i % 18 == 0) as usize];
+            let split = [rnd() * 20.0 - 10.0, o][(i % 7 == 0) as usize];
+            let ray = Ray::new(
+                rt_geom::Vec3::new(o, 0.0, 0.0),
+                rt_geom::Vec3::new(d, 1.0, 0.0),
+            );
+            let exact = (split as f64 - o as f64) / d as f64;
+            let t0 = rnd() * 5.0 * (i % 3 != 0) as u8 as f32;
+            let t1 = [t0 + rnd() * 5.0, (exact as f32).max(t0), t0][i % 3];
+            let slab = SlabRay::new(&ray);
+            let (got, want) = (
+                step_folded(&slab, 0, split, t0, t1),
+                step(o, ray.inv_dir().x, split, t0, t1),
+            );
+            let kind = |s: &Step| std::mem::discriminant(s);
+            if kind(&got) != kind(&want) {
+                differ += 1;
+            }
+            if let Step::Both {
+                first_end,
+                second_start,
+            } = got
+            {
+                assert!(
+                    first_end as f64 >= exact.min(t1 as f64) || exact.is_nan(),
+                    "{got:?} {exact}"
+                );
+                assert!(
+                    second_start as f64 <= exact.max(t0 as f64) || exact.is_nan(),
+                    "{got:?} {exact}"
+                );
+            }
+            if exact > t1 as f64 {
+                assert!(got != Step::Second, "{got:?} {exact} [{t0}, {t1}]");
+            }
+            if exact < t0 as f64 {
+                assert!(got != Step::First, "{got:?} {exact} [{t0}, {t1}]");
+            }
+        }
+        assert!(differ < 50, "{differ} steps differ");
+    }
 
     #[test]
     fn steps_at_a_plane() {
