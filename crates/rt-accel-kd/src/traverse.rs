@@ -322,13 +322,8 @@ mod tests {
         // or behind the origin: the folded step takes the same children as the padded one
         // except within the padding, and never cuts a child's interval short of the exact
         // (f64) crossing.
-        let mut state = 4242u32;
-        let mut rnd = || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            state as f32 / u32::MAX as f32
-        };
+        let mut rng = rt_testkit::rng::Rng::new(4242);
+        let mut rnd = || rng.f32();
         let mut differ = 0;
         for i in 0..200_000 {
             let o = rnd() * 20.0 - 10.0;

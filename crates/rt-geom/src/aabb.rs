@@ -344,13 +344,7 @@ mod tests {
         let s = 1.0f32 / 3.0;
         let a = Aabb::new(Vec3::ZERO, Vec3::new(s, 1.0, 1.0));
         let b = Aabb::new(Vec3::new(s, 0.0, 0.0), Vec3::ONE);
-        let mut state = 12345u32;
-        let mut rnd = || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            state as f32 / u32::MAX as f32
-        };
+        let mut rnd = crate::test_uniform(12345);
         for _ in 0..100_000 {
             let target = Vec3::new(s, rnd(), rnd());
             let origin = Vec3::new(-3.0 * rnd(), 2.0 * rnd() - 0.5, 2.0 * rnd() - 0.5);
@@ -389,13 +383,7 @@ mod tests {
     fn slab_ray_is_conservative_and_agrees_with_clip_ray() {
         // Random boxes and rays, many of them grazing: origins on box planes, axis-parallel
         // directions, boxes just touched; intervals starting at 0, inside, and behind (tmin < 0).
-        let mut state = 987654321u32;
-        let mut rnd = || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            state as f32 / u32::MAX as f32
-        };
+        let mut rnd = crate::test_uniform(987654321);
         let (mut hits, mut differ) = (0, 0);
         for i in 0..200_000 {
             let c = Vec3::new(rnd(), rnd(), rnd()) * 20.0 - 10.0;

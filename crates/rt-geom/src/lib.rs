@@ -61,3 +61,14 @@ pub use triangle::{
     SimdLanes, Triangle, TriangleKernel, TriangleLanes, watertight_edges, watertight_lanes,
 };
 pub use volume::{BoundingSphere, BoundingVolume, KDOP7_NORMALS, Kdop7};
+
+/// Test input: a xorshift32 sequence from `seed` (non-zero), uniform in `[0, 1]`.
+#[cfg(test)]
+pub(crate) fn test_uniform(mut state: u32) -> impl FnMut() -> f32 {
+    move || {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        state as f32 / u32::MAX as f32
+    }
+}

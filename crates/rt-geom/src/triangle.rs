@@ -552,13 +552,8 @@ mod tests {
 
     #[test]
     fn shear_rows_give_the_indexed_shear_bit_for_bit() {
-        let mut state = 99u32;
-        let mut rnd = || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            (state as f32 / u32::MAX as f32) * 4.0 - 2.0
-        };
+        let mut uniform = crate::test_uniform(99);
+        let mut rnd = || uniform() * 4.0 - 2.0;
         for _ in 0..10_000 {
             let d = Vec3::new(rnd(), rnd(), rnd());
             let r = Ray::new(Vec3::ZERO, d);
@@ -677,13 +672,8 @@ mod tests {
         // watertight test accepts must be reported at a point of the triangle (its box), not
         // where the ray meets the nearly parallel plane.
         let p = Vec3::splat(0.5);
-        let mut state = 7u32;
-        let mut rnd = || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            state as f32 / u32::MAX as f32 * 2.0 - 1.0
-        };
+        let mut uniform = crate::test_uniform(7);
+        let mut rnd = || uniform() * 2.0 - 1.0;
         let mut hits = 0;
         for _ in 0..20_000 {
             let b = p + Vec3::new(rnd(), rnd(), rnd());

@@ -63,29 +63,33 @@ impl<'a, const N: usize> RayPacket<'a, N> {
                 .is_some_and(|r| r.is_valid() && r.tmin <= r.tmax)
         });
         // Per lane, the factors of the min and the max plane (1 -+ PAD by the direction's
-        // sign, or 1 and 1 for an interval starting behind the origin).
-        let folded: [bool; N] = std::array::from_fn(|i| tmin[i] >= 0.0);
-        let scale = |upper: bool| -> [[f32; N]; 3] {
-            std::array::from_fn(|a| {
-                std::array::from_fn(|i| {
-                    let inv = inv_dir[a][i];
-                    let entering = inv.is_sign_negative() == upper;
-                    let f = match (folded[i], entering) {
-                        (false, _) => 1.0,
-                        (true, true) => 1.0 - PAD,
-                        (true, false) => 1.0 + PAD,
-                    };
-                    inv * f
-                })
-            })
-        };
+        // sign, or 1 and 1 for an interval starting behind the origin): plain lane loops
+        // over copies of `inv_dir`, selects and products that vectorise.
+        let (mut inv_lo, mut inv_hi) = (inv_dir, inv_dir);
+        let mut pad_after = false;
+        for i in 0..N {
+            pad_after |= active[i] & !(tmin[i] >= 0.0);
+        }
+        for a in 0..3 {
+            for i in 0..N {
+                let folded = tmin[i] >= 0.0;
+                let (near, far) = if folded {
+                    (1.0 - PAD, 1.0 + PAD)
+                } else {
+                    (1.0, 1.0)
+                };
+                let neg = inv_dir[a][i] < 0.0;
+                inv_lo[a][i] *= if neg { far } else { near };
+                inv_hi[a][i] *= if neg { near } else { far };
+            }
+        }
         Self {
             rays,
             origin: axis3(Ray::origin),
             dir: axis3(Ray::dir),
-            inv_lo: scale(false),
-            inv_hi: scale(true),
-            pad_after: (0..N).any(|i| active[i] && !folded[i]),
+            inv_lo,
+            inv_hi,
+            pad_after,
             inv_dir,
             shear: std::array::from_fn(|k| lanes(rays, 0.0, |r| r.watertight_rows()[k / 3][k % 3])),
             tmin,
