@@ -82,11 +82,13 @@ pub fn step_between(lo: f32, hi: f32, t0: f32, t1: f32) -> Step {
 #[inline(always)]
 fn step_folded(slab: &SlabRay, a: usize, split: f32, t0: f32, t1: f32) -> Step {
     let d = split - slab.origin[a];
-    if slab.pad_after {
-        step(slab.origin[a], slab.inv_near[a], split, t0, t1)
+    let (lo, hi) = if slab.pad_after {
+        // Plain reciprocals (`inv_near = inv_far = inv`): pad the crossing itself.
+        padded_crossing(d * slab.inv_near[a])
     } else {
-        step_between(d * slab.inv_near[a], d * slab.inv_far[a], t0, t1)
-    }
+        (d * slab.inv_near[a], d * slab.inv_far[a])
+    };
+    step_between(lo, hi, t0, t1)
 }
 
 /// What the walk needs of a tree: its nodes, the index array, and how a ray meets the plane
