@@ -344,23 +344,12 @@ impl<P: Primitive> Octree<P> {
         let slab = SlabRay::new(ray);
         let neg = slab.neg;
         let mirror = (0..3).fold(0, |m, a| m | ((neg[a] as usize) << a));
+        let (inv_lo, inv_hi) = slab.plane_reciprocals();
         let mut walk = Walk {
             tree: self,
             origin: slab.origin,
-            inv_lo: [0, 1, 2].map(|a| {
-                if neg[a] {
-                    slab.inv_far[a]
-                } else {
-                    slab.inv_near[a]
-                }
-            }),
-            inv_hi: [0, 1, 2].map(|a| {
-                if neg[a] {
-                    slab.inv_near[a]
-                } else {
-                    slab.inv_far[a]
-                }
-            }),
+            inv_lo,
+            inv_hi,
             pad_after: slab.pad_after,
             neg,
             sequence: &SEQUENCE_MASKS[mirror],

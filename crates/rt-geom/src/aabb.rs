@@ -55,15 +55,22 @@ pub struct SlabRay {
 }
 
 impl SlabRay {
+    /// The factors of the near and the far plane's reciprocal for an interval from `tmin`:
+    /// `(1 - PAD, 1 + PAD)`, or `(1, 1)` when `tmin < 0` (or NaN), which pads afterwards.
+    #[inline(always)]
+    pub fn fold_factors(tmin: f32) -> (f32, f32) {
+        if tmin >= 0.0 {
+            (1.0 - PAD, 1.0 + PAD)
+        } else {
+            (1.0, 1.0)
+        }
+    }
+
     #[inline(always)]
     pub fn new(ray: &Ray) -> Self {
         let inv = ray.inv_dir().to_array();
         let pad_after = !(ray.tmin >= 0.0);
-        let (near, far) = if pad_after {
-            (1.0, 1.0)
-        } else {
-            (1.0 - PAD, 1.0 + PAD)
-        };
+        let (near, far) = Self::fold_factors(ray.tmin);
         Self {
             origin: ray.origin().to_array(),
             inv_near: inv.map(|i| i * near),
@@ -71,6 +78,22 @@ impl SlabRay {
             neg: inv.map(f32::is_sign_negative),
             pad_after,
         }
+    }
+
+    /// The reciprocals for planes met as a box's min and as its max plane, per axis (the
+    /// near or far one by the direction's sign).
+    #[inline(always)]
+    pub fn plane_reciprocals(&self) -> ([f32; 3], [f32; 3]) {
+        let pick = |min_plane: bool| {
+            std::array::from_fn(|a| {
+                if self.neg[a] == min_plane {
+                    self.inv_far[a]
+                } else {
+                    self.inv_near[a]
+                }
+            })
+        };
+        (pick(true), pick(false))
     }
 
     /// The entry distance into the box `min..max` within `[tmin, tmax]` (never before

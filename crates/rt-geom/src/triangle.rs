@@ -314,8 +314,9 @@ impl Triangle {
 
 /// The 2D edge functions `(U, V, W)` of the watertight test from the sheared vertex
 /// coordinates `[ax, ay, bx, by, cx, cy]` (vertex minus ray origin, sheared by
-/// [`Ray::watertight_shear`]: `p[kx] - Sx p[kz]`, `p[ky] - Sy p[kz]`). An edge function that is exactly zero in `f32` is recomputed,
-/// with the other two, in `f64`, as Woop, Benthin & Wald prescribe for edges hit exactly.
+/// [`Ray::watertight_shear`]: `p[kx] - Sx p[kz]`, `p[ky] - Sy p[kz]`). An edge function that
+/// is exactly zero in `f32` is recomputed, with the other two, in `f64`, as Woop, Benthin &
+/// Wald prescribe for edges hit exactly.
 #[inline]
 pub fn watertight_edges([ax, ay, bx, by, cx, cy]: [f32; 6]) -> (f32, f32, f32) {
     let u = cx * by - cy * bx;

@@ -2,7 +2,7 @@
 //! vectorises over), an active mask, and packets cut from image tiles.
 
 use rt_geom::Ray;
-use rt_geom::aabb::PAD;
+use rt_geom::aabb::SlabRay;
 
 /// The packet sizes of the seeds: square tiles of 2x2 to 16x16 pixels.
 pub const TILE_SIDES: [usize; 4] = [2, 4, 8, 16];
@@ -72,12 +72,7 @@ impl<'a, const N: usize> RayPacket<'a, N> {
         }
         for a in 0..3 {
             for i in 0..N {
-                let folded = tmin[i] >= 0.0;
-                let (near, far) = if folded {
-                    (1.0 - PAD, 1.0 + PAD)
-                } else {
-                    (1.0, 1.0)
-                };
+                let (near, far) = SlabRay::fold_factors(tmin[i]);
                 let neg = inv_dir[a][i] < 0.0;
                 inv_lo[a][i] *= if neg { far } else { near };
                 inv_hi[a][i] *= if neg { near } else { far };
