@@ -19,7 +19,7 @@ use crate::node::BvhNode;
 use crate::params::MAX_DEPTH;
 use crate::stats::check_leaf_primitive;
 use crate::{Bvh, BvhParams};
-use rt_geom::aabb::{SlabRay, pad_interval};
+use rt_geom::aabb::{FusedSlabRay, SlabRay, mul_add, pad_interval};
 use rt_geom::all_referenced;
 use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray, replaces};
 
@@ -255,6 +255,7 @@ impl<const N: usize> WideTree<N> {
         traverse_nodes::<_, N, ANY_HIT>(
             &self.nodes,
             &self.root_bounds,
+            FusedSlabRay::bound_of(&self.root_bounds),
             self.root_leaf,
             self.depth,
             ray,
@@ -346,6 +347,8 @@ impl<const N: usize> WideTree<N> {
 pub(crate) trait WideLanes<const N: usize> {
     /// Entry distance per lane into `[tmin, tmax]`, NaN for lanes the ray misses.
     fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> [f32; N];
+    /// [`WideLanes::entries`] by the fused test.
+    fn entries_fused(&self, ray: &FusedSlabRay, tmin: f32, tmax: f32) -> [f32; N];
     /// Inner child: node index; leaf: first primitive; `u32::MAX` for an empty lane.
     fn child(&self, lane: usize) -> u32;
     /// 0 for an inner child, else the leaf's primitive count.
@@ -383,6 +386,11 @@ impl<const N: usize> WideLanes<N> for WideNode<N> {
     }
 
     #[inline(always)]
+    fn entries_fused(&self, ray: &FusedSlabRay, tmin: f32, tmax: f32) -> [f32; N] {
+        lane_entries_fused(&self.min, &self.max, ray, tmin, tmax)
+    }
+
+    #[inline(always)]
     fn child(&self, lane: usize) -> u32 {
         self.child[lane]
     }
@@ -400,19 +408,17 @@ impl<const N: usize> WideLanes<N> for WideNode<N> {
     }
 }
 
-/// The stack traversal of every wide layout (see [`WideTree::traverse`]).
+/// The stack traversal of every wide layout (see [`WideTree::traverse`]); `plane_bound`
+/// bounds the magnitude of every plane coordinate of the nodes.
 ///
-/// Per inner node: one SIMD slab test of all lanes, a bit mask of the lanes hit, and then
-/// - no lane: the next entry is popped from the stack;
-/// - one lane (the common case deep in the tree): that child is visited next, no stack traffic;
-/// - several: all are pushed far to near and the nearest is popped (closest-hit queries);
-///   any-hit queries push the inner children, then the leaves, and pop a leaf first.
-///
-/// Popped entries whose entry distance lies beyond the closest hit found since are skipped.
+/// Box tests take the fused form ([`FusedSlabRay`], one multiply-add per plane) for the rays
+/// it covers and the folded one ([`SlabRay`]) for the others (rays along an axis plane): the
+/// choice is made once per ray, the walk is compiled for each.
 #[inline(always)]
 pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: bool>(
     nodes: &[Node],
     root_bounds: &Aabb,
+    plane_bound: f32,
     root_leaf: Option<(u32, u32)>,
     depth: usize,
     ray: &Ray,
@@ -431,7 +437,36 @@ pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: 
     if nodes.is_empty() {
         return None;
     }
-    let slab = SlabRay::new(ray);
+    if let Some(fused) = FusedSlabRay::new(ray, plane_bound) {
+        walk::<_, N, ANY_HIT>(nodes, depth, &mut r, &mut best, leaf, |n, t0, t1| {
+            n.entries_fused(&fused, t0, t1)
+        });
+    } else {
+        let slab = SlabRay::new(ray);
+        walk::<_, N, ANY_HIT>(nodes, depth, &mut r, &mut best, leaf, |n, t0, t1| {
+            n.entries(&slab, t0, t1)
+        });
+    }
+    best.map(|(h, id)| Hit::new(h, id))
+}
+
+/// Per inner node: one SIMD slab test of all lanes (`entries`), a bit mask of the lanes hit,
+/// and then
+/// - no lane: the next entry is popped from the stack;
+/// - one lane (the common case deep in the tree): that child is visited next, no stack traffic;
+/// - several: all are pushed far to near and the nearest is popped (closest-hit queries);
+///   any-hit queries push the inner children, then the leaves, and pop a leaf first.
+///
+/// Popped entries whose entry distance lies beyond the closest hit found since are skipped.
+#[inline(always)]
+fn walk<Node: WideLanes<N>, const N: usize, const ANY_HIT: bool>(
+    nodes: &[Node],
+    depth: usize,
+    r: &mut Ray,
+    best: &mut Option<(PrimHit, u32)>,
+    mut leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<(PrimHit, u32)>) -> bool,
+    entries: impl Fn(&Node, f32, f32) -> [f32; N],
+) {
     STACK.with(|cell| {
         let mut stack = cell.borrow_mut();
         // At most N - 1 pending siblings per level.
@@ -446,12 +481,12 @@ pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: 
             let (child, count, entry) = next;
             if entry <= r.tmax {
                 if count > 0 {
-                    if leaf(child, count, &mut r, &mut best) {
+                    if leaf(child, count, r, best) {
                         return;
                     }
                 } else {
                     let node = &nodes[child as usize];
-                    let t = node.entries(&slab, r.tmin, r.tmax);
+                    let t = entries(node, r.tmin, r.tmax);
                     let mut mask = hit_lanes(&t) & node.used_mask();
                     if mask != 0 {
                         let lane = mask.trailing_zeros() as usize;
@@ -508,7 +543,6 @@ pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: 
             next = stack[sp];
         }
     });
-    best.map(|(h, id)| Hit::new(h, id))
 }
 
 thread_local! {
@@ -548,6 +582,41 @@ pub(crate) fn lane_entries<const N: usize>(
     if ray.pad_after {
         for l in 0..N {
             (t0[l], t1[l]) = pad_interval(t0[l], t1[l], tmin);
+        }
+    }
+    let mut out = [f32::NAN; N];
+    for l in 0..N {
+        out[l] = if t0[l] <= t1[l] { t0[l] } else { f32::NAN };
+    }
+    out
+}
+
+/// [`lane_entries`] with the fused test ([`FusedSlabRay`]): one multiply-add per plane and
+/// lane; the same guarantee (never later than the true entry, never before `tmin`).
+#[inline(always)]
+pub(crate) fn lane_entries_fused<const N: usize>(
+    min: &[[f32; N]; 3],
+    max: &[[f32; N]; 3],
+    ray: &FusedSlabRay,
+    tmin: f32,
+    tmax: f32,
+) -> [f32; N] {
+    let mut t0 = [tmin; N];
+    let mut t1 = [tmax; N];
+    for a in 0..3 {
+        let (near, far) = if ray.neg[a] {
+            (&max[a], &min[a])
+        } else {
+            (&min[a], &max[a])
+        };
+        let (inv, near_offset, far_offset) = (ray.inv[a], ray.near_offset[a], ray.far_offset[a]);
+        for l in 0..N {
+            // No NaN here (finite reciprocals; an empty lane's infinite planes give +-inf):
+            // the compare-and-select forms are single SIMD min/max instructions.
+            let tn = mul_add(near[l], inv, near_offset);
+            let tf = mul_add(far[l], inv, far_offset);
+            t0[l] = if tn > t0[l] { tn } else { t0[l] };
+            t1[l] = if tf < t1[l] { tf } else { t1[l] };
         }
     }
     let mut out = [f32::NAN; N];
