@@ -477,7 +477,7 @@ mod tests {
                 continue;
             };
             let t = node.entries_fused(&fused, ray.tmin, ray.tmax);
-            for l in 0..8 {
+            for (l, &entry) in t.iter().enumerate() {
                 let b = node.bounds(l);
                 let (mut t0, mut t1) = (ray.tmin as f64, ray.tmax as f64);
                 for a in 0..3 {
