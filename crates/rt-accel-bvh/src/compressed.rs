@@ -489,9 +489,8 @@ mod tests {
                 if t0 <= t1 {
                     entered += 1;
                     assert!(
-                        t[l] as f64 <= t0,
-                        "lane {l}: {} vs {t0} ({node:?}, {ray:?})",
-                        t[l]
+                        entry as f64 <= t0,
+                        "lane {l}: {entry} vs {t0} ({node:?}, {ray:?})"
                     );
                 }
             }
