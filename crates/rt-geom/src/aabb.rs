@@ -179,25 +179,48 @@ impl FusedSlabRay {
     /// or `None` when the ray or the bound is outside the range where the slack holds.
     #[inline(always)]
     pub fn new(ray: &Ray, bound: f32) -> Option<Self> {
-        let (o, inv) = (ray.origin(), ray.inv_dir());
-        let abs_inv = inv.abs();
+        let (o, inv) = (ray.origin().to_array(), ray.inv_dir().to_array());
         let in_range = ray.is_valid()
-            && bound <= Self::MAX_COORD
-            && o.abs().max_element() <= Self::MAX_COORD
-            && abs_inv.max_element() <= Self::MAX_INV
-            && abs_inv.min_element() >= 1.0 / Self::MAX_INV;
+            && Self::bound_in_range(bound)
+            && (0..3).all(|a| Self::axis_in_range(o[a], inv[a]));
         if !in_range {
             return None;
         }
-        let slack = ((o.abs() + Vec3::splat(bound)) * abs_inv * Self::SLACK)
-            .max(Vec3::splat(Self::MIN_SLACK));
-        let base = -o * inv;
+        let offsets = |sign: f32| {
+            std::array::from_fn(|a| -o[a] * inv[a] + sign * Self::slack(o[a], inv[a], bound))
+        };
         Some(Self {
-            inv: inv.to_array(),
-            near_offset: (base - slack).to_array(),
-            far_offset: (base + slack).to_array(),
-            neg: inv.to_array().map(f32::is_sign_negative),
+            inv,
+            near_offset: offsets(-1.0),
+            far_offset: offsets(1.0),
+            neg: inv.map(f32::is_sign_negative),
         })
+    }
+
+    /// Whether planes within `[-bound, bound]` are in the range of the slack's bound.
+    #[inline(always)]
+    pub fn bound_in_range(bound: f32) -> bool {
+        bound <= Self::MAX_COORD
+    }
+
+    /// Whether one axis of a ray (origin, reciprocal direction) is in the range of the
+    /// slack's bound (a NaN is not).
+    #[inline(always)]
+    pub fn axis_in_range(origin: f32, inv: f32) -> bool {
+        origin.abs() <= Self::MAX_COORD
+            && inv.abs() <= Self::MAX_INV
+            && inv.abs() >= 1.0 / Self::MAX_INV
+    }
+
+    /// The slack of one axis: `2^-20 (bound + |origin|) |inv|`, at least `2^-100`.
+    #[inline(always)]
+    pub fn slack(origin: f32, inv: f32, bound: f32) -> f32 {
+        let s = (origin.abs() + bound) * inv.abs() * Self::SLACK;
+        if s > Self::MIN_SLACK {
+            s
+        } else {
+            Self::MIN_SLACK
+        }
     }
 
     /// The bound on plane coordinates that covers `b` (its largest magnitude).
