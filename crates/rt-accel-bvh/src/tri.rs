@@ -7,11 +7,6 @@ use crate::compressed::CompressedTree;
 use crate::stats::check_leaf_primitive;
 use crate::wide::{WideTopology, WideTree};
 use crate::{Bvh, BvhParams};
-
-/// Subtrees of at most this many triangles become one leaf when the binary tree is
-/// collapsed ([`WideTree::collapse_merging`]): the leaf kernel tests up to eight triangles in
-/// one SIMD pass ([`TriangleSoa`]).
-pub const MERGED_LEAF: u32 = 8;
 use rt_geom::{
     Aabb, Accel, AccelStats, BuildError, Hit, Ray, Triangle, TriangleSoa, all_referenced,
 };
@@ -62,7 +57,7 @@ impl<const N: usize> TriBvh<WideTree<N>> {
 
     /// Collapses a binary BVH and converts its leaf-ordered triangles.
     pub fn from_binary(bvh: Bvh<Triangle>) -> Self {
-        let tree = WideTree::<N>::collapse_merging(&bvh.nodes, MERGED_LEAF);
+        let tree = WideTree::<N>::collapse(&bvh.nodes);
         let tris = TriangleSoa::new(&bvh.prims, tree.leaves());
         let mut stats = tree.stats(bvh.count, &bvh.params);
         stats.bytes += tris.bytes() + std::mem::size_of_val(bvh.ids.as_slice());

@@ -200,17 +200,7 @@ impl<const N: usize> WideTree<N> {
     /// opening the inner child of largest surface area (the one most rays enter) until it has
     /// `N` children or only leaves are left. Leaves keep their primitive ranges.
     pub fn collapse(bin: &[BvhNode]) -> Self {
-        Self::collapse_merging(bin, 0)
-    }
-
-    /// [`WideTree::collapse`], with every subtree of at most `max_merged` primitives (in one
-    /// leaf-order range) made one leaf: for leaves tested many primitives at once
-    /// ([`TriBvh8`](crate::TriBvh8): up to eight triangles in one SIMD pass), where a binary
-    /// node over two small leaves would otherwise become a wide node of two lanes (38% of
-    /// the nodes of dragon's `bvh8-tri`).
-    pub fn collapse_merging(bin: &[BvhNode], max_merged: u32) -> Self {
         assert!((2..=32).contains(&N), "2..=32 lanes");
-        let merged = mergeable_ranges(bin, max_merged);
         let mut tree = Self {
             nodes: Vec::new(),
             root_bounds: bin.first().map_or(Aabb::EMPTY, |n| n.bounds()),
@@ -219,10 +209,8 @@ impl<const N: usize> WideTree<N> {
         };
         match bin.first() {
             None => {}
-            Some(_) if leaf_range(bin, &merged, 0).is_some() => {
-                tree.root_leaf = leaf_range(bin, &merged, 0)
-            }
-            Some(_) => tree.depth = collapse(bin, &merged, 0, &mut tree.nodes, 1),
+            Some(root) if root.is_leaf() => tree.root_leaf = Some((root.offset, root.count())),
+            Some(_) => tree.depth = collapse(bin, 0, &mut tree.nodes, 1),
         }
         tree
     }
@@ -639,10 +627,9 @@ pub(crate) fn lane_entries_fused<const N: usize>(
 }
 
 /// Writes the wide node for binary node `b` (an inner node) and its subtree; returns the depth
-/// of the subtree. `merged` as from [`mergeable_ranges`].
+/// of the subtree.
 fn collapse<const N: usize>(
     bin: &[BvhNode],
-    merged: &[Option<(u32, u32)>],
     b: usize,
     out: &mut Vec<WideNode<N>>,
     depth: usize,
@@ -652,7 +639,7 @@ fn collapse<const N: usize>(
         let open = kids
             .iter()
             .enumerate()
-            .filter(|(_, k)| leaf_range(bin, merged, **k).is_none())
+            .filter(|(_, k)| !bin[**k].is_leaf())
             .max_by(|x, y| {
                 bin[*x.1]
                     .bounds()
@@ -669,53 +656,18 @@ fn collapse<const N: usize>(
     let mut node = WideNode::EMPTY;
     let mut deepest = depth;
     for (lane, &k) in kids.iter().enumerate() {
-        node.set_bounds(lane, bin[k].bounds());
-        if let Some((first, count)) = leaf_range(bin, merged, k) {
-            node.child[lane] = first;
-            node.count[lane] = count;
+        let n = &bin[k];
+        node.set_bounds(lane, n.bounds());
+        if n.is_leaf() {
+            node.child[lane] = n.offset;
+            node.count[lane] = n.count();
         } else {
             node.child[lane] = out.len() as u32;
-            deepest = deepest.max(collapse(bin, merged, k, out, depth + 1));
+            deepest = deepest.max(collapse(bin, k, out, depth + 1));
         }
     }
     out[index] = node;
     deepest
-}
-
-/// Per binary node, its subtree's leaf-order range `(first, count)` when that is one
-/// contiguous range of at most `max` primitives (such a subtree can be one leaf); empty for
-/// `max = 0`. Children come after their parents, so one pass from the end suffices.
-fn mergeable_ranges(bin: &[BvhNode], max: u32) -> Vec<Option<(u32, u32)>> {
-    if max == 0 {
-        return Vec::new();
-    }
-    let mut ranges = vec![None; bin.len()];
-    for k in (0..bin.len()).rev() {
-        let n = &bin[k];
-        ranges[k] = if n.is_leaf() {
-            (n.count() <= max).then_some((n.offset, n.count()))
-        } else {
-            match (ranges[k + 1], ranges[n.offset as usize]) {
-                (Some((f1, c1)), Some((f2, c2))) => {
-                    let (first, end) = (f1.min(f2), (f1 + c1).max(f2 + c2));
-                    (c1 + c2 <= max && end - first == c1 + c2).then_some((first, c1 + c2))
-                }
-                _ => None,
-            }
-        };
-    }
-    ranges
-}
-
-/// The primitive range of binary node `k` when it becomes a wide leaf: a leaf's own, or a
-/// merged subtree's.
-fn leaf_range(bin: &[BvhNode], merged: &[Option<(u32, u32)>], k: usize) -> Option<(u32, u32)> {
-    let n = &bin[k];
-    if n.is_leaf() {
-        Some((n.offset, n.count()))
-    } else {
-        merged.get(k).copied().flatten()
-    }
 }
 
 impl<P: Primitive, const N: usize> Accel for WideBvh<P, N> {
@@ -771,39 +723,6 @@ mod tests {
             spheres: |p: &[Sphere]| Bvh8::build(p, BvhParams::balanced()),
             shapes: |p: &[rt_geom::Shape]| Bvh8::build(p, BvhParams::balanced()),
         );
-    }
-
-    #[test]
-    fn merging_makes_small_subtrees_one_leaf() {
-        let tris = rt_testkit::scenes::random_soup(5000, 11);
-        let bvh = Bvh::build(&tris, BvhParams::balanced().for_soa_leaves()).unwrap();
-        let plain = WideTree::<8>::collapse(&bvh.nodes);
-        let merged = WideTree::<8>::collapse_merging(&bvh.nodes, 8);
-        // Every primitive in exactly one leaf; leaves above 8 only where the binary tree
-        // had them; fewer nodes and leaves.
-        let mut seen = vec![0u8; tris.len()];
-        let largest_binary_leaf = bvh.nodes.iter().filter(|n| n.is_leaf()).map(|n| n.count());
-        let largest_binary_leaf = largest_binary_leaf.max().unwrap();
-        for (first, count) in merged.leaves() {
-            assert!(count <= 8.max(largest_binary_leaf));
-            for k in first..first + count {
-                seen[k as usize] += 1;
-            }
-        }
-        assert!(seen.iter().all(|&n| n == 1));
-        assert!(
-            merged
-                .leaves()
-                .iter()
-                .any(|&(_, c)| c > largest_binary_leaf)
-        );
-        assert!(merged.nodes().len() * 3 < plain.nodes().len() * 2);
-        assert!(merged.leaves().len() * 3 < plain.leaves().len() * 2);
-        // A tree of at most 8 primitives is one leaf.
-        let small = Bvh::build(&tris[..8], BvhParams::balanced()).unwrap();
-        let one = WideTree::<8>::collapse_merging(&small.nodes, 8);
-        assert_eq!(one.root_leaf(), Some((0, 8)));
-        assert!(one.nodes().is_empty());
     }
 
     mod bvh8_leaf1 {
