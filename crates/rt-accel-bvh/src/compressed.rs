@@ -25,7 +25,8 @@
 
 use crate::stats::check_leaf_primitive;
 use crate::wide::{
-    WideLanes, WideNode, WideTopology, WideTree, lane_entries, test_leaf, traverse_nodes,
+    WideLanes, WideNode, WideTopology, WideTree, entries_of, lane_entries, test_leaf,
+    traverse_nodes,
 };
 use crate::{Bvh8, BvhParams};
 use rt_geom::aabb::{FusedSlabRay, SlabRay, mul_add};
@@ -148,7 +149,8 @@ impl WideLanes<8> for CompressedNode {
     /// dequantized plane `fl(origin + q step)` this adds the plane's own rounding and those of
     /// `S` and `A` to [`FusedSlabRay`]'s count (at most `2^-24 (bound + |origin|) |inv|`
     /// each, where the tree's `plane_bound` covers `|origin| + 255 step`): ten at most,
-    /// within the slack of sixteen.
+    /// within the slack of sixteen. (Written out rather than through `lane_intervals`:
+    /// converting every code row first ran 8-20% slower.)
     #[inline(always)]
     fn entries_fused(&self, ray: &FusedSlabRay, tmin: f32, tmax: f32) -> [f32; 8] {
         let mut t0 = [tmin; 8];
@@ -170,7 +172,7 @@ impl WideLanes<8> for CompressedNode {
                 t1[l] = if tf < t1[l] { tf } else { t1[l] };
             }
         }
-        std::array::from_fn(|l| if t0[l] <= t1[l] { t0[l] } else { f32::NAN })
+        entries_of(&t0, &t1)
     }
 
     #[inline(always)]

@@ -562,33 +562,20 @@ pub(crate) fn lane_entries<const N: usize>(
     tmin: f32,
     tmax: f32,
 ) -> [f32; N] {
-    let mut t0 = [tmin; N];
-    let mut t1 = [tmax; N];
-    for a in 0..3 {
-        let (near, far) = if ray.neg[a] {
-            (&max[a], &min[a])
-        } else {
-            (&min[a], &max[a])
-        };
-        let (o, inv_near, inv_far) = (ray.origin[a], ray.inv_near[a], ray.inv_far[a]);
-        for l in 0..N {
-            let tn = (near[l] - o) * inv_near;
-            let tf = (far[l] - o) * inv_far;
-            // NaN (origin on the plane, zero direction) leaves the interval unchanged.
-            t0[l] = if tn > t0[l] { tn } else { t0[l] };
-            t1[l] = if tf < t1[l] { tf } else { t1[l] };
-        }
-    }
+    let (o, inv_near, inv_far) = (&ray.origin, &ray.inv_near, &ray.inv_far);
+    let (mut t0, mut t1) = lane_intervals(
+        (min, max),
+        &ray.neg,
+        (tmin, tmax),
+        |a, x| (x - o[a]) * inv_near[a],
+        |a, x| (x - o[a]) * inv_far[a],
+    );
     if ray.pad_after {
         for l in 0..N {
             (t0[l], t1[l]) = pad_interval(t0[l], t1[l], tmin);
         }
     }
-    let mut out = [f32::NAN; N];
-    for l in 0..N {
-        out[l] = if t0[l] <= t1[l] { t0[l] } else { f32::NAN };
-    }
-    out
+    entries_of(&t0, &t1)
 }
 
 /// [`lane_entries`] with the fused test ([`FusedSlabRay`]): one multiply-add per plane and
@@ -601,29 +588,52 @@ pub(crate) fn lane_entries_fused<const N: usize>(
     tmin: f32,
     tmax: f32,
 ) -> [f32; N] {
+    let (inv, near_offset, far_offset) = (&ray.inv, &ray.near_offset, &ray.far_offset);
+    let (t0, t1) = lane_intervals(
+        (min, max),
+        &ray.neg,
+        (tmin, tmax),
+        |a, x| mul_add(x, inv[a], near_offset[a]),
+        |a, x| mul_add(x, inv[a], far_offset[a]),
+    );
+    entries_of(&t0, &t1)
+}
+
+/// Per lane, `[tmin, tmax]` clipped to the box `min..max`, with `near(axis, x)` and
+/// `far(axis, x)` the ray's distance to a near and a far plane at `x` (the near plane of an
+/// axis is the box's max where `neg`). A NaN distance (origin on the plane, zero direction)
+/// leaves the interval unchanged; the compare-and-select forms are single SIMD min/max
+/// instructions.
+#[inline(always)]
+fn lane_intervals<const N: usize>(
+    (min, max): (&[[f32; N]; 3], &[[f32; N]; 3]),
+    neg: &[bool; 3],
+    (tmin, tmax): (f32, f32),
+    near: impl Fn(usize, f32) -> f32,
+    far: impl Fn(usize, f32) -> f32,
+) -> ([f32; N], [f32; N]) {
     let mut t0 = [tmin; N];
     let mut t1 = [tmax; N];
     for a in 0..3 {
-        let (near, far) = if ray.neg[a] {
+        let (near_planes, far_planes) = if neg[a] {
             (&max[a], &min[a])
         } else {
             (&min[a], &max[a])
         };
-        let (inv, near_offset, far_offset) = (ray.inv[a], ray.near_offset[a], ray.far_offset[a]);
         for l in 0..N {
-            // No NaN here (finite reciprocals; an empty lane's infinite planes give +-inf):
-            // the compare-and-select forms are single SIMD min/max instructions.
-            let tn = mul_add(near[l], inv, near_offset);
-            let tf = mul_add(far[l], inv, far_offset);
+            let tn = near(a, near_planes[l]);
+            let tf = far(a, far_planes[l]);
             t0[l] = if tn > t0[l] { tn } else { t0[l] };
             t1[l] = if tf < t1[l] { tf } else { t1[l] };
         }
     }
-    let mut out = [f32::NAN; N];
-    for l in 0..N {
-        out[l] = if t0[l] <= t1[l] { t0[l] } else { f32::NAN };
-    }
-    out
+    (t0, t1)
+}
+
+/// Per lane, the entry `t0` of a non-empty interval `[t0, t1]`, NaN for an empty one.
+#[inline(always)]
+pub(crate) fn entries_of<const N: usize>(t0: &[f32; N], t1: &[f32; N]) -> [f32; N] {
+    std::array::from_fn(|l| if t0[l] <= t1[l] { t0[l] } else { f32::NAN })
 }
 
 /// Writes the wide node for binary node `b` (an inner node) and its subtree; returns the depth

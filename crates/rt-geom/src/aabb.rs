@@ -101,24 +101,45 @@ impl SlabRay {
     /// [`Aabb::clip_ray`] up to its last ulps, without branches on the data.
     #[inline(always)]
     pub fn entry(&self, min: &[f32; 3], max: &[f32; 3], tmin: f32, tmax: f32) -> Option<f32> {
-        let (mut t0, mut t1) = (tmin, tmax);
-        for a in 0..3 {
-            let (near, far) = if self.neg[a] {
-                (max[a], min[a])
-            } else {
-                (min[a], max[a])
-            };
-            let tn = (near - self.origin[a]) * self.inv_near[a];
-            let tf = (far - self.origin[a]) * self.inv_far[a];
-            // NaN (origin on the plane, zero direction) leaves the interval unchanged.
-            t0 = if tn > t0 { tn } else { t0 };
-            t1 = if tf < t1 { tf } else { t1 };
-        }
+        let (o, inv_near, inv_far) = (&self.origin, &self.inv_near, &self.inv_far);
+        let (mut t0, mut t1) = slab_interval(
+            (min, max),
+            &self.neg,
+            (tmin, tmax),
+            |a, x| (x - o[a]) * inv_near[a],
+            |a, x| (x - o[a]) * inv_far[a],
+        );
         if self.pad_after {
             (t0, t1) = pad_interval(t0, t1, tmin);
         }
         (t0 <= t1).then_some(t0)
     }
+}
+
+/// `[tmin, tmax]` clipped to the box `min..max`, with `near(axis, x)` and `far(axis, x)` the
+/// ray's distance to a near and a far plane at `x` (the near plane of an axis is the box's
+/// max where `neg`): the slab loop of [`SlabRay`] and [`FusedSlabRay`]. A NaN distance
+/// (origin on the plane, zero direction) leaves the interval unchanged.
+#[inline(always)]
+pub fn slab_interval(
+    (min, max): (&[f32; 3], &[f32; 3]),
+    neg: &[bool; 3],
+    (tmin, tmax): (f32, f32),
+    near: impl Fn(usize, f32) -> f32,
+    far: impl Fn(usize, f32) -> f32,
+) -> (f32, f32) {
+    let (mut t0, mut t1) = (tmin, tmax);
+    for a in 0..3 {
+        let (n, f) = if neg[a] {
+            (max[a], min[a])
+        } else {
+            (min[a], max[a])
+        };
+        let (tn, tf) = (near(a, n), far(a, f));
+        t0 = if tn > t0 { tn } else { t0 };
+        t1 = if tf < t1 { tf } else { t1 };
+    }
+    (t0, t1)
 }
 
 /// `a * b + c`: one fused multiply-add where the target has it (`-C target-cpu=native` on
@@ -233,18 +254,14 @@ impl FusedSlabRay {
     /// never after the true entry), or `None` when the ray misses it (as [`SlabRay::entry`]).
     #[inline(always)]
     pub fn entry(&self, min: &[f32; 3], max: &[f32; 3], tmin: f32, tmax: f32) -> Option<f32> {
-        let (mut t0, mut t1) = (tmin, tmax);
-        for a in 0..3 {
-            let (near, far) = if self.neg[a] {
-                (max[a], min[a])
-            } else {
-                (min[a], max[a])
-            };
-            let tn = mul_add(near, self.inv[a], self.near_offset[a]);
-            let tf = mul_add(far, self.inv[a], self.far_offset[a]);
-            t0 = if tn > t0 { tn } else { t0 };
-            t1 = if tf < t1 { tf } else { t1 };
-        }
+        let (inv, near_offset, far_offset) = (&self.inv, &self.near_offset, &self.far_offset);
+        let (t0, t1) = slab_interval(
+            (min, max),
+            &self.neg,
+            (tmin, tmax),
+            |a, x| mul_add(x, inv[a], near_offset[a]),
+            |a, x| mul_add(x, inv[a], far_offset[a]),
+        );
         (t0 <= t1).then_some(t0)
     }
 }
