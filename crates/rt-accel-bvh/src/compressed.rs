@@ -394,6 +394,29 @@ mod tests {
         );
     }
 
+    /// A node of `lanes` random leaf children in a cube of side `scale` at `offset` (lane 1
+    /// flat).
+    fn random_node(
+        rng: &mut rt_testkit::Rng,
+        lanes: usize,
+        scale: f32,
+        offset: f32,
+    ) -> WideNode<8> {
+        let mut wide = WideNode::<8>::EMPTY;
+        for l in 0..lanes {
+            let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * scale + Vec3::splat(offset);
+            let q = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * scale + Vec3::splat(offset);
+            let mut b = Aabb::new(p.min(q), p.max(q));
+            if l == 1 {
+                b.max.y = b.min.y;
+            }
+            wide.set_bounds(l, b);
+            wide.child[l] = l as u32;
+            wide.count[l] = 1;
+        }
+        wide
+    }
+
     #[test]
     fn dequantized_boxes_hold_the_children() {
         // Boxes of every scale and offset, touching the node's faces, flat ones, far from
@@ -402,27 +425,8 @@ mod tests {
         for k in 0..3000 {
             let scale = [1e-4f32, 1.0, 300.0, 1e5][k % 4];
             let offset = [0.0f32, -7.5, 1e4, -3e6][k / 4 % 4];
-            let mut wide = WideNode::<8> {
-                min: [[f32::INFINITY; 8]; 3],
-                max: [[f32::NEG_INFINITY; 8]; 3],
-                child: [u32::MAX; 8],
-                count: [0; 8],
-            };
             let lanes = 1 + k % 8;
-            for l in 0..lanes {
-                let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * scale + Vec3::splat(offset);
-                let q = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * scale + Vec3::splat(offset);
-                let mut b = Aabb::new(p.min(q), p.max(q));
-                if l == 1 {
-                    b.max.y = b.min.y; // flat
-                }
-                for a in 0..3 {
-                    wide.min[a][l] = b.min[a];
-                    wide.max[a][l] = b.max[a];
-                }
-                wide.child[l] = l as u32;
-                wide.count[l] = 1;
-            }
+            let wide = random_node(&mut rng, lanes, scale, offset);
             let node = CompressedNode::compress(&wide);
             for l in 0..lanes {
                 let (got, want) = (node.bounds(l), wide.bounds(l));
@@ -446,27 +450,10 @@ mod tests {
         for k in 0..4000 {
             let scale = [1e-3f32, 1.0, 500.0][k % 3];
             let offset = [0.0f32, 40.0, -2e3][k / 3 % 3] * scale;
-            let mut wide = WideNode::<8> {
-                min: [[f32::INFINITY; 8]; 3],
-                max: [[f32::NEG_INFINITY; 8]; 3],
-                child: [u32::MAX; 8],
-                count: [0; 8],
-            };
+            let wide = random_node(&mut rng, 8, scale, offset);
             let point = |rng: &mut rt_testkit::Rng| {
                 Vec3::new(rng.f32(), rng.f32(), rng.f32()) * scale + Vec3::splat(offset)
             };
-            for l in 0..8 {
-                let (p, q) = (point(&mut rng), point(&mut rng));
-                let mut b = Aabb::new(p.min(q), p.max(q));
-                if l == 2 {
-                    b.max.x = b.min.x; // flat
-                }
-                for a in 0..3 {
-                    wide.min[a][l] = b.min[a];
-                    wide.max[a][l] = b.max[a];
-                }
-                wide.child[l] = l as u32;
-            }
             let node = CompressedNode::compress(&wide);
             let bound = (0..3)
                 .map(|a| node.origin[a].abs() + 255.0 * node.step(a))

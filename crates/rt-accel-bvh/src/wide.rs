@@ -37,14 +37,14 @@ const _: () = assert!(std::mem::size_of::<WideNode<4>>() == 128);
 const _: () = assert!(std::mem::size_of::<WideNode<8>>() == 256);
 
 impl<const N: usize> WideNode<N> {
-    const EMPTY: Self = Self {
+    pub(crate) const EMPTY: Self = Self {
         min: [[f32::INFINITY; N]; 3],
         max: [[f32::NEG_INFINITY; N]; 3],
         child: [u32::MAX; N],
         count: [0; N],
     };
 
-    fn set_bounds(&mut self, lane: usize, b: Aabb) {
+    pub(crate) fn set_bounds(&mut self, lane: usize, b: Aabb) {
         for a in 0..3 {
             self.min[a][lane] = b.min[a];
             self.max[a][lane] = b.max[a];
