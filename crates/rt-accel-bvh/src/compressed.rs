@@ -25,11 +25,10 @@
 
 use crate::stats::check_leaf_primitive;
 use crate::wide::{
-    WideLanes, WideNode, WideTopology, WideTree, entries_of, lane_entries, test_leaf,
-    traverse_nodes,
+    WideLanes, WideNode, WideTopology, WideTree, lane_entries, test_leaf, traverse_nodes,
 };
 use crate::{Bvh8, BvhParams};
-use rt_geom::aabb::{FusedSlabRay, SlabRay, mul_add};
+use rt_geom::aabb::SlabRay;
 use rt_geom::{
     Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray, Vec3, all_referenced,
 };
@@ -144,37 +143,6 @@ impl WideLanes<8> for CompressedNode {
         )
     }
 
-    /// Per axis, `S = step inv` and `A = origin inv + offset` once per node, then one
-    /// multiply-add per plane and lane: `t = q S + A`. Against the exact distance to the
-    /// dequantized plane `fl(origin + q step)` this adds the plane's own rounding and those of
-    /// `S` and `A` to [`FusedSlabRay`]'s count (at most `2^-24 (bound + |origin|) |inv|`
-    /// each, where the tree's `plane_bound` covers `|origin| + 255 step`): ten at most,
-    /// within the slack of sixteen. (Written out rather than through `lane_intervals`:
-    /// converting every code row first ran 8-20% slower.)
-    #[inline(always)]
-    fn entries_fused(&self, ray: &FusedSlabRay, tmin: f32, tmax: f32) -> [f32; 8] {
-        let mut t0 = [tmin; 8];
-        let mut t1 = [tmax; 8];
-        for a in 0..3 {
-            let inv = ray.inv[a];
-            let scale = self.step(a) * inv;
-            let near_base = mul_add(self.origin[a], inv, ray.near_offset[a]);
-            let far_base = mul_add(self.origin[a], inv, ray.far_offset[a]);
-            let (near, far) = if ray.neg[a] {
-                (&self.qmax[a], &self.qmin[a])
-            } else {
-                (&self.qmin[a], &self.qmax[a])
-            };
-            for l in 0..8 {
-                let tn = mul_add(near[l] as f32, scale, near_base);
-                let tf = mul_add(far[l] as f32, scale, far_base);
-                t0[l] = if tn > t0[l] { tn } else { t0[l] };
-                t1[l] = if tf < t1[l] { tf } else { t1[l] };
-            }
-        }
-        entries_of(&t0, &t1)
-    }
-
     #[inline(always)]
     fn child(&self, lane: usize) -> u32 {
         self.child[lane]
@@ -199,9 +167,6 @@ impl WideLanes<8> for CompressedNode {
 pub struct CompressedTree {
     nodes: Vec<CompressedNode>,
     root_bounds: Aabb,
-    /// The largest `|origin| + 255 step` of any node and axis: bounds every dequantized plane
-    /// (for [`FusedSlabRay`]).
-    plane_bound: f32,
     root_leaf: Option<(u32, u32)>,
     depth: usize,
 }
@@ -209,15 +174,8 @@ pub struct CompressedTree {
 impl CompressedTree {
     /// Compresses every node of `tree`.
     pub fn compress(tree: &WideTree<8>) -> Self {
-        let nodes: Vec<CompressedNode> =
-            tree.nodes().iter().map(CompressedNode::compress).collect();
-        let plane_bound = nodes
-            .iter()
-            .flat_map(|n| (0..3).map(|a| n.origin[a].abs() + 255.0 * n.step(a)))
-            .fold(FusedSlabRay::bound_of(&tree.root_bounds()), f32::max);
         Self {
-            nodes,
-            plane_bound,
+            nodes: tree.nodes().iter().map(CompressedNode::compress).collect(),
             root_bounds: tree.root_bounds(),
             root_leaf: tree.root_leaf(),
             depth: tree.depth(),
@@ -254,7 +212,6 @@ impl WideTopology for CompressedTree {
         traverse_nodes::<_, 8, ANY_HIT>(
             &self.nodes,
             &self.root_bounds,
-            self.plane_bound,
             self.root_leaf,
             self.depth,
             ray,
@@ -394,29 +351,6 @@ mod tests {
         );
     }
 
-    /// A node of `lanes` random leaf children in a cube of side `scale` at `offset` (lane 1
-    /// flat).
-    fn random_node(
-        rng: &mut rt_testkit::Rng,
-        lanes: usize,
-        scale: f32,
-        offset: f32,
-    ) -> WideNode<8> {
-        let mut wide = WideNode::<8>::EMPTY;
-        for l in 0..lanes {
-            let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * scale + Vec3::splat(offset);
-            let q = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * scale + Vec3::splat(offset);
-            let mut b = Aabb::new(p.min(q), p.max(q));
-            if l == 1 {
-                b.max.y = b.min.y;
-            }
-            wide.set_bounds(l, b);
-            wide.child[l] = l as u32;
-            wide.count[l] = 1;
-        }
-        wide
-    }
-
     #[test]
     fn dequantized_boxes_hold_the_children() {
         // Boxes of every scale and offset, touching the node's faces, flat ones, far from
@@ -425,8 +359,27 @@ mod tests {
         for k in 0..3000 {
             let scale = [1e-4f32, 1.0, 300.0, 1e5][k % 4];
             let offset = [0.0f32, -7.5, 1e4, -3e6][k / 4 % 4];
+            let mut wide = WideNode::<8> {
+                min: [[f32::INFINITY; 8]; 3],
+                max: [[f32::NEG_INFINITY; 8]; 3],
+                child: [u32::MAX; 8],
+                count: [0; 8],
+            };
             let lanes = 1 + k % 8;
-            let wide = random_node(&mut rng, lanes, scale, offset);
+            for l in 0..lanes {
+                let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * scale + Vec3::splat(offset);
+                let q = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * scale + Vec3::splat(offset);
+                let mut b = Aabb::new(p.min(q), p.max(q));
+                if l == 1 {
+                    b.max.y = b.min.y; // flat
+                }
+                for a in 0..3 {
+                    wide.min[a][l] = b.min[a];
+                    wide.max[a][l] = b.max[a];
+                }
+                wide.child[l] = l as u32;
+                wide.count[l] = 1;
+            }
             let node = CompressedNode::compress(&wide);
             for l in 0..lanes {
                 let (got, want) = (node.bounds(l), wide.bounds(l));
@@ -439,52 +392,6 @@ mod tests {
                 }
             }
         }
-    }
-
-    #[test]
-    fn fused_entries_are_conservative() {
-        // Every lane the ray meets (exactly, in f64, against the dequantized box) is entered,
-        // never later than the exact entry; nodes at several scales and offsets.
-        let mut rng = rt_testkit::Rng::new(17);
-        let mut entered = 0;
-        for k in 0..4000 {
-            let scale = [1e-3f32, 1.0, 500.0][k % 3];
-            let offset = [0.0f32, 40.0, -2e3][k / 3 % 3] * scale;
-            let wide = random_node(&mut rng, 8, scale, offset);
-            let point = |rng: &mut rt_testkit::Rng| {
-                Vec3::new(rng.f32(), rng.f32(), rng.f32()) * scale + Vec3::splat(offset)
-            };
-            let node = CompressedNode::compress(&wide);
-            let bound = (0..3)
-                .map(|a| node.origin[a].abs() + 255.0 * node.step(a))
-                .fold(0.0, f32::max);
-            let lane = k % 8;
-            let target = node.bounds(lane).center();
-            let origin = point(&mut rng) * 3.0 - Vec3::splat(offset * 2.0 + scale);
-            let ray = Ray::new(origin, target - origin);
-            let Some(fused) = FusedSlabRay::new(&ray, bound) else {
-                continue;
-            };
-            let t = node.entries_fused(&fused, ray.tmin, ray.tmax);
-            for (l, &entry) in t.iter().enumerate() {
-                let b = node.bounds(l);
-                let (mut t0, mut t1) = (ray.tmin as f64, ray.tmax as f64);
-                for a in 0..3 {
-                    let (o, d) = (ray.origin()[a] as f64, ray.dir()[a] as f64);
-                    let (x, y) = ((b.min[a] as f64 - o) / d, (b.max[a] as f64 - o) / d);
-                    t0 = t0.max(x.min(y));
-                    t1 = t1.min(x.max(y));
-                }
-                if t0 <= t1 {
-                    entered += 1;
-                    assert!(
-                        entry as f64 <= t0,
-                        "lane {l}: {entry} vs {t0} ({node:?}, {ray:?})"
-                    );
-                }
-            }
-        }
-        assert!(entered > 4000, "{entered} lanes entered");
     }
 
     #[test]

@@ -19,7 +19,7 @@ use crate::node::BvhNode;
 use crate::params::MAX_DEPTH;
 use crate::stats::check_leaf_primitive;
 use crate::{Bvh, BvhParams};
-use rt_geom::aabb::{FusedSlabRay, SlabRay, mul_add, pad_interval};
+use rt_geom::aabb::{SlabRay, pad_interval};
 use rt_geom::all_referenced;
 use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray, replaces};
 
@@ -37,14 +37,14 @@ const _: () = assert!(std::mem::size_of::<WideNode<4>>() == 128);
 const _: () = assert!(std::mem::size_of::<WideNode<8>>() == 256);
 
 impl<const N: usize> WideNode<N> {
-    pub(crate) const EMPTY: Self = Self {
+    const EMPTY: Self = Self {
         min: [[f32::INFINITY; N]; 3],
         max: [[f32::NEG_INFINITY; N]; 3],
         child: [u32::MAX; N],
         count: [0; N],
     };
 
-    pub(crate) fn set_bounds(&mut self, lane: usize, b: Aabb) {
+    fn set_bounds(&mut self, lane: usize, b: Aabb) {
         for a in 0..3 {
             self.min[a][lane] = b.min[a];
             self.max[a][lane] = b.max[a];
@@ -255,7 +255,6 @@ impl<const N: usize> WideTree<N> {
         traverse_nodes::<_, N, ANY_HIT>(
             &self.nodes,
             &self.root_bounds,
-            FusedSlabRay::bound_of(&self.root_bounds),
             self.root_leaf,
             self.depth,
             ray,
@@ -347,8 +346,6 @@ impl<const N: usize> WideTree<N> {
 pub(crate) trait WideLanes<const N: usize> {
     /// Entry distance per lane into `[tmin, tmax]`, NaN for lanes the ray misses.
     fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> [f32; N];
-    /// [`WideLanes::entries`] by the fused test.
-    fn entries_fused(&self, ray: &FusedSlabRay, tmin: f32, tmax: f32) -> [f32; N];
     /// Inner child: node index; leaf: first primitive; `u32::MAX` for an empty lane.
     fn child(&self, lane: usize) -> u32;
     /// 0 for an inner child, else the leaf's primitive count.
@@ -386,11 +383,6 @@ impl<const N: usize> WideLanes<N> for WideNode<N> {
     }
 
     #[inline(always)]
-    fn entries_fused(&self, ray: &FusedSlabRay, tmin: f32, tmax: f32) -> [f32; N] {
-        lane_entries_fused(&self.min, &self.max, ray, tmin, tmax)
-    }
-
-    #[inline(always)]
     fn child(&self, lane: usize) -> u32 {
         self.child[lane]
     }
@@ -408,17 +400,19 @@ impl<const N: usize> WideLanes<N> for WideNode<N> {
     }
 }
 
-/// The stack traversal of every wide layout (see [`WideTree::traverse`]); `plane_bound`
-/// bounds the magnitude of every plane coordinate of the nodes.
+/// The stack traversal of every wide layout (see [`WideTree::traverse`]).
 ///
-/// Box tests take the fused form ([`FusedSlabRay`], one multiply-add per plane) for the rays
-/// it covers and the folded one ([`SlabRay`]) for the others (rays along an axis plane): the
-/// choice is made once per ray, the walk is compiled for each.
+/// Per inner node: one SIMD slab test of all lanes, a bit mask of the lanes hit, and then
+/// - no lane: the next entry is popped from the stack;
+/// - one lane (the common case deep in the tree): that child is visited next, no stack traffic;
+/// - several: all are pushed far to near and the nearest is popped (closest-hit queries);
+///   any-hit queries push the inner children, then the leaves, and pop a leaf first.
+///
+/// Popped entries whose entry distance lies beyond the closest hit found since are skipped.
 #[inline(always)]
 pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: bool>(
     nodes: &[Node],
     root_bounds: &Aabb,
-    plane_bound: f32,
     root_leaf: Option<(u32, u32)>,
     depth: usize,
     ray: &Ray,
@@ -437,36 +431,7 @@ pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: 
     if nodes.is_empty() {
         return None;
     }
-    if let Some(fused) = FusedSlabRay::new(ray, plane_bound) {
-        walk::<_, N, ANY_HIT>(nodes, depth, &mut r, &mut best, leaf, |n, t0, t1| {
-            n.entries_fused(&fused, t0, t1)
-        });
-    } else {
-        let slab = SlabRay::new(ray);
-        walk::<_, N, ANY_HIT>(nodes, depth, &mut r, &mut best, leaf, |n, t0, t1| {
-            n.entries(&slab, t0, t1)
-        });
-    }
-    best.map(|(h, id)| Hit::new(h, id))
-}
-
-/// Per inner node: one SIMD slab test of all lanes (`entries`), a bit mask of the lanes hit,
-/// and then
-/// - no lane: the next entry is popped from the stack;
-/// - one lane (the common case deep in the tree): that child is visited next, no stack traffic;
-/// - several: all are pushed far to near and the nearest is popped (closest-hit queries);
-///   any-hit queries push the inner children, then the leaves, and pop a leaf first.
-///
-/// Popped entries whose entry distance lies beyond the closest hit found since are skipped.
-#[inline(always)]
-fn walk<Node: WideLanes<N>, const N: usize, const ANY_HIT: bool>(
-    nodes: &[Node],
-    depth: usize,
-    r: &mut Ray,
-    best: &mut Option<(PrimHit, u32)>,
-    mut leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<(PrimHit, u32)>) -> bool,
-    entries: impl Fn(&Node, f32, f32) -> [f32; N],
-) {
+    let slab = SlabRay::new(ray);
     STACK.with(|cell| {
         let mut stack = cell.borrow_mut();
         // At most N - 1 pending siblings per level.
@@ -481,12 +446,12 @@ fn walk<Node: WideLanes<N>, const N: usize, const ANY_HIT: bool>(
             let (child, count, entry) = next;
             if entry <= r.tmax {
                 if count > 0 {
-                    if leaf(child, count, r, best) {
+                    if leaf(child, count, &mut r, &mut best) {
                         return;
                     }
                 } else {
                     let node = &nodes[child as usize];
-                    let t = entries(node, r.tmin, r.tmax);
+                    let t = node.entries(&slab, r.tmin, r.tmax);
                     let mut mask = hit_lanes(&t) & node.used_mask();
                     if mask != 0 {
                         let lane = mask.trailing_zeros() as usize;
@@ -543,6 +508,7 @@ fn walk<Node: WideLanes<N>, const N: usize, const ANY_HIT: bool>(
             next = stack[sp];
         }
     });
+    best.map(|(h, id)| Hit::new(h, id))
 }
 
 thread_local! {
@@ -562,78 +528,33 @@ pub(crate) fn lane_entries<const N: usize>(
     tmin: f32,
     tmax: f32,
 ) -> [f32; N] {
-    let (o, inv_near, inv_far) = (&ray.origin, &ray.inv_near, &ray.inv_far);
-    let (mut t0, mut t1) = lane_intervals(
-        (min, max),
-        &ray.neg,
-        (tmin, tmax),
-        |a, x| (x - o[a]) * inv_near[a],
-        |a, x| (x - o[a]) * inv_far[a],
-    );
+    let mut t0 = [tmin; N];
+    let mut t1 = [tmax; N];
+    for a in 0..3 {
+        let (near, far) = if ray.neg[a] {
+            (&max[a], &min[a])
+        } else {
+            (&min[a], &max[a])
+        };
+        let (o, inv_near, inv_far) = (ray.origin[a], ray.inv_near[a], ray.inv_far[a]);
+        for l in 0..N {
+            let tn = (near[l] - o) * inv_near;
+            let tf = (far[l] - o) * inv_far;
+            // NaN (origin on the plane, zero direction) leaves the interval unchanged.
+            t0[l] = if tn > t0[l] { tn } else { t0[l] };
+            t1[l] = if tf < t1[l] { tf } else { t1[l] };
+        }
+    }
     if ray.pad_after {
         for l in 0..N {
             (t0[l], t1[l]) = pad_interval(t0[l], t1[l], tmin);
         }
     }
-    entries_of(&t0, &t1)
-}
-
-/// [`lane_entries`] with the fused test ([`FusedSlabRay`]): one multiply-add per plane and
-/// lane; the same guarantee (never later than the true entry, never before `tmin`).
-#[inline(always)]
-pub(crate) fn lane_entries_fused<const N: usize>(
-    min: &[[f32; N]; 3],
-    max: &[[f32; N]; 3],
-    ray: &FusedSlabRay,
-    tmin: f32,
-    tmax: f32,
-) -> [f32; N] {
-    let (inv, near_offset, far_offset) = (&ray.inv, &ray.near_offset, &ray.far_offset);
-    let (t0, t1) = lane_intervals(
-        (min, max),
-        &ray.neg,
-        (tmin, tmax),
-        |a, x| mul_add(x, inv[a], near_offset[a]),
-        |a, x| mul_add(x, inv[a], far_offset[a]),
-    );
-    entries_of(&t0, &t1)
-}
-
-/// Per lane, `[tmin, tmax]` clipped to the box `min..max`, with `near(axis, x)` and
-/// `far(axis, x)` the ray's distance to a near and a far plane at `x` (the near plane of an
-/// axis is the box's max where `neg`). A NaN distance (origin on the plane, zero direction)
-/// leaves the interval unchanged; the compare-and-select forms are single SIMD min/max
-/// instructions.
-#[inline(always)]
-fn lane_intervals<const N: usize>(
-    (min, max): (&[[f32; N]; 3], &[[f32; N]; 3]),
-    neg: &[bool; 3],
-    (tmin, tmax): (f32, f32),
-    near: impl Fn(usize, f32) -> f32,
-    far: impl Fn(usize, f32) -> f32,
-) -> ([f32; N], [f32; N]) {
-    let mut t0 = [tmin; N];
-    let mut t1 = [tmax; N];
-    for a in 0..3 {
-        let (near_planes, far_planes) = if neg[a] {
-            (&max[a], &min[a])
-        } else {
-            (&min[a], &max[a])
-        };
-        for l in 0..N {
-            let tn = near(a, near_planes[l]);
-            let tf = far(a, far_planes[l]);
-            t0[l] = if tn > t0[l] { tn } else { t0[l] };
-            t1[l] = if tf < t1[l] { tf } else { t1[l] };
-        }
+    let mut out = [f32::NAN; N];
+    for l in 0..N {
+        out[l] = if t0[l] <= t1[l] { t0[l] } else { f32::NAN };
     }
-    (t0, t1)
-}
-
-/// Per lane, the entry `t0` of a non-empty interval `[t0, t1]`, NaN for an empty one.
-#[inline(always)]
-pub(crate) fn entries_of<const N: usize>(t0: &[f32; N], t1: &[f32; N]) -> [f32; N] {
-    std::array::from_fn(|l| if t0[l] <= t1[l] { t0[l] } else { f32::NAN })
+    out
 }
 
 /// Writes the wide node for binary node `b` (an inner node) and its subtree; returns the depth

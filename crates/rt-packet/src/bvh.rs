@@ -19,7 +19,7 @@ use crate::lanes::{PacketPrimitive, enter_mask, test_block};
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_bvh::{Bvh, MAX_DEPTH};
 use rt_geom::Hit;
-use rt_geom::aabb::{FusedSlabRay, mul_add, pad_down, pad_up};
+use rt_geom::aabb::{pad_down, pad_up};
 
 /// Whether lane `i` of `p` enters `node`'s box within its `[tmin, tmax]` (the single-ray
 /// traversal's padded slab test, [`rt_geom::aabb::SlabRay::entry`], with the packet's folded
@@ -33,7 +33,7 @@ pub(crate) fn lane_enters<const N: usize>(b: Bounds<'_>, p: &RayPacket<'_, N>, i
 pub(crate) type Bounds<'a> = (&'a [f32; 3], &'a [f32; 3]);
 
 /// Lane `i`'s padded entry into the box `b` when it enters (the single-ray slab test, see
-/// [`lane_enters`]), or its fused one ([`RayPacket::fuse`]).
+/// [`lane_enters`]).
 #[inline(always)]
 pub(crate) fn lane_entry<const N: usize>(
     (min, max): Bounds<'_>,
@@ -42,21 +42,6 @@ pub(crate) fn lane_entry<const N: usize>(
 ) -> Option<f32> {
     let mut t0 = p.tmin[i];
     let mut t1 = p.tmax[i];
-    if p.fused {
-        // `lanes::slabs_fused` for one lane.
-        for a in 0..3 {
-            let t_lo = mul_add(min[a], p.inv_dir[a][i], p.lo_offset[a][i]);
-            let t_hi = mul_add(max[a], p.inv_dir[a][i], p.hi_offset[a][i]);
-            let (tn, tf) = if t_lo < t_hi {
-                (t_lo, t_hi)
-            } else {
-                (t_hi, t_lo)
-            };
-            t0 = if tn > t0 { tn } else { t0 };
-            t1 = if tf < t1 { tf } else { t1 };
-        }
-        return (t0 <= t1).then_some(t0);
-    }
     for a in 0..3 {
         let (inv_lo, inv_hi) = (p.inv_lo[a][i], p.inv_hi[a][i]);
         let (near, far) = if inv_lo.is_sign_negative() {
@@ -202,7 +187,6 @@ fn traverse<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: b
         return;
     }
     let (prims, ids) = (bvh.prims(), bvh.ids());
-    p.fuse(FusedSlabRay::bound_of(&nodes[0].bounds()));
     let mut beam = None;
     // Pending far children with the first and last lanes that entered their parent.
     let mut stack = [(0u32, 0u32, 0u32); MAX_DEPTH + 1];

@@ -84,30 +84,6 @@ fn slabs<const N: usize, const W: usize>(
     (t0, t1)
 }
 
-/// [`slabs`] by the fused test of a packet prepared with [`RayPacket::fuse`]: one
-/// multiply-add per plane and lane ([`rt_geom::aabb::FusedSlabRay`]), conservative without
-/// padding (a lane's min-plane distance is its near one exactly when its direction is
-/// positive, so the near and far distances are the smaller and the larger of the two; no
-/// NaN arises in an active lane).
-#[inline(always)]
-fn slabs_fused<const N: usize, const W: usize>(
-    min: &[f32; 3],
-    max: &[f32; 3],
-    p: &RayPacket<'_, N>,
-    base: usize,
-) -> (f32x8, f32x8) {
-    let mut t0 = load::<N, W>(&p.tmin, base);
-    let mut t1 = load::<N, W>(&p.tmax, base);
-    for a in 0..3 {
-        let inv = load::<N, W>(&p.inv_dir[a], base);
-        let t_lo = f32x8::splat(min[a]).mul_add(inv, load::<N, W>(&p.lo_offset[a], base));
-        let t_hi = f32x8::splat(max[a]).mul_add(inv, load::<N, W>(&p.hi_offset[a], base));
-        t0 = t0.fast_max(t_lo.fast_min(t_hi));
-        t1 = t1.fast_min(t_lo.fast_max(t_hi));
-    }
-    (t0, t1)
-}
-
 /// `t - |t| PAD` and `t + |t| PAD` on 8 lanes ([`pad_down`], [`pad_up`]).
 #[inline(always)]
 fn pad(t: f32x8, up: bool) -> f32x8 {
@@ -117,8 +93,7 @@ fn pad(t: f32x8, up: bool) -> f32x8 {
 
 /// The lanes of the block at `base` that are active and enter the box `[min, max]` within
 /// their `[tmin, tmax]`: the single-ray traversal's padded slab test
-/// ([`rt_geom::aabb::SlabRay::entry`]) lane by lane, or the fused one when the packet is
-/// prepared for it ([`RayPacket::fuse`]; either is conservative).
+/// ([`rt_geom::aabb::SlabRay::entry`]) lane by lane.
 #[inline(always)]
 pub(crate) fn enter_mask<const N: usize, const W: usize>(
     min: &[f32; 3],
@@ -128,11 +103,6 @@ pub(crate) fn enter_mask<const N: usize, const W: usize>(
 ) -> u32 {
     let mut mask = 0;
     for half in (0..W).step_by(8) {
-        if p.fused {
-            let (t0, t1) = slabs_fused::<N, W>(min, max, p, base + half);
-            mask |= bits::<W>(t0.cmp_le(t1)) << half;
-            continue;
-        }
         let (t0, t1) = slabs::<N, W>(min, max, p, base + half);
         let (t0, t1) = if p.pad_after {
             (pad(t0, false), pad(t1, true))
@@ -541,55 +511,6 @@ mod tests {
             assert_eq!(active_mask::<8, 8>(&p, 0), bits);
             assert_eq!(active_mask::<8, 4>(&p, 4), bits >> 4);
         }
-    }
-
-    #[test]
-    fn fused_block_test_equals_the_fused_single_ray_test() {
-        // A prepared packet's lanes take `FusedSlabRay` (proved conservative in rt-geom):
-        // the block mask and each lane's entry are its answers exactly. A packet with a lane
-        // along an axis plane stays unfused.
-        let mut rng = rt_testkit::Rng::new(77);
-        let mut v = || Vec3::new(rng.f32(), rng.f32(), rng.f32());
-        let bound = 4.0;
-        let mut fused_packets = 0;
-        for k in 0..400 {
-            let rays: Vec<Ray> = (0..16)
-                .map(|i| {
-                    let o = v() * 6.0 - Vec3::splat(3.0);
-                    let mut d = v() * 2.0 - Vec3::ONE;
-                    if k % 10 == 0 && i == 5 {
-                        d.y = 0.0;
-                    }
-                    Ray::segment(o, d, [0.0, -0.3][k % 2], [f32::INFINITY, 2.0][k / 2 % 2])
-                })
-                .collect();
-            let mut p = RayPacket::<16>::new(&rays);
-            p.fuse(bound);
-            assert_eq!(p.fused, k % 10 != 0);
-            fused_packets += p.fused as usize;
-            for _ in 0..20 {
-                let (a, b) = (v() * 4.0 - Vec3::splat(2.0), v() * 4.0 - Vec3::splat(2.0));
-                let (min, max) = (a.min(b).to_array(), a.max(b).to_array());
-                for base in [0, 8] {
-                    let mask = enter_mask::<16, 8>(&min, &max, &p, base);
-                    for l in 0..8 {
-                        let r = &rays[base + l];
-                        let entry = crate::bvh::lane_entry((&min, &max), &p, base + l);
-                        let expect = if p.fused {
-                            let f = rt_geom::aabb::FusedSlabRay::new(r, bound).unwrap();
-                            f.entry(&min, &max, r.tmin, r.tmax)
-                        } else {
-                            SlabRay::new(r).entry(&min, &max, r.tmin, r.tmax)
-                        };
-                        assert_eq!(mask >> l & 1 == 1, expect.is_some(), "{r:?}");
-                        if p.fused {
-                            assert_eq!(entry, expect, "{r:?}");
-                        }
-                    }
-                }
-            }
-        }
-        assert_eq!(fused_packets, 360);
     }
 
     #[test]

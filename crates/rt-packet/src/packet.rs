@@ -2,7 +2,7 @@
 //! vectorises over), an active mask, and packets cut from image tiles.
 
 use rt_geom::Ray;
-use rt_geom::aabb::{FusedSlabRay, SlabRay};
+use rt_geom::aabb::SlabRay;
 
 /// The packet sizes of the seeds: square tiles of 2x2 to 16x16 pixels.
 pub const TILE_SIDES: [usize; 4] = [2, 4, 8, 16];
@@ -29,13 +29,6 @@ pub struct RayPacket<'a, const N: usize> {
     /// Some active lane has `tmin < 0`: box tests pad their intervals afterwards (lanes with
     /// folded reciprocals are then padded twice, which stays conservative).
     pub pad_after: bool,
-    /// Set by [`RayPacket::fuse`]: every active lane takes the fused box test
-    /// ([`FusedSlabRay`]): `t = plane * inv_dir + offset`, with `lo_offset` for a box's min
-    /// plane and `hi_offset` for its max plane (each `-origin * inv_dir` moved by the slack
-    /// towards the ray's start for the plane the lane enters by, away from it for the other).
-    pub fused: bool,
-    pub lo_offset: [[f32; N]; 3],
-    pub hi_offset: [[f32; N]; 3],
     /// The watertight triangle test's shear rows per lane ([`Ray::watertight_rows`]): `x`, `y`,
     /// `z` of row 0, then of row 1.
     pub shear: [[f32; N]; 6],
@@ -92,33 +85,12 @@ impl<'a, const N: usize> RayPacket<'a, N> {
             inv_lo,
             inv_hi,
             pad_after,
-            fused: false,
-            lo_offset: [[0.0; N]; 3],
-            hi_offset: [[0.0; N]; 3],
             inv_dir,
             shear: std::array::from_fn(|k| lanes(rays, 0.0, |r| r.watertight_rows()[k / 3][k % 3])),
             tmin,
             tmax: lanes(rays, f32::NEG_INFINITY, |r| r.tmax),
             active,
         }
-    }
-
-    /// Prepares the fused box test ([`FusedSlabRay`]) against planes within
-    /// `[-bound, bound]` (the structure's box): sets `fused` when every active lane is in its
-    /// range, and the offsets of every lane (plain lane loops that vectorise).
-    pub fn fuse(&mut self, bound: f32) {
-        let mut in_range = FusedSlabRay::bound_in_range(bound);
-        for a in 0..3 {
-            for i in 0..N {
-                let (o, inv) = (self.origin[a][i], self.inv_dir[a][i]);
-                in_range &= !self.active[i] | FusedSlabRay::axis_in_range(o, inv);
-                let slack = FusedSlabRay::slack(o, inv, bound);
-                let slack = if inv < 0.0 { -slack } else { slack };
-                self.lo_offset[a][i] = -o * inv - slack;
-                self.hi_offset[a][i] = -o * inv + slack;
-            }
-        }
-        self.fused = in_range;
     }
 
     /// Lane `i`'s ray with its interval ending at the lane's current closest hit.

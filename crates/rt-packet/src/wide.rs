@@ -11,7 +11,6 @@ use crate::bvh::{entering_range, lane_entry, test_leaf};
 use crate::lanes::PacketPrimitive;
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_bvh::{WideBvh, WideNode};
-use rt_geom::aabb::FusedSlabRay;
 use rt_geom::{Accel, Hit};
 
 /// A pending child: `(parent node, child slot, first lane, last lane)`, the lanes those in the
@@ -72,7 +71,6 @@ fn traverse<
         return;
     };
     let last = (first..N).rev().find(|&i| p.active[i]).unwrap_or(first);
-    p.fuse(FusedSlabRay::bound_of(&tree.root_bounds()));
     if let Some(root) = tree.root_leaf() {
         let b = tree.root_bounds();
         let (min, max) = (b.min.to_array(), b.max.to_array());
