@@ -286,6 +286,18 @@ mod tests {
                 intersection_cost: 0.0,
                 ..BvhParams::balanced()
             },
+            BvhParams {
+                leaf_block: 0,
+                ..BvhParams::balanced()
+            },
+            BvhParams {
+                leaf_block: 3,
+                ..BvhParams::balanced()
+            },
+            BvhParams {
+                leaf_block: 32,
+                ..BvhParams::balanced()
+            },
         ] {
             assert!(matches!(
                 Bvh::build(&tris, params),

@@ -335,7 +335,7 @@ pub(crate) fn split_cost(
     } else {
         (1.0, 1.0)
     };
-    params.traversal_cost + params.intersection_cost * (wl * nl as f32 + wr * nr as f32)
+    params.traversal_cost + params.intersection_cost * (wl * params.tests(nl) + wr * params.tests(nr))
 }
 
 #[cfg(test)]

@@ -212,7 +212,7 @@ pub(crate) fn best_binned(
             left = left.union(boxes[i - 1]);
             nl += counts[i - 1];
             let (ar, nr) = right[i];
-            let cost = left.half_area() * nl as f32 + ar * nr as f32;
+            let cost = left.half_area() * params.tests(nl as usize) + ar * params.tests(nr as usize);
             if cost < best_cost {
                 (best_cost, best) = (cost, Some((axis, i)));
             }
@@ -255,7 +255,7 @@ pub(crate) fn binned(
     let Some(best) = best_binned(refs, bounds, centroids, bins, params, scratch) else {
         return Split::Leaf;
     };
-    let leaf_cost = params.intersection_cost * refs.len() as f32;
+    let leaf_cost = params.intersection_cost * params.tests(refs.len());
     if refs.len() <= params.max_leaf_size as usize && leaf_cost <= best.cost {
         return Split::Leaf;
     }
@@ -315,7 +315,7 @@ fn small(refs: &mut [PrimRef], bounds: &Aabb, params: &BvhParams) -> Split {
         let mut left = Box4::EMPTY;
         for i in 1..n {
             left = left.union(boxes[order[i - 1] as usize & 7]);
-            let cost = left.half_area() * i as f32 + right[i] * (n - i) as f32;
+            let cost = left.half_area() * params.tests(i) + right[i] * params.tests(n - i);
             if cost < best.0 {
                 best = (cost, axis, order, i);
             }
@@ -331,7 +331,7 @@ fn small(refs: &mut [PrimRef], bounds: &Aabb, params: &BvhParams) -> Split {
         (l.half_area(), mid),
         (r.half_area(), n - mid),
     );
-    if n <= params.max_leaf_size as usize && params.intersection_cost * n as f32 <= cost {
+    if n <= params.max_leaf_size as usize && params.intersection_cost * params.tests(n) <= cost {
         return Split::Leaf;
     }
     refs.copy_from_slice(&sorted[..n]);
@@ -373,7 +373,7 @@ pub(crate) fn sweep(refs: &mut [PrimRef], bounds: &Aabb, params: &BvhParams) -> 
     let Some((cost, axis, mid)) = best else {
         return Split::Leaf;
     };
-    let leaf_cost = params.intersection_cost * n as f32;
+    let leaf_cost = params.intersection_cost * params.tests(n);
     if n <= params.max_leaf_size as usize && leaf_cost <= cost {
         return Split::Leaf;
     }
