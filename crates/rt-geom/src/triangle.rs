@@ -158,12 +158,15 @@ impl Triangle {
     ///   point of the ray closest to the triangle's boundary.
     #[inline]
     pub fn refine(&self, ray: &Ray, (u, v, w): (f32, f32, f32)) -> Option<PrimHit> {
+        // Coordinates as arrays indexed by the ray's axes (one load each; a `DVec3` indexed
+        // at run time branches on the index).
         let [kx, ky, kz] = ray.watertight_axes();
         let d = ray.dir().as_dvec3();
-        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        let da = d.to_array();
+        let (sx, sy, sz) = (da[kx] / da[kz], da[ky] / da[kz], 1.0 / da[kz]);
         let o = ray.origin().as_dvec3();
         let shear = |p: Vec3| {
-            let p = p.as_dvec3() - o;
+            let p = (p.as_dvec3() - o).to_array();
             (p[kx] - sx * p[kz], p[ky] - sy * p[kz], p[kz] * sz)
         };
         let (ax, ay, az) = shear(self.v[0]);

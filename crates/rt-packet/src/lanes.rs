@@ -345,11 +345,13 @@ fn refine_lanes<const N: usize>(
         let mut orient = [0.0f64; 4];
         for (k, &l) in pick.iter().enumerate() {
             let ray = &p.rays[base + l];
-            let (dir, org) = (ray.dir(), ray.origin());
+            // Arrays indexed by the lane's axes (a `Vec3` indexed at run time branches).
+            let (dir, org) = (ray.dir().to_array(), ray.origin().to_array());
+            let verts = tri.v.map(|v| v.to_array());
             for (j, &axis) in ray.watertight_axes().iter().enumerate() {
                 d[j][k] = dir[axis] as f64;
                 o[j][k] = org[axis] as f64;
-                for (i, vert) in tri.v.iter().enumerate() {
+                for (i, vert) in verts.iter().enumerate() {
                     v[i][j][k] = vert[axis] as f64;
                 }
             }
