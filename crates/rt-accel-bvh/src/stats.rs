@@ -70,7 +70,9 @@ impl<P: Primitive> Bvh<P> {
             if n.is_leaf() {
                 s.leaves += 1;
                 s.references += n.count() as usize;
-                sah += area * self.params.intersection_cost as f64 * self.params.tests(n.count() as usize) as f64;
+                sah += area
+                    * self.params.intersection_cost as f64
+                    * self.params.tests(n.count() as usize) as f64;
             } else {
                 sah += area * self.params.traversal_cost as f64;
             }

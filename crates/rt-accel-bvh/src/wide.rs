@@ -277,7 +277,9 @@ impl<const N: usize> WideTree<N> {
             s.leaves = 1;
             s.nodes = 1;
             s.references = count as usize;
-            sah = root_area as f64 * params.tests(count as usize) as f64 * params.intersection_cost as f64;
+            sah = root_area as f64
+                * params.tests(count as usize) as f64
+                * params.intersection_cost as f64;
         }
         for (i, n) in self.nodes.iter().enumerate() {
             if i == 0 {
@@ -288,7 +290,9 @@ impl<const N: usize> WideTree<N> {
                 if n.count[lane] > 0 {
                     s.leaves += 1;
                     s.references += n.count[lane] as usize;
-                    sah += area * params.tests(n.count[lane] as usize) as f64 * params.intersection_cost as f64;
+                    sah += area
+                        * params.tests(n.count[lane] as usize) as f64
+                        * params.intersection_cost as f64;
                 } else {
                     sah += area * params.traversal_cost as f64;
                 }

@@ -335,7 +335,8 @@ pub(crate) fn split_cost(
     } else {
         (1.0, 1.0)
     };
-    params.traversal_cost + params.intersection_cost * (wl * params.tests(nl) + wr * params.tests(nr))
+    params.traversal_cost
+        + params.intersection_cost * (wl * params.tests(nl) + wr * params.tests(nr))
 }
 
 #[cfg(test)]

@@ -212,7 +212,8 @@ pub(crate) fn best_binned(
             left = left.union(boxes[i - 1]);
             nl += counts[i - 1];
             let (ar, nr) = right[i];
-            let cost = left.half_area() * params.tests(nl as usize) + ar * params.tests(nr as usize);
+            let cost =
+                left.half_area() * params.tests(nl as usize) + ar * params.tests(nr as usize);
             if cost < best_cost {
                 (best_cost, best) = (cost, Some((axis, i)));
             }
