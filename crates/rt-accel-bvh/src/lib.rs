@@ -286,19 +286,12 @@ mod tests {
                 intersection_cost: 0.0,
                 ..BvhParams::balanced()
             },
-            BvhParams {
-                leaf_block: 0,
-                ..BvhParams::balanced()
-            },
-            BvhParams {
-                leaf_block: 3,
-                ..BvhParams::balanced()
-            },
-            BvhParams {
-                leaf_block: 32,
-                ..BvhParams::balanced()
-            },
-        ] {
+        ]
+        .into_iter()
+        .chain([0, 3, 32].map(|leaf_block| BvhParams {
+            leaf_block,
+            ..BvhParams::balanced()
+        })) {
             assert!(matches!(
                 Bvh::build(&tris, params),
                 Err(BuildError::InvalidParameter { .. })
