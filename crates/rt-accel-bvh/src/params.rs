@@ -129,6 +129,13 @@ impl BvhParams {
         ((n + (1 << shift) - 1) >> shift) as f32
     }
 
+    /// The SAH cost of a leaf of `n` primitives (relative to a traversal step's
+    /// `traversal_cost`).
+    #[inline(always)]
+    pub(crate) fn leaf_cost(&self, n: usize) -> f32 {
+        self.intersection_cost * self.tests(n)
+    }
+
     pub const fn with_builder(mut self, builder: BvhBuilder) -> Self {
         self.builder = builder;
         self

@@ -256,7 +256,7 @@ pub(crate) fn binned(
     let Some(best) = best_binned(refs, bounds, centroids, bins, params, scratch) else {
         return Split::Leaf;
     };
-    let leaf_cost = params.intersection_cost * params.tests(refs.len());
+    let leaf_cost = params.leaf_cost(refs.len());
     if refs.len() <= params.max_leaf_size as usize && leaf_cost <= best.cost {
         return Split::Leaf;
     }
@@ -332,7 +332,7 @@ fn small(refs: &mut [PrimRef], bounds: &Aabb, params: &BvhParams) -> Split {
         (l.half_area(), mid),
         (r.half_area(), n - mid),
     );
-    if n <= params.max_leaf_size as usize && params.intersection_cost * params.tests(n) <= cost {
+    if n <= params.max_leaf_size as usize && params.leaf_cost(n) <= cost {
         return Split::Leaf;
     }
     refs.copy_from_slice(&sorted[..n]);
@@ -374,7 +374,7 @@ pub(crate) fn sweep(refs: &mut [PrimRef], bounds: &Aabb, params: &BvhParams) -> 
     let Some((cost, axis, mid)) = best else {
         return Split::Leaf;
     };
-    let leaf_cost = params.intersection_cost * params.tests(n);
+    let leaf_cost = params.leaf_cost(n);
     if n <= params.max_leaf_size as usize && leaf_cost <= cost {
         return Split::Leaf;
     }

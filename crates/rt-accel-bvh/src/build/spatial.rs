@@ -111,7 +111,7 @@ fn node<P: Primitive>(ctx: &Ctx<'_, P>, mut refs: Vec<PrimRef>, depth: usize) ->
     };
     let object_cost = object.as_ref().map_or(f32::INFINITY, |o| o.cost);
     let best_cost = object_cost.min(spatial.as_ref().map_or(f32::INFINITY, |s| s.cost));
-    let leaf_cost = params.intersection_cost * params.tests(n);
+    let leaf_cost = params.leaf_cost(n);
     if n <= params.max_leaf_size as usize && leaf_cost <= best_cost {
         return leaf(bounds, &refs);
     }
