@@ -9,6 +9,7 @@
 //! | `traverse` | closest-hit and any-hit traversal, one generic function |
 //! | `stats` | `stats()` and `validate()` |
 //! | `refit` | [`Bvh::refit`] after vertices move |
+//! | `collapse` | binary → wide: the greedy largest-area rule and the SAH-optimal plan ([`WideCollapse`]) |
 //! | [`wide`] | [`Bvh4`], [`Bvh8`]: collapsed wide BVHs, all children tested at once ([`WideTree`]) |
 //! | [`compressed`] | [`CompressedBvh8`]: the 8-wide BVH with child boxes quantized to 8 bits per plane, 128-byte nodes ([`CompressedNode`], topology [`CompressedTree`]) |
 //! | [`tri`] | [`TriBvh4`], [`TriBvh8`], [`CompressedTriBvh8`]: wide BVHs over triangles stored leaf by leaf as SoA ([`TriangleSoa`], from rt-geom), four tested at once |
@@ -29,6 +30,7 @@
 
 mod build;
 pub mod bvlist;
+mod collapse;
 pub mod compressed;
 pub mod node;
 pub mod params;
@@ -41,7 +43,7 @@ pub mod wide;
 pub use bvlist::{BvList, BvListParams, Grouping};
 pub use compressed::{CompressedBvh8, CompressedNode, CompressedTree};
 pub use node::BvhNode;
-pub use params::{BvhBuilder, BvhParams, MAX_DEPTH};
+pub use params::{BvhBuilder, BvhParams, MAX_DEPTH, WideCollapse};
 pub use rt_geom::TriangleSoa;
 pub use tri::{CompressedTriBvh8, TriBvh, TriBvh4, TriBvh8};
 pub use wide::{Bvh4, Bvh8, WideBvh, WideNode, WideTopology, WideTree};

@@ -15,6 +15,17 @@ pub enum BvhBuilder {
     SweepSah,
 }
 
+/// How a wide BVH ([`WideTree`](crate::WideTree)) is collapsed from the binary one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WideCollapse {
+    /// Each wide node opens the inner child of largest surface area until it has `N` lanes
+    /// (Embree's collapse).
+    LargestArea,
+    /// The collapse of least SAH cost over the whole tree (Ylitie, Karras & Laine 2017):
+    /// fewer, fuller nodes.
+    Sah,
+}
+
 /// Parameters of [`Bvh::build`](crate::Bvh::build).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BvhParams {
@@ -37,6 +48,9 @@ pub struct BvhParams {
     /// tests in blocks of this many, `ceil(n / leaf_block)` (Embree's `logBlockSize`), so a
     /// leaf of 3 triangles costs what one of 4 does when four are tested at once.
     pub leaf_block: u32,
+    /// How wide BVHs built with these parameters collapse the binary tree (the binary
+    /// [`Bvh`](crate::Bvh) ignores it).
+    pub collapse: WideCollapse,
 }
 
 /// No leaf lies deeper than this; a leaf at the cap may exceed `max_leaf_size`.
@@ -54,6 +68,7 @@ impl BvhParams {
             spatial_alpha: None,
             spatial_budget: 1.0,
             leaf_block: 1,
+            collapse: WideCollapse::Sah,
         }
     }
 

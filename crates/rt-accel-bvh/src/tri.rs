@@ -57,7 +57,7 @@ impl<const N: usize> TriBvh<WideTree<N>> {
 
     /// Collapses a binary BVH and converts its leaf-ordered triangles.
     pub fn from_binary(bvh: Bvh<Triangle>) -> Self {
-        let tree = WideTree::<N>::collapse(&bvh.nodes);
+        let tree = WideTree::<N>::collapse(&bvh.nodes, &bvh.params);
         let tris = TriangleSoa::new(&bvh.prims, tree.leaves());
         let mut stats = tree.stats(bvh.count, &bvh.params);
         stats.bytes += tris.bytes() + std::mem::size_of_val(bvh.ids.as_slice());

@@ -15,10 +15,11 @@
 //! the `-C target-cpu=native` build of `cargo xtask bench`), with no `unsafe` and a portable
 //! fallback on any target.
 
+use crate::collapse::{Lane, SahCollapse, greedy_lanes};
 use crate::node::BvhNode;
 use crate::params::MAX_DEPTH;
 use crate::stats::check_leaf_primitive;
-use crate::{Bvh, BvhParams};
+use crate::{Bvh, BvhParams, WideCollapse};
 use rt_geom::aabb::{SlabRay, pad_interval};
 use rt_geom::all_referenced;
 use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray, replaces};
@@ -127,7 +128,7 @@ impl<P: Primitive, const N: usize> WideBvh<P, N> {
 
     /// Collapses a binary BVH (see [`WideTree::collapse`]).
     pub fn from_binary(bvh: Bvh<P>) -> Self {
-        let tree = WideTree::collapse(&bvh.nodes);
+        let tree = WideTree::collapse(&bvh.nodes, &bvh.params);
         let Bvh {
             prims,
             ids,
@@ -196,10 +197,11 @@ pub(crate) fn test_leaf<P: Primitive, const ANY_HIT: bool>(
 }
 
 impl<const N: usize> WideTree<N> {
-    /// Collapses a binary BVH: each wide node takes the binary node's two children and keeps
-    /// opening the inner child of largest surface area (the one most rays enter) until it has
-    /// `N` children or only leaves are left. Leaves keep their primitive ranges.
-    pub fn collapse(bin: &[BvhNode]) -> Self {
+    /// Collapses a binary BVH built with `params` as `params.collapse` says: every wide node
+    /// replaces an inner binary node, its lanes are a cut of that node's subtree (binary
+    /// leaves, whole subtrees made one leaf, or inner nodes that head wide nodes of their
+    /// own); see the `collapse` module. Leaves keep their primitive ranges.
+    pub fn collapse(bin: &[BvhNode], params: &BvhParams) -> Self {
         assert!((2..=32).contains(&N), "2..=32 lanes");
         let mut tree = Self {
             nodes: Vec::new(),
@@ -210,7 +212,17 @@ impl<const N: usize> WideTree<N> {
         match bin.first() {
             None => {}
             Some(root) if root.is_leaf() => tree.root_leaf = Some((root.offset, root.count())),
-            Some(_) => tree.depth = collapse(bin, 0, &mut tree.nodes, 1),
+            Some(_) => {
+                tree.depth = match params.collapse {
+                    WideCollapse::Sah => {
+                        let plan = SahCollapse::<N>::plan(bin, params);
+                        write_nodes(bin, 0, &mut tree.nodes, 1, &|b| plan.lanes(bin, b))
+                    }
+                    WideCollapse::LargestArea => {
+                        write_nodes(bin, 0, &mut tree.nodes, 1, &|b| greedy_lanes(bin, b, N))
+                    }
+                };
+            }
         }
         tree
     }
@@ -561,44 +573,30 @@ pub(crate) fn lane_entries<const N: usize>(
     out
 }
 
-/// Writes the wide node for binary node `b` (an inner node) and its subtree; returns the depth
-/// of the subtree.
-fn collapse<const N: usize>(
+/// Writes the wide node for inner binary node `b` with the lanes `lanes(b)` and its subtree;
+/// returns the depth of the subtree.
+fn write_nodes<const N: usize>(
     bin: &[BvhNode],
     b: usize,
     out: &mut Vec<WideNode<N>>,
     depth: usize,
+    lanes: &impl Fn(usize) -> Vec<Lane>,
 ) -> usize {
-    let mut kids: Vec<usize> = vec![b + 1, bin[b].offset as usize];
-    while kids.len() < N {
-        let open = kids
-            .iter()
-            .enumerate()
-            .filter(|(_, k)| !bin[**k].is_leaf())
-            .max_by(|x, y| {
-                bin[*x.1]
-                    .bounds()
-                    .half_area()
-                    .total_cmp(&bin[*y.1].bounds().half_area())
-            });
-        let Some((pos, &k)) = open else { break };
-        kids.swap_remove(pos);
-        kids.push(k + 1);
-        kids.push(bin[k].offset as usize);
-    }
     let index = out.len();
     out.push(WideNode::EMPTY);
     let mut node = WideNode::EMPTY;
     let mut deepest = depth;
-    for (lane, &k) in kids.iter().enumerate() {
-        let n = &bin[k];
-        node.set_bounds(lane, n.bounds());
-        if n.is_leaf() {
-            node.child[lane] = n.offset;
-            node.count[lane] = n.count();
-        } else {
-            node.child[lane] = out.len() as u32;
-            deepest = deepest.max(collapse(bin, k, out, depth + 1));
+    for (lane, kid) in lanes(b).into_iter().enumerate() {
+        node.set_bounds(lane, bin[kid.node()].bounds());
+        match kid {
+            Lane::Leaf { first, count, .. } => {
+                node.child[lane] = first;
+                node.count[lane] = count;
+            }
+            Lane::Inner(k) => {
+                node.child[lane] = out.len() as u32;
+                deepest = deepest.max(write_nodes(bin, k, out, depth + 1, lanes));
+            }
         }
     }
     out[index] = node;
