@@ -1,24 +1,38 @@
 //! Collapsing a binary BVH into an `N`-wide one: which binary nodes become wide nodes, which
 //! become leaves, and which are opened so that their children share a parent's lanes.
 //!
-//! Two plans, both over the flattened binary nodes (children after their parent):
+//! Two plans, both over the flattened binary nodes (children after their parent), and their
+//! mix ([`WideCollapse`](crate::WideCollapse)):
 //! - [`greedy_lanes`]: open the inner child of largest surface area until `N` lanes are used
 //!   (Embree's collapse);
 //! - [`SahCollapse`]: the collapse of least SAH cost (Ylitie, Karras & Laine 2017, dynamic
 //!   programming bottom-up over "`n`'s subtree in at most `i` lanes"), which may also make a
-//!   whole small subtree one leaf.
+//!   whole small subtree one leaf;
+//! - the default: the greedy rule for wide nodes of at least a tenth of the root's area, the
+//!   SAH plan below them.
 //!
 //! Without leaf merges the SAH plan minimises the summed area of the binary nodes that head
 //! wide nodes (the leaves are fixed), so the node and leaf cost constants do not change it;
 //! merges, which the SAH costs of the `for_soa_leaves` preset rarely choose, are where they
 //! count. The plan makes fewer, fuller nodes: sponza's `bvh8-tri` 2,371 nodes using 5.6
-//! lanes each instead of 3,283 using 4.3, SAH 34.4 instead of 36.7; dragon 48.6 bytes per
-//! triangle instead of 52.1 (`bvh8-tri-spatial` 65.4 instead of 75.9). Medians of four
-//! interleaved rounds of `cargo xtask bench --scenes bunny,sponza,dragon --threads 2`,
-//! primary / shadow / diffuse, `bvh8-tri`: bunny +7% / +4% / +8%, dragon +9% / +10% / +11%,
-//! sponza -11% / +8% / -1% (sponza's camera stands inside the atrium, where the SAH's rays
-//! from outside are a poor model); three rounds on the teapot, the teapot in a stadium and a
-//! 100k soup: 0 to +10% (`bvh4-tri`, `bvh8`, `bvh4` alike).
+//! lanes each instead of 3,283 using 4.3; dragon 48.6 bytes per triangle instead of 52.1
+//! (`bvh8-tri-spatial` 65.4 instead of 75.9). Alone it lost 10% on sponza's primary rays
+//! (the camera stands inside the atrium, and the boxes near the root, which nearly every ray
+//! starts inside, are where the SAH's rays from outside are the poorest model; its rays
+//! visit as many nodes but 6% more triangle blocks); the greedy rule at the top keeps the
+//! plan's memory and gains everywhere. Medians of three interleaved rounds of `cargo xtask
+//! bench --accels bvh8-tri,bvh8-tri-spatial,obvhs --scenes bunny,sponza,dragon --threads 2`,
+//! primary / shadow / diffuse, against the greedy rule:
+//!
+//! | | bunny | sponza | dragon |
+//! |---|---|---|---|
+//! | `bvh8-tri`, SAH plan only | +7% / +6% / +4% | -10% / +6% / +1% | +4% / +7% / +1% |
+//! | `bvh8-tri`, default | +6% / +4% / +4% | +2% / +3% / +3% | +6% / +5% / +7% |
+//! | `bvh8-tri-spatial`, default | +1% / +4% / +4% | +3% / +2% / +4% | +3% / +5% / +10% |
+//!
+//! (A first set of four rounds had the SAH plan alone at +7% / +4% / +8% on bunny, +9% / +10%
+//! / +11% on dragon, -11% / +8% / -1% on sponza, and 0 to +10% on the teapot, the teapot in
+//! a stadium and a 100k soup for `bvh4-tri`, `bvh8` and `bvh4` too.)
 
 use crate::BvhParams;
 use crate::node::BvhNode;

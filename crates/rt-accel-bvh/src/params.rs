@@ -15,8 +15,9 @@ pub enum BvhBuilder {
     SweepSah,
 }
 
-/// How a wide BVH ([`WideTree`](crate::WideTree)) is collapsed from the binary one.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// How a wide BVH ([`WideTree`](crate::WideTree)) is collapsed from the binary one (see the
+/// `collapse` module for the measurements).
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum WideCollapse {
     /// Each wide node opens the inner child of largest surface area until it has `N` lanes
     /// (Embree's collapse).
@@ -24,6 +25,15 @@ pub enum WideCollapse {
     /// The collapse of least SAH cost over the whole tree (Ylitie, Karras & Laine 2017):
     /// fewer, fuller nodes.
     Sah,
+    /// [`Self::LargestArea`] for the wide nodes whose box has at least `above` times the
+    /// root's surface area, [`Self::Sah`] below them: near the root, where most rays start
+    /// inside the boxes, the SAH's rays from outside are a poor model.
+    LargestAreaThenSah { above: f32 },
+}
+
+impl WideCollapse {
+    /// The default: the greedy rule for nodes of a tenth of the root's area or more.
+    pub const DEFAULT: Self = Self::LargestAreaThenSah { above: 0.1 };
 }
 
 /// Parameters of [`Bvh::build`](crate::Bvh::build).
@@ -68,7 +78,7 @@ impl BvhParams {
             spatial_alpha: None,
             spatial_budget: 1.0,
             leaf_block: 1,
-            collapse: WideCollapse::Sah,
+            collapse: WideCollapse::DEFAULT,
         }
     }
 
@@ -182,6 +192,9 @@ impl BvhParams {
             self.leaf_block,
             "1, 2, 4, 8 or 16",
         )?;
+        if let WideCollapse::LargestAreaThenSah { above } = self.collapse {
+            BuildError::require(above >= 0.0, "collapse above", above, ">= 0")?;
+        }
         let budget = self.spatial_budget;
         BuildError::require(
             (0.0..=16.0).contains(&budget),

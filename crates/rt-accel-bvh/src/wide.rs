@@ -213,13 +213,26 @@ impl<const N: usize> WideTree<N> {
             None => {}
             Some(root) if root.is_leaf() => tree.root_leaf = Some((root.offset, root.count())),
             Some(_) => {
+                let area = |b: usize| bin[b].bounds().half_area();
+                let greedy = |b: usize| greedy_lanes(bin, b, N);
+                let out = &mut tree.nodes;
                 tree.depth = match params.collapse {
+                    WideCollapse::LargestArea => write_nodes(bin, 0, out, 1, &greedy),
                     WideCollapse::Sah => {
                         let plan = SahCollapse::<N>::plan(bin, params);
-                        write_nodes(bin, 0, &mut tree.nodes, 1, &|b| plan.lanes(bin, b))
+                        write_nodes(bin, 0, out, 1, &|b| plan.lanes(bin, b))
                     }
-                    WideCollapse::LargestArea => {
-                        write_nodes(bin, 0, &mut tree.nodes, 1, &|b| greedy_lanes(bin, b, N))
+                    WideCollapse::LargestAreaThenSah { above } => {
+                        let plan = SahCollapse::<N>::plan(bin, params);
+                        let top = above * area(0);
+                        let lanes = |b| {
+                            if area(b) >= top {
+                                greedy(b)
+                            } else {
+                                plan.lanes(bin, b)
+                            }
+                        };
+                        write_nodes(bin, 0, out, 1, &lanes)
                     }
                 };
             }
@@ -656,6 +669,44 @@ mod tests {
             spheres: |p: &[Sphere]| Bvh8::build(p, BvhParams::balanced()),
             shapes: |p: &[rt_geom::Shape]| Bvh8::build(p, BvhParams::balanced()),
         );
+    }
+
+    mod bvh8_pure_sah_collapse {
+        use super::*;
+        rt_testkit::conformance_tests!(
+            triangles: |p: &[Triangle]| Bvh8::build(p, BvhParams { collapse: WideCollapse::Sah, ..BvhParams::balanced() }),
+        );
+    }
+
+    mod bvh4_greedy_collapse {
+        use super::*;
+        rt_testkit::conformance_tests!(
+            triangles: |p: &[Triangle]| Bvh4::build(p, BvhParams { collapse: WideCollapse::LargestArea, ..BvhParams::balanced() }),
+        );
+    }
+
+    #[test]
+    fn hybrid_collapse_spans_both_rules() {
+        let tris = rt_testkit::scenes::tessellated_sphere(3000, rt_geom::Vec3::ZERO, 1.0);
+        let bvh = Bvh::build(&tris, BvhParams::balanced()).unwrap();
+        let with = |collapse| {
+            let params = BvhParams {
+                collapse,
+                ..*bvh.params()
+            };
+            WideTree::<8>::collapse(&bvh.nodes, &params).nodes
+        };
+        let hybrid = |above| with(WideCollapse::LargestAreaThenSah { above });
+        assert_eq!(hybrid(0.0), with(WideCollapse::LargestArea));
+        assert_eq!(hybrid(1.5), with(WideCollapse::Sah));
+        assert_ne!(with(WideCollapse::Sah), with(WideCollapse::LargestArea));
+        for above in [-1.0, f32::NAN] {
+            let params = BvhParams {
+                collapse: WideCollapse::LargestAreaThenSah { above },
+                ..BvhParams::balanced()
+            };
+            assert!(Bvh8::build(&tris, params).is_err());
+        }
     }
 
     mod bvh8_leaf1 {
