@@ -4,7 +4,7 @@
 use crate::obvhs_accel::{ObvhsBvh2, ObvhsCwBvh};
 use rt_accel_bvh::{
     BvList, BvListParams, Bvh, Bvh4, Bvh8, BvhBuilder, BvhParams, CompressedBvh8,
-    CompressedTriBvh8, TriBvh4, TriBvh8,
+    CompressedTriBvh8, TriBvh4, TriBvh8, WideCollapse,
 };
 use rt_accel_grid::{Grid, GridParams};
 use rt_accel_kd::{BspParams, BspTree, KdParams, KdTraversal, KdTree};
@@ -294,6 +294,22 @@ const BASE: &[AccelEntry] = &[
         "bvh8c-tri-spatial",
         "rt BVH8 with quantized child boxes over SoA triangles, from the spatial-split BVH2",
         |p| boxed(CompressedTriBvh8::build(p, BvhParams::spatial().for_soa_leaves())),
+    ),
+    own(
+        "bvh8-tri-greedy",
+        "bvh8-tri collapsed by the greedy rule alone (open the child of largest area; WideCollapse::LargestArea)",
+        |p| {
+            let params = BvhParams { collapse: WideCollapse::LargestArea, ..BvhParams::balanced() };
+            boxed(TriBvh8::build(p, params.for_soa_leaves()))
+        },
+    ),
+    own(
+        "bvh8-tri-sah",
+        "bvh8-tri collapsed by the SAH-optimal plan alone (Ylitie et al. 2017; WideCollapse::Sah)",
+        |p| {
+            let params = BvhParams { collapse: WideCollapse::Sah, ..BvhParams::balanced() };
+            boxed(TriBvh8::build(p, params.for_soa_leaves()))
+        },
     ),
     own(
         "bvh8-tri-fast",
