@@ -252,51 +252,44 @@ mod tests {
         out
     }
 
-    /// The least cost of inner node `n` as a wide node, by enumerating every cut of lanes
-    /// below it and below every wide node under it.
-    fn wide_cost(
-        bin: &[BvhNode],
-        params: &BvhParams,
+    /// The exhaustive search: every cut of lanes below every wide node.
+    struct Search<'a> {
+        bin: &'a [BvhNode],
+        params: &'a BvhParams,
         node_cost: f32,
         merge: bool,
-        n: usize,
         lanes: usize,
-    ) -> f32 {
-        let (l, r) = (n + 1, bin[n].offset as usize);
-        let mut best = f32::INFINITY;
-        for a in cuts(bin, l, lanes - 1) {
-            for b in cuts(bin, r, lanes - a.len()) {
-                let c: f32 = a
-                    .iter()
-                    .chain(&b)
-                    .map(|&m| one_lane(bin, params, node_cost, merge, m, lanes))
-                    .sum();
-                best = best.min(c);
-            }
-        }
-        bin[n].bounds().half_area() * node_cost + best
     }
 
-    /// The least cost of `n`'s subtree in one lane: a leaf or a wide node.
-    fn one_lane(
-        bin: &[BvhNode],
-        params: &BvhParams,
-        node_cost: f32,
-        merge: bool,
-        n: usize,
-        lanes: usize,
-    ) -> f32 {
-        let node = &bin[n];
-        let area = node.bounds().half_area();
-        if node.is_leaf() {
-            return area * params.leaf_cost(node.count() as usize);
+    impl Search<'_> {
+        /// The least cost of inner node `n` as a wide node.
+        fn wide_cost(&self, n: usize) -> f32 {
+            let (bin, lanes) = (self.bin, self.lanes);
+            let (l, r) = (n + 1, bin[n].offset as usize);
+            let mut best = f32::INFINITY;
+            for a in cuts(bin, l, lanes - 1) {
+                for b in cuts(bin, r, lanes - a.len()) {
+                    let c: f32 = a.iter().chain(&b).map(|&m| self.one_lane(m)).sum();
+                    best = best.min(c);
+                }
+            }
+            bin[n].bounds().half_area() * self.node_cost + best
         }
-        let inner = wide_cost(bin, params, node_cost, merge, n, lanes);
-        let count = subtree_count(bin, n);
-        if merge && count <= params.max_leaf_size as usize {
-            inner.min(area * params.leaf_cost(count))
-        } else {
-            inner
+
+        /// The least cost of `n`'s subtree in one lane: a leaf or a wide node.
+        fn one_lane(&self, n: usize) -> f32 {
+            let node = &self.bin[n];
+            let area = node.bounds().half_area();
+            if node.is_leaf() {
+                return area * self.params.leaf_cost(node.count() as usize);
+            }
+            let inner = self.wide_cost(n);
+            let count = subtree_count(self.bin, n);
+            if self.merge && count <= self.params.max_leaf_size as usize {
+                inner.min(area * self.params.leaf_cost(count))
+            } else {
+                inner
+            }
         }
     }
 
@@ -361,7 +354,14 @@ mod tests {
                 for (node_cost, merge) in [(1.0, false), (2.0, true), (0.5, true)] {
                     let plan = SahCollapse::<4>::plan_with(bin, &params, node_cost, merge);
                     // Brute force over every cut (4 lanes keeps the enumeration small).
-                    let exhaustive = wide_cost(bin, &params, node_cost, merge, 0, 4);
+                    let search = Search {
+                        bin,
+                        params: &params,
+                        node_cost,
+                        merge,
+                        lanes: 4,
+                    };
+                    let exhaustive = search.wide_cost(0);
                     let planned = plan.root_cost(bin, node_cost);
                     assert!(
                         close(planned, exhaustive),
