@@ -95,8 +95,8 @@ pub(crate) fn greedy_lanes(bin: &[BvhNode], b: usize, n: usize) -> Vec<Lane> {
 /// The SAH-optimal collapse into nodes of `N` lanes.
 ///
 /// Per binary node `n` and lane budget `i` (1..=N), `cost[n][i]` is the least SAH cost of
-/// `n`'s subtree in at most `i` lanes of a parent (areas relative to nothing: the root's area
-/// divides every cost alike):
+/// `n`'s subtree in at most `i` lanes of a parent, with absolute half areas `A` (dividing by
+/// the root's area would scale every cost alike):
 /// - `i = 1`: a leaf of the whole subtree, `A(n) * leaf_cost(count)` (if it holds at most
 ///   `max_leaf_size` primitives, in one contiguous range, and merging is allowed; a binary
 ///   leaf always can), or a wide node, `A(n) * node_cost + distribute(n, N)`;
@@ -147,7 +147,7 @@ impl<const N: usize> SahCollapse<N> {
             let area = node.bounds().half_area();
             if node.is_leaf() {
                 plan.range[b] = (node.offset, node.count());
-                plan.cost[b] = [area * (params.leaf_cost(node.count() as usize)); N];
+                plan.cost[b] = [area * params.leaf_cost(node.count() as usize); N];
                 plan.leaf[b] = true;
                 continue;
             }
@@ -171,7 +171,7 @@ impl<const N: usize> SahCollapse<N> {
             let inner = area * node_cost + dist[N - 1];
             let count = plan.range[b].1;
             let leaf = if merge_leaves && count > 0 && count <= params.max_leaf_size {
-                area * (params.leaf_cost(count as usize))
+                area * params.leaf_cost(count as usize)
             } else {
                 f32::INFINITY
             };
