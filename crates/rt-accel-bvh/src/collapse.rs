@@ -241,7 +241,8 @@ mod tests {
     /// Every cut of `n`'s subtree with at most `max` nodes.
     fn cuts(bin: &[BvhNode], n: usize, max: usize) -> Vec<Vec<usize>> {
         let mut out = vec![vec![n]];
-        if !bin[n].is_leaf() {
+        // Opening `n` takes at least two lanes.
+        if !bin[n].is_leaf() && max >= 2 {
             for a in cuts(bin, n + 1, max - 1) {
                 for b in cuts(bin, bin[n].offset as usize, max - a.len()) {
                     out.push([a.clone(), b].concat());
