@@ -299,7 +299,7 @@ const BASE: &[AccelEntry] = &[
         "bvh8-tri-greedy",
         "bvh8-tri collapsed by the greedy rule alone (open the child of largest area; WideCollapse::LargestArea)",
         |p| {
-            let params = BvhParams { collapse: WideCollapse::LargestArea, ..BvhParams::balanced() };
+            let params = BvhParams::balanced().with_collapse(WideCollapse::LargestArea);
             boxed(TriBvh8::build(p, params.for_soa_leaves()))
         },
     ),
@@ -307,7 +307,7 @@ const BASE: &[AccelEntry] = &[
         "bvh8-tri-sah",
         "bvh8-tri collapsed by the SAH-optimal plan alone (Ylitie et al. 2017; WideCollapse::Sah)",
         |p| {
-            let params = BvhParams { collapse: WideCollapse::Sah, ..BvhParams::balanced() };
+            let params = BvhParams::balanced().with_collapse(WideCollapse::Sah);
             boxed(TriBvh8::build(p, params.for_soa_leaves()))
         },
     ),

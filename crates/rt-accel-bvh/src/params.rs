@@ -166,6 +166,11 @@ impl BvhParams {
         self
     }
 
+    pub const fn with_collapse(mut self, collapse: WideCollapse) -> Self {
+        self.collapse = collapse;
+        self
+    }
+
     /// Checks every field; the error names the first one out of range.
     pub fn validate(&self) -> Result<(), BuildError> {
         if let BvhBuilder::BinnedSah { bins } = self.builder {
