@@ -37,6 +37,7 @@ fn main() {
             balanced.with_builder(BvhBuilder::BinnedSah { bins: 32 }),
         ),
         ("sweep", BvhParams::quality()),
+        ("binned-16+reinsertion", balanced.with_reinsertion(1.0)),
         ("spatial", BvhParams::spatial()),
     ] {
         if only.as_deref().is_some_and(|o| o != name) {
@@ -52,8 +53,8 @@ fn main() {
         }
         times.sort_by(f64::total_cmp);
         match built.expect("at least one repetition") {
-            Ok(bvh) => println!("{name:>10}: {:8.1} ms  {}", times[reps / 2], bvh.stats()),
-            Err(e) => println!("{name:>10}: {e}"),
+            Ok(bvh) => println!("{name:>21}: {:8.1} ms  {}", times[reps / 2], bvh.stats()),
+            Err(e) => println!("{name:>21}: {e}"),
         }
     }
 }

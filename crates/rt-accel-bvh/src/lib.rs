@@ -5,7 +5,7 @@
 //! | [`bvlist`] | [`BvList`]: flat lists of bounding volumes (sphere, box, k-DOP), optionally two levels |
 //! | [`node`] | [`BvhNode`], the 32-byte flattened node (layout documented there) |
 //! | [`params`] | [`BvhParams`] with presets `fast()`, `balanced()`, `quality()`; [`BvhBuilder`] |
-//! | `build` | top-down builders: midpoint, median, binned SAH (Wald 2007), sweep SAH; flattening |
+//! | `build` | top-down builders: midpoint, median, binned SAH (Wald 2007), sweep SAH, spatial splits; flattening; reinsertion |
 //! | `traverse` | closest-hit and any-hit traversal, one generic function |
 //! | `stats` | `stats()` and `validate()` |
 //! | `refit` | [`Bvh::refit`] after vertices move |
@@ -90,6 +90,7 @@ impl<P: Primitive> Bvh<P> {
         };
         let nodes = build::flatten(&root, count);
         drop(root);
+        let (nodes, ids) = build::reinsert::optimize(nodes, ids, params.reinsertion);
         let prims = {
             use rayon::prelude::*;
             ids.par_iter()
@@ -189,6 +190,14 @@ mod tests {
             spatial_budget: 0.0,
             ..BvhParams::spatial()
         },
+        reinserted: BvhParams::balanced().with_reinsertion(1.0),
+        reinserted_leaf1_midpoint: BvhParams {
+            max_leaf_size: 1,
+            ..BvhParams::balanced()
+                .with_builder(BvhBuilder::Midpoint)
+                .with_reinsertion(1.0)
+        },
+        reinserted_spatial: BvhParams::spatial().with_reinsertion(0.5),
     });
 
     #[test]
@@ -293,7 +302,10 @@ mod tests {
         .chain([0, 3, 32].map(|leaf_block| BvhParams {
             leaf_block,
             ..BvhParams::balanced()
-        })) {
+        }))
+        .chain(
+            [-0.5, 1.5, f32::NAN, f32::INFINITY].map(|r| BvhParams::balanced().with_reinsertion(r)),
+        ) {
             assert!(matches!(
                 Bvh::build(&tris, params),
                 Err(BuildError::InvalidParameter { .. })

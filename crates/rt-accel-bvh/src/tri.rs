@@ -179,6 +179,13 @@ mod tests {
         );
     }
 
+    mod tri8_reinserted {
+        use super::*;
+        rt_testkit::conformance_tests!(
+            triangles: |p: &[Triangle]| TriBvh8::build(p, BvhParams::balanced().for_soa_leaves().with_reinsertion(1.0)),
+        );
+    }
+
     mod tri8_big_leaves {
         use super::*;
         rt_testkit::conformance_tests!(

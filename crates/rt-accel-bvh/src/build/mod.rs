@@ -1,8 +1,9 @@
 //! Building a [`Bvh`](crate::Bvh): top-down over primitive references, one split strategy per
-//! file ([`naive`], [`sah`]), then flattened depth-first into [`BvhNode`]s (pbrt's build →
-//! flatten phases).
+//! file ([`naive`], [`sah`], [`spatial`]), then flattened depth-first into [`BvhNode`]s (pbrt's
+//! build → flatten phases), then optionally improved by moving subtrees ([`reinsert`]).
 
 pub(crate) mod naive;
+pub(crate) mod reinsert;
 pub(crate) mod sah;
 pub(crate) mod spatial;
 
