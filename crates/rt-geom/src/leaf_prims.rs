@@ -16,8 +16,8 @@
 
 use crate::triangle::keep;
 use crate::{
-    Hit, PrimHit, Primitive, Ray, SimdLanes, Triangle, TriangleLanes, Vec3, replaces,
-    watertight_edges, watertight_lanes,
+    Hit, PrimHit, Primitive, Ray, SimdLanes, Triangle, TriangleLanes, Vec3, lane_edges, replaces,
+    watertight_lanes,
 };
 use wide::{f32x4, f32x8};
 
@@ -135,7 +135,7 @@ impl TriangleSoa {
         while may_hit != 0 {
             let l = may_hit.trailing_zeros() as usize;
             may_hit &= may_hit - 1;
-            let edges = watertight_edges(sheared.map(|x| x[l]));
+            let edges = lane_edges(&sheared, l);
             if let Some(h) = self.get(first, count, k + l).finish_watertight(r, edges) {
                 if keep(h, ids[k + l], r) {
                     return true;

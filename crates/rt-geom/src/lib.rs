@@ -58,7 +58,8 @@ pub use ray::{Hit, PrimHit, Ray, replaces, test_each, test_primitives};
 pub use shape::Shape;
 pub use sphere::Sphere;
 pub use triangle::{
-    SimdLanes, Triangle, TriangleKernel, TriangleLanes, watertight_edges, watertight_lanes,
+    SimdLanes, Triangle, TriangleKernel, TriangleLanes, lane_edges, watertight_edges,
+    watertight_lanes,
 };
 pub use volume::{BoundingSphere, BoundingVolume, KDOP7_NORMALS, Kdop7};
 

@@ -394,13 +394,25 @@ simd_lanes!(wide::f32x8, 8);
 /// .., v2.z]` in vector `j`, lane `l` holding triangle `l`.
 pub type TriangleLanes<L = f32x4> = [L; 9];
 
+/// [`watertight_edges`] of lane `l` of [`watertight_lanes`]' sheared coordinates. Reads the
+/// six values in place (`sheared.map(|x| x[l])` copied all the lanes into a call that was not
+/// inlined).
+#[inline(always)]
+pub fn lane_edges<A: std::ops::Index<usize, Output = f32>>(
+    sheared: &[A; 6],
+    l: usize,
+) -> (f32, f32, f32) {
+    let [ax, ay, bx, by, cx, cy] = sheared;
+    watertight_edges([ax[l], ay[l], bx[l], by[l], cx[l], cy[l]])
+}
+
 /// The watertight test's edge functions for four (or eight) triangles at once
 /// ([`TriangleLanes`]), with the scalar kernel's numbers (vertex minus origin, sheared by the
 /// ray's [`Ray::watertight_shear`] along its [`Ray::watertight_axes`]), and their sign test.
 /// Returns the lanes the sign test cannot reject (signs that agree, or an edge function
 /// exactly zero, which [`watertight_edges`] recomputes in `f64`) as bits, and the sheared
 /// coordinates `[ax, ay, bx, by, cx, cy]` of every lane: for such a lane `l`,
-/// `tri.finish_watertight(ray, watertight_edges(sheared.map(|x| x[l])))` is exactly what
+/// `tri.finish_watertight(ray, lane_edges(&sheared, l))` is exactly what
 /// [`Triangle::intersect_watertight`] returns.
 #[inline(always)]
 pub fn watertight_lanes<L: SimdLanes>(w: &TriangleLanes<L>, ray: &Ray) -> (u32, [L::Array; 6]) {
@@ -424,7 +436,16 @@ pub fn watertight_lanes<L: SimdLanes>(w: &TriangleLanes<L>, ray: &Ray) -> (u32, 
     let w = bx * ay - by * ax;
     let (neg, pos, on_edge) = L::sign_bits(u, v, w);
     let may_hit = (!(neg & pos) | on_edge) & ((1 << L::WIDTH) - 1);
-    (may_hit, [ax, ay, bx, by, cx, cy].map(L::to_lanes))
+    // Spelled out: `.map(L::to_lanes)` compiled to a call that copies every lane.
+    let lanes = [
+        ax.to_lanes(),
+        ay.to_lanes(),
+        bx.to_lanes(),
+        by.to_lanes(),
+        cx.to_lanes(),
+        cy.to_lanes(),
+    ];
+    (may_hit, lanes)
 }
 
 /// The leaf test of [`crate::test_primitives`] for triangles: the ids that `skip` lets
@@ -479,7 +500,7 @@ fn test_in_batches<const ANY_HIT: bool>(
             while may_hit != 0 {
                 let l = may_hit.trailing_zeros() as usize;
                 may_hit &= may_hit - 1;
-                let edges = watertight_edges(sheared.map(|x| x[l]));
+                let edges = lane_edges(&sheared, l);
                 if let Some(h) = lanes[l].finish_watertight(ray, edges) {
                     if keep::<ANY_HIT>(h, batch[l], ray, best) {
                         return true;
