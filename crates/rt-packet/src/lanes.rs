@@ -260,8 +260,17 @@ impl PacketPrimitive for Triangle {
             if mask == 0 {
                 continue;
             }
-            let o = [0, 1, 2].map(|a| load::<N, W>(&p.origin[a], sub));
-            let s = [0, 1, 2, 3, 4, 5].map(|k| load::<N, W>(&p.shear[k], sub));
+            // Spelled out: `array.map` compiles to a call that copies the loaded lanes.
+            let ld = |row: &[f32; N]| load::<N, W>(row, sub);
+            let o = [ld(&p.origin[0]), ld(&p.origin[1]), ld(&p.origin[2])];
+            let s = [
+                ld(&p.shear[0]),
+                ld(&p.shear[1]),
+                ld(&p.shear[2]),
+                ld(&p.shear[3]),
+                ld(&p.shear[4]),
+                ld(&p.shear[5]),
+            ];
             let sheared = |v: Vec3| {
                 let (x, y, z) = (
                     f32x8::splat(v.x) - o[0],
