@@ -354,6 +354,13 @@ pub trait SimdLanes:
     fn to_lanes(self) -> Self::Array;
     /// Bits of the lanes where some of `a`, `b`, `c` is below zero, above zero, zero.
     fn sign_bits(a: Self, b: Self, c: Self) -> (u32, u32, u32);
+    fn abs(self) -> Self;
+    /// Lane-wise maximum (either lane when one is NaN).
+    fn max(self, other: Self) -> Self;
+    /// Lane-wise minimum (either lane when one is NaN).
+    fn min(self, other: Self) -> Self;
+    /// Bits of the lanes where `a < b` (false for NaN).
+    fn less_bits(a: Self, b: Self) -> u32;
 }
 
 macro_rules! simd_lanes {
@@ -384,6 +391,23 @@ macro_rules! simd_lanes {
                     (a.cmp_eq(z) | b.cmp_eq(z) | c.cmp_eq(z)).move_mask() as u32,
                 )
             }
+            #[inline(always)]
+            fn abs(self) -> Self {
+                <$t>::abs(self)
+            }
+            #[inline(always)]
+            fn max(self, other: Self) -> Self {
+                self.fast_max(other)
+            }
+            #[inline(always)]
+            fn min(self, other: Self) -> Self {
+                self.fast_min(other)
+            }
+            #[inline(always)]
+            fn less_bits(a: Self, b: Self) -> u32 {
+                use wide::CmpLt;
+                a.cmp_lt(b).move_mask() as u32
+            }
         }
     };
 }
@@ -393,6 +417,62 @@ simd_lanes!(wide::f32x8, 8);
 /// Triangles in SIMD lanes (four by default): coordinate `j` of `[v0.x, v0.y, v0.z, v1.x,
 /// .., v2.z]` in vector `j`, lane `l` holding triangle `l`.
 pub type TriangleLanes<L = f32x4> = [L; 9];
+
+/// A triangle per lane in the watertight test's sheared frame: per vertex the sheared `x`
+/// and `y`, the depth `v[kz] - o[kz]` before scaling by the shear's `sz`, and the three edge
+/// functions (`U`, `V`, `W`), all as computed in `f32`.
+pub struct ShearedLanes<L> {
+    pub x: [L; 3],
+    pub y: [L; 3],
+    pub dz: [L; 3],
+    pub sz: L,
+    pub edges: [L; 3],
+}
+
+/// The lanes whose hit, if [`Triangle::refine`] found one, would certainly lie before `tmin`
+/// (`tmin > 0`), so that it returns `None`: decided from the `f32` numbers with the error
+/// bounds of Pharr, Jakob & Humphreys (pbrt-v4, `IntersectTriangle`, the bounds that keep
+/// `t > 0`), each taken twice over.
+///
+/// - A lane qualifies only when every edge function exceeds its error bound `dE`: the exact
+///   edge functions then agree in sign, `refine` takes its interpolating branch, and its `t`
+///   is the exact `T / D` to `f64` rounding, `T = |U| za + |V| zb + |W| zc` and `D = |U| +
+///   |V| + |W|` (the absolute values flip both by the common sign).
+/// - The bounds: sheared `x`, `y` off by `gamma(8) (max |x| + max |dz|)` (the subtraction,
+///   the shear product, the `f32` rounding of the shear constant, `|sx| <= 1`), the depths
+///   `z = dz sz` by `gamma(4) max |z|`, each edge function (two products, a difference) by
+///   `dE = 4 (gamma(2) max|x| max|y| + dY max|x| + dX max|y|)`, `T` by
+///   `dT = 3 (gamma(3) max|e| max|z| + dE max|z| + dZ max|e|)`, `D` by `3 gamma(2) max|e| + 3 dE`.
+/// - Culled when `T + 2 dT < tmin (D - 2 dD) (1 - 2^-20)`: the exact `T / D` lies below `tmin`
+///   by more than the `f64` evaluation and its rounding to `f32` can move it.
+///
+/// NaN or infinite inputs fail the comparisons: such lanes are never culled. Out of line:
+/// only rays with `tmin > 0` that pass the sign test come here, and inlined it weighed on
+/// every caller's loop (octree primary rays -2.5%).
+#[inline(never)]
+pub fn hits_before_tmin<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32) -> u32 {
+    use crate::aabb::gamma;
+    let abs_max = |v: &[L; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
+    let z = [t.dz[0] * t.sz, t.dz[1] * t.sz, t.dz[2] * t.sz];
+    let (x_max, y_max) = (abs_max(&t.x), abs_max(&t.y));
+    let (dz_max, z_max) = (abs_max(&t.dz), abs_max(&z));
+    let g = |n| L::splat(gamma(n));
+    let dx = g(8) * (x_max + dz_max);
+    let dy = g(8) * (y_max + dz_max);
+    let de = L::splat(4.0) * (g(2) * x_max * y_max + dy * x_max + dx * y_max);
+    let e = [t.edges[0].abs(), t.edges[1].abs(), t.edges[2].abs()];
+    let e_max = e[0].max(e[1]).max(e[2]);
+    let e_min = e[0].min(e[1]).min(e[2]);
+    let dzz = g(4) * z_max;
+    let three = L::splat(3.0);
+    let dt = three * (g(3) * e_max * z_max + de * z_max + dzz * e_max);
+    let dd = three * g(2) * e_max + three * de;
+    let num = e[0] * z[0] + e[1] * z[1] + e[2] * z[2];
+    let den = e[0] + e[1] + e[2];
+    let two = L::splat(2.0);
+    let bound = L::splat(tmin) * (den - two * dd) * L::splat(1.0 - 1.0 / (1 << 20) as f32);
+    L::less_bits(de, e_min) & L::less_bits(num + two * dt, bound)
+}
 
 /// [`watertight_edges`] of lane `l` of [`watertight_lanes`]' sheared coordinates. Reads the
 /// six values in place (`sheared.map(|x| x[l])` copied all the lanes into a call that was not
@@ -410,12 +490,13 @@ pub fn lane_edges<A: std::ops::Index<usize, Output = f32>>(
 /// ([`TriangleLanes`]), with the scalar kernel's numbers (vertex minus origin, sheared by the
 /// ray's [`Ray::watertight_shear`] along its [`Ray::watertight_axes`]), and their sign test.
 /// Returns the lanes the sign test cannot reject (signs that agree, or an edge function
-/// exactly zero, which [`watertight_edges`] recomputes in `f64`) as bits, and the sheared
+/// exactly zero, which [`watertight_edges`] recomputes in `f64`) and that
+/// [`hits_before_tmin`] does not prove to lie before `tmin`, as bits, and the sheared
 /// coordinates `[ax, ay, bx, by, cx, cy]` of every lane: for such a lane `l`,
 /// `tri.finish_watertight(ray, lane_edges(&sheared, l))` is exactly what
-/// [`Triangle::intersect_watertight`] returns.
+/// [`Triangle::intersect_watertight`] returns, and for every other lane that is `None`.
 #[inline(always)]
-pub fn watertight_lanes<L: SimdLanes>(w: &TriangleLanes<L>, ray: &Ray) -> (u32, [L::Array; 6]) {
+pub fn watertight_lanes<L: SimdLanes>(tris: &TriangleLanes<L>, ray: &Ray) -> (u32, [L::Array; 6]) {
     // The lanes hold one coordinate per row of `w`, so the ray's axes pick rows (loads at a
     // run-time offset) and the shear takes two products per vertex, not the six of the dot
     // products with the shear rows that the scalar kernel computes: the same numbers, since
@@ -426,16 +507,31 @@ pub fn watertight_lanes<L: SimdLanes>(w: &TriangleLanes<L>, ray: &Ray) -> (u32, 
     let (ox, oy, oz) = (L::splat(o[kx]), L::splat(o[ky]), L::splat(o[kz]));
     let s = ray.watertight_shear();
     let (sx, sy) = (L::splat(s.x), L::splat(s.y));
+    let dz = |v: usize| tris[3 * v + kz] - oz;
     let shear = |v: usize| {
-        let dz = w[3 * v + kz] - oz;
-        (w[3 * v + kx] - ox - sx * dz, w[3 * v + ky] - oy - sy * dz)
+        (
+            tris[3 * v + kx] - ox - sx * dz(v),
+            tris[3 * v + ky] - oy - sy * dz(v),
+        )
     };
     let ((ax, ay), (bx, by), (cx, cy)) = (shear(0), shear(1), shear(2));
     let u = cx * by - cy * bx;
     let v = ax * cy - ay * cx;
     let w = bx * ay - by * ax;
     let (neg, pos, on_edge) = L::sign_bits(u, v, w);
-    let may_hit = (!(neg & pos) | on_edge) & ((1 << L::WIDTH) - 1);
+    let mut may_hit = (!(neg & pos) | on_edge) & ((1 << L::WIDTH) - 1);
+    // Rays that leave a surface (shadow rays, bounces, `tmin > 0`) pierce the triangle they
+    // start on at `t` near 0: rejected here in SIMD rather than one by one in `f64`.
+    if may_hit != 0 && ray.tmin > 0.0 {
+        let sheared = ShearedLanes {
+            x: [ax, bx, cx],
+            y: [ay, by, cy],
+            dz: [dz(0), dz(1), dz(2)],
+            sz: L::splat(s.z),
+            edges: [u, v, w],
+        };
+        may_hit &= !hits_before_tmin(&sheared, ray.tmin);
+    }
     // Spelled out: `.map(L::to_lanes)` compiled to a call that copies every lane.
     let lanes = [
         ax.to_lanes(),
@@ -800,5 +896,86 @@ mod tests {
             assert_eq!((a1, b1), (a2, b2), "case {case} (any hit)");
         }
         assert!(hits > 500, "{hits} hits: the rays must meet the triangles");
+    }
+
+    /// [`hits_before_tmin`] culls only lanes whose hit [`Triangle::finish_watertight`] rejects:
+    /// rays leaving a triangle (origins inside it, on its edges and vertices, a hair off its
+    /// plane), grazing and steep, slivers, far from the world origin, every scale of `tmin`;
+    /// and it does cull most rays' own triangle.
+    #[test]
+    fn culls_before_tmin_only_what_refine_rejects() {
+        let mut uniform = crate::test_uniform(2024);
+        let mut rnd = move || uniform();
+        let (mut own, mut own_culled, mut culled) = (0, 0, 0);
+        for case in 0..20_000 {
+            let scale = [1e-3, 1.0, 1e3][case % 3];
+            let centre = Vec3::new(rnd(), rnd(), rnd()) * [0.0, 10.0, 1e4][case / 3 % 3];
+            let mut v = || centre + (Vec3::new(rnd(), rnd(), rnd()) - 0.5) * scale;
+            let tris: Vec<Triangle> = (0..8)
+                .map(|k| {
+                    let (a, b) = (v(), v());
+                    // Lane 0 a sliver, now and then.
+                    let c = if k == 0 && case % 4 == 0 {
+                        a + (b - a) * 0.37 + Vec3::splat(1e-6 * scale)
+                    } else {
+                        v()
+                    };
+                    Triangle::new(a, b, c)
+                })
+                .collect();
+            let t = &tris[case % 8];
+            // A point of triangle `case % 8`: inside, on an edge, or a vertex.
+            let (mut u, mut w) = (rnd(), rnd());
+            if u + w > 1.0 {
+                (u, w) = (1.0 - u, 1.0 - w);
+            }
+            match case % 5 {
+                0 => w = 0.0,
+                1 => (u, w) = (0.0, 0.0),
+                _ => {}
+            }
+            let n = (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).normalize_or_zero();
+            let off = [0.0, 1e-6, -1e-6][case % 3] * scale;
+            let origin = t.point(u, w) + n * off;
+            let dir = match case % 4 {
+                // Grazing: in the plane, tilted by a hair.
+                0 => (t.v[1] - t.v[0]).normalize_or_zero() + n * (rnd() - 0.5) * 1e-3,
+                _ => Vec3::new(rnd(), rnd(), rnd()) - 0.5,
+            };
+            let tmin = [1e-7, 1e-5, 1e-3, 1e-1][case % 4] * scale;
+            let ray = Ray::segment(origin, dir, tmin, f32::INFINITY);
+            let w8: TriangleLanes<wide::f32x8> = std::array::from_fn(|j| {
+                wide::f32x8::from(std::array::from_fn(|l| tris[l].v[j / 3][j % 3]))
+            });
+            let (all, sheared) = watertight_lanes(&w8, &ray.with_range(0.0, f32::INFINITY));
+            let (kept, _) = watertight_lanes(&w8, &ray);
+            assert_eq!(kept & !all, 0);
+            let mut cut = all & !kept;
+            culled += cut.count_ones();
+            // The usual case: an inside point, coordinates no larger than the triangle's
+            // scale, `tmin` at least 1e-3 of it (shadow rays and bounces off a mesh start
+            // `1e-4` of the way to the light, or `1e-5` of the scene's size, beyond their
+            // triangle; the bounds cull from about 1e-3 of the triangle's size).
+            let usual = case % 5 >= 2 && case / 3 % 3 < 2 && case % 4 >= 2;
+            if usual && all >> (case % 8) & 1 == 1 {
+                own += 1;
+                own_culled += cut >> (case % 8) & 1;
+            }
+            while cut != 0 {
+                let l = cut.trailing_zeros() as usize;
+                cut &= cut - 1;
+                let h = tris[l].finish_watertight(&ray, lane_edges(&sheared, l));
+                assert!(
+                    h.is_none(),
+                    "case {case} lane {l}: {:?} {ray:?} -> {h:?}",
+                    tris[l]
+                );
+            }
+        }
+        assert!(
+            own > 2_000 && own_culled * 100 > own * 95,
+            "own triangle culled {own_culled} of {own}"
+        );
+        assert!(culled > 5_000, "{culled}");
     }
 }
