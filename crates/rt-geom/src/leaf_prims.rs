@@ -129,7 +129,19 @@ impl TriangleSoa {
                 lanes &= !(1 << l);
             }
         }
-        let w: TriangleLanes<L> = std::array::from_fn(|j| L::load(&leaf[j * count + k..]));
+        // Spelled out: `array::from_fn` built the rows on the stack and copied them once more.
+        let row = |j: usize| L::load(&leaf[j * count + k..]);
+        let w: TriangleLanes<L> = [
+            row(0),
+            row(1),
+            row(2),
+            row(3),
+            row(4),
+            row(5),
+            row(6),
+            row(7),
+            row(8),
+        ];
         let (may_hit, sheared) = watertight_lanes(&w, r);
         let mut may_hit = may_hit & lanes;
         while may_hit != 0 {
