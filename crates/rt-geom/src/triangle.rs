@@ -419,14 +419,18 @@ simd_lanes!(wide::f32x8, 8);
 pub type TriangleLanes<L = f32x4> = [L; 9];
 
 /// A triangle per lane in the watertight test's sheared frame: per vertex the sheared `x`
-/// and `y`, the depth `v[kz] - o[kz]` before scaling by the shear's `sz`, and the three edge
-/// functions (`U`, `V`, `W`), all as computed in `f32`.
+/// and `y`, the depth `v[kz] - o[kz]` before and after scaling by the shear's `sz` (`dz`,
+/// `z`), the absolute edge functions (`|U|`, `|V|`, `|W|`), and Woop's depth estimate
+/// `num / den` from them (`num = |U| za + |V| zb + |W| zc`, `den = |U| + |V| + |W|`), all as
+/// computed in `f32`.
 pub struct ShearedLanes<L> {
     pub x: [L; 3],
     pub y: [L; 3],
     pub dz: [L; 3],
-    pub sz: L,
+    pub z: [L; 3],
     pub edges: [L; 3],
+    pub num: L,
+    pub den: L,
 }
 
 /// The lanes whose hit, if [`Triangle::refine`] found one, would certainly lie before `tmin`
@@ -455,22 +459,20 @@ pub struct ShearedLanes<L> {
 pub fn hits_before_tmin<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32) -> u32 {
     use crate::aabb::gamma;
     let abs_max = |v: &[L; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
-    let z = [t.dz[0] * t.sz, t.dz[1] * t.sz, t.dz[2] * t.sz];
     let (x_max, y_max) = (abs_max(&t.x), abs_max(&t.y));
-    let (dz_max, z_max) = (abs_max(&t.dz), abs_max(&z));
+    let (dz_max, z_max) = (abs_max(&t.dz), abs_max(&t.z));
     let g = |n| L::splat(gamma(n));
     let dx = g(8) * (x_max + dz_max);
     let dy = g(8) * (y_max + dz_max);
     let de = L::splat(4.0) * (g(2) * x_max * y_max + dy * x_max + dx * y_max);
-    let e = [t.edges[0].abs(), t.edges[1].abs(), t.edges[2].abs()];
+    let e = &t.edges;
     let e_max = e[0].max(e[1]).max(e[2]);
     let e_min = e[0].min(e[1]).min(e[2]);
     let dzz = g(4) * z_max;
     let three = L::splat(3.0);
     let dt = three * (g(3) * e_max * z_max + de * z_max + dzz * e_max);
     let dd = three * g(2) * e_max + three * de;
-    let num = e[0] * z[0] + e[1] * z[1] + e[2] * z[2];
-    let den = e[0] + e[1] + e[2];
+    let (num, den) = (t.num, t.den);
     let two = L::splat(2.0);
     let bound = L::splat(tmin) * (den - two * dd) * L::splat(1.0 - 1.0 / (1 << 20) as f32);
     L::less_bits(de, e_min) & L::less_bits(num + two * dt, bound)
@@ -527,17 +529,21 @@ pub fn watertight_lanes<L: SimdLanes>(tris: &TriangleLanes<L>, ray: &Ray) -> (u3
     if may_hit != 0 && ray.tmin > 0.0 {
         // Woop's depth estimate `T / D` first (a few operations): only lanes it puts before
         // `tmin` are worth the rigorous bounds, out of line; real hits skip them.
-        let (dz, sz) = ([dz(0), dz(1), dz(2)], L::splat(s.z));
+        let sz = L::splat(s.z);
+        let dz = [dz(0), dz(1), dz(2)];
+        let z = [dz[0] * sz, dz[1] * sz, dz[2] * sz];
         let e = [u.abs(), v.abs(), w.abs()];
-        let num = e[0] * (dz[0] * sz) + e[1] * (dz[1] * sz) + e[2] * (dz[2] * sz);
+        let num = e[0] * z[0] + e[1] * z[1] + e[2] * z[2];
         let den = e[0] + e[1] + e[2];
         if L::less_bits(num, L::splat(ray.tmin) * den) & may_hit != 0 {
             let sheared = ShearedLanes {
                 x: [ax, bx, cx],
                 y: [ay, by, cy],
                 dz,
-                sz,
-                edges: [u, v, w],
+                z,
+                edges: e,
+                num,
+                den,
             };
             may_hit &= !hits_before_tmin(&sheared, ray.tmin);
         }
