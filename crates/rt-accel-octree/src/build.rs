@@ -2,7 +2,7 @@
 //! eight octants; each primitive goes to every octant it really overlaps (clipped to the
 //! octant, not just boxed), empty octants are not stored.
 
-use crate::node::{ChildRef, OctLeaf, OctNode, octant, quantize_content};
+use crate::node::{ChildRef, OctLeaf, OctNode, content_step, octant, quantize_content};
 use crate::params::OctreeParams;
 use rayon::prelude::*;
 use rt_geom::{Aabb, Primitive};
@@ -157,7 +157,8 @@ impl Flat {
                     false
                 }
             };
-            node.set_octant(i, leaf, quantize_content(&b, &child.content()));
+            let q = quantize_content(&b, content_step(cell), &child.content());
+            node.set_octant(i, leaf, q);
         }
         self.nodes[slot] = node;
         self.nodes

@@ -24,7 +24,7 @@
 //! The content box of an octant is the union of its primitives clipped to its cell: a ray
 //! that enters the cell but misses the content box cannot hit anything there, and the walks
 //! skip it (the "min/max information" of the seeds). The parent holds its eight octants'
-//! boxes, quantized to 1/254 of the octant's side and rounded outward (6 bytes each, stored
+//! boxes, quantized to 1/254 of the octant's side (one step for all eight) and rounded outward (6 bytes each, stored
 //! by axis so that one SIMD pass reads all eight), so that a walk decides which octants to
 //! enter from the one cache line of the parent and loads a child only when it goes there.
 //! `content_box` is the one formula both the build (to round outward) and the walks use.
@@ -163,7 +163,7 @@ impl OctNode {
     /// The box holding everything octant `i` holds, given this node's cell.
     #[inline]
     pub fn content_box(&self, cell: &Aabb, i: usize) -> Aabb {
-        content_box(&octant(cell, i), &self.content(i))
+        content_box(&octant(cell, i), content_step(cell), &self.content(i))
     }
 
     /// Index in `nodes` of the first inner child.
@@ -180,29 +180,31 @@ impl OctNode {
 /// Quantized content covering a node's whole cell.
 pub const FULL_CELL: [u8; 6] = [0, 0, 0, 255, 255, 255];
 
-/// Quantization step of a content box: 1/254 of the cell side, so that code 255 lies beyond
-/// the cell's far face (whatever the rounding) and code 0 is exactly its near face.
+/// Quantization step of the content boxes of a node's octants, from the node's cell: 1/254 of
+/// an octant's side (half the cell's), the same for all eight octants, so that code 255 lies
+/// beyond an octant's far face (whatever the rounding) and code 0 is exactly its near face.
+/// One step for the eight lets the parametric walk take it as one number per axis.
 #[inline]
-fn content_step(cell: &Aabb) -> Vec3 {
-    (cell.max - cell.min) * (1.0 / 254.0)
+pub fn content_step(parent: &Aabb) -> Vec3 {
+    (parent.max - parent.min) * (1.0 / 508.0)
 }
 
-/// The box of quantized `content` in `cell`: `min + q * step` per coordinate.
+/// The box of quantized `content` in the octant `cell` whose parent gives `step`
+/// ([`content_step`]): `min + q * step` per coordinate.
 #[inline]
-pub fn content_box(cell: &Aabb, q: &[u8; 6]) -> Aabb {
-    let step = content_step(cell);
+pub fn content_box(cell: &Aabb, step: Vec3, q: &[u8; 6]) -> Aabb {
     let at = |i: usize| Vec3::new(q[i] as f32, q[i + 1] as f32, q[i + 2] as f32);
     Aabb::new(cell.min + at(0) * step, cell.min + at(3) * step)
 }
 
-/// The smallest codes whose [`content_box`] holds `content` clipped to `cell` (the whole
-/// cell when that is empty: nothing is ever culled by a box too small).
-pub fn quantize_content(cell: &Aabb, content: &Aabb) -> [u8; 6] {
+/// The smallest codes whose [`content_box`] holds `content` clipped to the octant `cell` (the
+/// whole cell when that is empty: nothing is ever culled by a box too small); `step` from its
+/// parent ([`content_step`]).
+pub fn quantize_content(cell: &Aabb, step: Vec3, content: &Aabb) -> [u8; 6] {
     let c = content.intersection(*cell);
     if c.is_empty() {
         return FULL_CELL;
     }
-    let step = content_step(cell);
     let mut q = [0u8; 6];
     for a in 0..3 {
         let at = |k: u8| cell.min[a] + k as f32 * step[a];
@@ -284,8 +286,12 @@ mod tests {
         };
         for k in 0..20000 {
             let scale = [1e-3f32, 1.0, 37.5, 1e4][k % 4];
-            let min = Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5) * scale * 100.0;
-            let cell = Aabb::new(min, min + Vec3::splat(scale));
+            let corner = Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5) * scale * 100.0;
+            // An octant of a parent twice its size, as the build quantizes it.
+            let parent = Aabb::new(corner, corner + Vec3::splat(2.0 * scale));
+            let cell = octant(&parent, k % 8);
+            let step = content_step(&parent);
+            let min = cell.min;
             let (a, b) = (
                 Vec3::new(rnd(), rnd(), rnd()),
                 Vec3::new(rnd(), rnd(), rnd()),
@@ -294,23 +300,30 @@ mod tests {
             if k % 7 == 0 {
                 content = cell;
             }
-            let q = quantize_content(&cell, &content);
-            let got = content_box(&cell, &q);
+            let q = quantize_content(&cell, step, &content);
+            let got = content_box(&cell, step, &q);
             let want = content.intersection(cell);
             assert!(
                 got.min.cmple(want.min).all() && got.max.cmpge(want.max).all(),
                 "{cell:?} {content:?} -> {q:?} {got:?}"
             );
             // Tight: within two steps of the content.
-            let step = (cell.max - cell.min) / 254.0;
             assert!(
                 (want.min - got.min).cmple(step * 2.0).all(),
                 "{want:?} {got:?}"
             );
+            // Inside the cell, but for code 255 one step beyond its far face: the
+            // parametric walk takes an octant's planes from this box alone.
+            assert!(
+                got.min.cmpge(cell.min).all() && got.max.cmple(cell.max + step * 1.01).all(),
+                "{cell:?} {got:?}"
+            );
         }
         // An empty content keeps the whole cell.
-        let cell = Aabb::new(Vec3::ZERO, Vec3::ONE);
-        assert_eq!(quantize_content(&cell, &Aabb::EMPTY), FULL_CELL);
-        assert!(content_box(&cell, &FULL_CELL).max.cmpge(Vec3::ONE).all());
+        let parent = Aabb::new(Vec3::ZERO, Vec3::splat(2.0));
+        let (cell, step) = (octant(&parent, 0), content_step(&parent));
+        assert_eq!(quantize_content(&cell, step, &Aabb::EMPTY), FULL_CELL);
+        let full = content_box(&cell, step, &FULL_CELL);
+        assert!(full.max.cmpge(Vec3::ONE).all());
     }
 }

@@ -33,7 +33,7 @@
 
 use crate::MAX_DEPTH;
 use crate::Octree;
-use crate::node::{ChildRef, OctNode, content_box, octant, octant_at};
+use crate::node::{ChildRef, OctNode, content_box, content_step, octant, octant_at};
 use rt_geom::aabb::{PAD, SlabRay};
 use rt_geom::{Aabb, Hit, Mailbox, Primitive, Ray, Vec3};
 use wide::{CmpEq, CmpGt, CmpLe, CmpLt, CmpNe, f32x8, i32x8, u8x16, u16x8};
@@ -100,7 +100,7 @@ impl<P: Primitive> Walk<'_, P> {
         for o in 0..8 {
             if let Some(child) = node.child(o) {
                 let b = octant(cell, o);
-                let content = content_box(&b, &node.content(o));
+                let content = content_box(&b, content_step(cell), &node.content(o));
                 if let Some((t0, _)) = content.clip_ray(&self.ray) {
                     entered[count] = (t0, child, b);
                     count += 1;
@@ -228,12 +228,12 @@ impl<P: Primitive> Walk<'_, P> {
         let o = f32x8::splat(self.origin[a]);
         let (inv_lo, inv_hi) = (f32x8::splat(self.inv_lo[a]), f32x8::splat(self.inv_hi[a]));
         // Per lane, the octant is the lower or the upper half along `a`; content codes count
-        // steps of 1/254 of its side from its low corner (`node::content_box`, the same
-        // arithmetic).
+        // steps of 1/254 of its side from its low corner (`node::content_box`).
         let upper = self.upper_half[a];
         let half = |below: f32, above: f32| upper.blend(f32x8::splat(above), f32x8::splat(below));
         let base = half(lo, mid);
-        let step = half((mid - lo) * (1.0 / 254.0), (hi - mid) * (1.0 / 254.0));
+        // One step for the eight octants (`node::content_step`, the same arithmetic).
+        let step = f32x8::splat((hi - lo) * (1.0 / 508.0));
         // Distances to the planes met as the box's lower and upper plane.
         let box_a = (base + codes_to_f32(&node.lo[a]) * step - o) * inv_lo;
         let box_b = (base + codes_to_f32(&node.hi[a]) * step - o) * inv_hi;
