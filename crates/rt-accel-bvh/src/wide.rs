@@ -381,6 +381,12 @@ pub(crate) trait WideLanes<const N: usize> {
     fn count(&self, lane: usize) -> u32;
     /// Bit `lane` set for the lanes that hold a child.
     fn used_mask(&self) -> u32;
+    /// Bit `lane` set for the lanes that hold a leaf (a count above 0): one compare of all
+    /// lanes where the counts are an array.
+    #[inline(always)]
+    fn leaf_mask(&self) -> u32 {
+        (0..N).fold(0, |m, l| m | ((self.count(l) > 0) as u32) << l)
+    }
 }
 
 /// Bit `lane` set for the lanes with a number (not NaN) in `t`: one SIMD compare and mask
@@ -494,13 +500,7 @@ pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: 
                             // Any hit ends the query: leaves go on top of the stack (tested
                             // first), inner children under them, each group in lane order.
                             mask |= 1 << lane;
-                            let mut leaves = 0u32;
-                            let mut m = mask;
-                            while m != 0 {
-                                let l = m.trailing_zeros() as usize;
-                                m &= m - 1;
-                                leaves |= ((node.count(l) > 0) as u32) << l;
-                            }
+                            let leaves = node.leaf_mask();
                             for mut group in [mask & !leaves, mask & leaves] {
                                 while group != 0 {
                                     let l = group.trailing_zeros() as usize;
