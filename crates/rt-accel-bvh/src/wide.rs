@@ -457,9 +457,9 @@ pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: 
         return None;
     }
     let mut r = *ray;
-    root_bounds.clip_ray(&r)?;
     let mut best = None;
     if let Some((first, count)) = root_leaf {
+        root_bounds.clip_ray(&r)?;
         leaf(first, count, &mut r, &mut best);
         return best.map(|(h, id)| Hit::new(h, id));
     }
