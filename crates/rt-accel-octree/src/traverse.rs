@@ -66,6 +66,7 @@ struct Walk<'a, P> {
 
 impl<P: Primitive> Walk<'_, P> {
     /// Tests leaf `i`; true when `ANY_HIT` and something was hit.
+    #[inline(always)]
     fn leaf<const ANY_HIT: bool>(&mut self, i: usize) -> bool {
         let tree = self.tree;
         let leaf = tree.leaves[i];
@@ -347,7 +348,7 @@ impl<P: Primitive> Octree<P> {
         if self.leaves.is_empty() || !ray.is_valid() {
             return None;
         }
-        self.bounds.clip_ray(ray)?;
+        // No clip to the root cell first: the root's octant test culls the same rays.
         let slab = SlabRay::new(ray);
         let neg = slab.neg;
         let mirror = (0..3).fold(0, |m, a| m | ((neg[a] as usize) << a));
