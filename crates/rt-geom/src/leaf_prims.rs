@@ -16,8 +16,7 @@
 
 use crate::triangle::keep;
 use crate::{
-    Hit, PrimHit, Primitive, Ray, SimdLanes, Triangle, TriangleLanes, Vec3, lane_edges, replaces,
-    watertight_lanes,
+    Hit, PrimHit, Primitive, Ray, SimdLanes, Triangle, Vec3, lane_edges, replaces, watertight_rows,
 };
 use wide::{f32x4, f32x8};
 
@@ -129,20 +128,9 @@ impl TriangleSoa {
                 lanes &= !(1 << l);
             }
         }
-        // Spelled out: `array::from_fn` built the rows on the stack and copied them once more.
+        // Row `j` straight from the leaf (the ray's axes pick which rows are read).
         let row = |j: usize| L::load(&leaf[j * count + k..]);
-        let w: TriangleLanes<L> = [
-            row(0),
-            row(1),
-            row(2),
-            row(3),
-            row(4),
-            row(5),
-            row(6),
-            row(7),
-            row(8),
-        ];
-        let (may_hit, sheared) = watertight_lanes(&w, r);
+        let (may_hit, sheared) = watertight_rows(row, r);
         let mut may_hit = may_hit & lanes;
         while may_hit != 0 {
             let l = may_hit.trailing_zeros() as usize;

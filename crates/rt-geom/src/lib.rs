@@ -59,7 +59,7 @@ pub use shape::Shape;
 pub use sphere::Sphere;
 pub use triangle::{
     SimdLanes, Triangle, TriangleKernel, TriangleLanes, lane_edges, watertight_edges,
-    watertight_lanes,
+    watertight_lanes, watertight_rows,
 };
 pub use volume::{BoundingSphere, BoundingVolume, KDOP7_NORMALS, Kdop7};
 

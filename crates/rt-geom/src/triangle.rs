@@ -501,6 +501,14 @@ pub fn lane_edges<A: std::ops::Index<usize, Output = f32>>(
 /// [`Triangle::intersect_watertight`] returns, and for every other lane that is `None`.
 #[inline(always)]
 pub fn watertight_lanes<L: SimdLanes>(tris: &TriangleLanes<L>, ray: &Ray) -> (u32, [L::Array; 6]) {
+    watertight_rows(|j| tris[j], ray)
+}
+
+/// [`watertight_lanes`] with coordinate row `j` of the lanes (as in [`TriangleLanes`]) from
+/// `row(j)`: a leaf test loads the rows the ray's axes pick straight from its leaf's memory,
+/// instead of first storing all nine in an array that the axes index.
+#[inline(always)]
+pub fn watertight_rows<L: SimdLanes>(row: impl Fn(usize) -> L, ray: &Ray) -> (u32, [L::Array; 6]) {
     // The lanes hold one coordinate per row of `tris`, so the ray's axes pick rows (loads at a
     // run-time offset) and the shear takes two products per vertex, not the six of the dot
     // products with the shear rows that the scalar kernel computes: the same numbers, since
@@ -511,11 +519,12 @@ pub fn watertight_lanes<L: SimdLanes>(tris: &TriangleLanes<L>, ray: &Ray) -> (u3
     let (ox, oy, oz) = (L::splat(o[kx]), L::splat(o[ky]), L::splat(o[kz]));
     let s = ray.watertight_shear();
     let (sx, sy) = (L::splat(s.x), L::splat(s.y));
-    let dz = |v: usize| tris[3 * v + kz] - oz;
+    let dz = |v: usize| row(3 * v + kz) - oz;
     let shear = |v: usize| {
+        let dz = dz(v);
         (
-            tris[3 * v + kx] - ox - sx * dz(v),
-            tris[3 * v + ky] - oy - sy * dz(v),
+            row(3 * v + kx) - ox - sx * dz,
+            row(3 * v + ky) - oy - sy * dz,
         )
     };
     let ((ax, ay), (bx, by), (cx, cy)) = (shear(0), shear(1), shear(2));
