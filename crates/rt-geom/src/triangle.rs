@@ -509,7 +509,7 @@ pub fn watertight_lanes<L: SimdLanes>(tris: &TriangleLanes<L>, ray: &Ray) -> (u3
 /// instead of first storing all nine in an array that the axes index.
 #[inline(always)]
 pub fn watertight_rows<L: SimdLanes>(row: impl Fn(usize) -> L, ray: &Ray) -> (u32, [L::Array; 6]) {
-    // The lanes hold one coordinate per row of `tris`, so the ray's axes pick rows (loads at a
+    // The lanes hold one coordinate per row, so the ray's axes pick rows (loads at a
     // run-time offset) and the shear takes two products per vertex, not the six of the dot
     // products with the shear rows that the scalar kernel computes: the same numbers, since
     // the rows' other terms are exact zeros (up to the sign of a zero, which no comparison
