@@ -98,10 +98,11 @@ impl<P: Primitive> Walk<'_, P> {
         let node = &self.tree.nodes[r.index()];
         let mut entered: [(f32, ChildRef, Aabb); 8] = [(0.0, r, Aabb::EMPTY); 8];
         let mut count = 0;
+        let step = content_step(cell);
         for o in 0..8 {
             if let Some(child) = node.child(o) {
                 let b = octant(cell, o);
-                let content = content_box(&b, content_step(cell), &node.content(o));
+                let content = content_box(&b, step, &node.content(o));
                 if let Some((t0, _)) = content.clip_ray(&self.ray) {
                     entered[count] = (t0, child, b);
                     count += 1;
