@@ -36,7 +36,7 @@ use crate::Octree;
 use crate::node::{ChildRef, OctNode, content_box, content_step, octant, octant_at};
 use rt_geom::aabb::{PAD, SlabRay};
 use rt_geom::{Aabb, Hit, Mailbox, Primitive, Ray, Vec3};
-use wide::{CmpEq, CmpGt, CmpLe, CmpLt, CmpNe, f32x8, i32x8, u8x16, u16x8};
+use wide::{CmpGt, CmpLe, CmpLt, CmpNe, f32x8, i32x8, u8x16, u16x8};
 
 struct Walk<'a, P> {
     tree: &'a Octree<P>,
@@ -157,8 +157,8 @@ impl<P: Primitive> Walk<'_, P> {
                 let node = &tree.nodes[cur.node.index()];
                 // As `Aabb::center` computes it: exactly the build's planes.
                 let mid = cur.cell.center();
-                let t0 = self.entered_octants(node, &cur.cell, mid);
-                let entered = hit_lanes(&t0) & node.mask();
+                let (entered, t0) = self.entered_octants(node, &cur.cell, mid);
+                let entered = entered & node.mask();
                 if entered != 0 {
                     // Bit k: the k-th octant of the sequence (mirrored numbering).
                     let mut pending = self.sequence[entered as usize];
@@ -191,27 +191,27 @@ impl<P: Primitive> Walk<'_, P> {
 
     /// Revelles et al.'s octant intervals, for the eight octants of an inner node at once
     /// (lane `i`: octant `i`), each from the planes of the octant's content box, intersected
-    /// with `[tmin, tmax]` and padded like the box test. Returns the padded entry distance per
-    /// octant, NaN for the octants the ray does not enter.
+    /// with `[tmin, tmax]` and padded like the box test. Returns the mask of the octants the
+    /// ray enters (bit `i`: octant `i`) and the padded entry distance per octant (meaningful
+    /// for those).
     #[inline(always)]
-    fn entered_octants(&self, node: &OctNode, cell: &Aabb, mid: Vec3) -> [f32; 8] {
+    fn entered_octants(&self, node: &OctNode, cell: &Aabb, mid: Vec3) -> (u8, [f32; 8]) {
         let mut t = (f32x8::splat(self.ray.tmin), f32x8::splat(self.ray.tmax));
         let planes = |a: usize| (cell.min[a], mid[a], cell.max[a]);
         self.narrow_along(0, node, planes(0), &mut t);
         self.narrow_along(1, node, planes(1), &mut t);
         self.narrow_along(2, node, planes(2), &mut t);
         let (t0, t1) = t;
-        let nan = f32x8::splat(f32::NAN);
         if !self.pad_after {
             // Padded by the reciprocals, and never below `tmin` (the intervals start there).
-            return t0.cmp_le(t1).blend(t0, nan).to_array();
+            return (t0.cmp_le(t1).move_mask() as u8, t0.to_array());
         }
         let pad = f32x8::splat(PAD);
         let (t0, t1) = (t0 - t0.abs() * pad, t1 + t1.abs() * pad);
         let entry = t0
             .cmp_gt(f32x8::splat(self.ray.tmin))
             .blend(t0, f32x8::splat(self.ray.tmin));
-        t0.cmp_le(t1).blend(entry, nan).to_array()
+        (t0.cmp_le(t1).move_mask() as u8, entry.to_array())
     }
 
     /// Narrows the eight intervals `t` to the slabs of the octants' content boxes along axis
@@ -257,13 +257,6 @@ fn codes_to_f32(q: &[u8; 8]) -> f32x8 {
     bytes[..8].copy_from_slice(q);
     let words = u16x8::from_u8x16_low(u8x16::from(bytes));
     f32x8::from_i32x8(i32x8::from_u16x8(words))
-}
-
-/// Bit `l` set for the lanes of `t` that are numbers (not NaN).
-#[inline(always)]
-fn hit_lanes(t: &[f32; 8]) -> u8 {
-    let v = f32x8::from(*t);
-    v.cmp_eq(v).move_mask() as u8
 }
 
 /// Mirrored octants in the order Revelles' sequence meets them: by the number of centre
