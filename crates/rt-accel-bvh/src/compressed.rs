@@ -127,7 +127,7 @@ impl CompressedNode {
 
 impl WideLanes<8> for CompressedNode {
     #[inline(always)]
-    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> [f32; 8] {
+    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; 8]) {
         let dequantize = |q: &[[u8; 8]; 3]| -> [[f32; 8]; 3] {
             std::array::from_fn(|a| {
                 let step = self.step(a);

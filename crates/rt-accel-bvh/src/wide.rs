@@ -373,8 +373,9 @@ impl<const N: usize> WideTree<N> {
 
 /// A wide node as the traversal sees it: one entry distance per lane, and each lane's child.
 pub(crate) trait WideLanes<const N: usize> {
-    /// Entry distance per lane into `[tmin, tmax]`, NaN for lanes the ray misses.
-    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> [f32; N];
+    /// The lanes the ray enters within `[tmin, tmax]` (bit `lane`), and the entry distance
+    /// per lane (meaningful for those).
+    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; N]);
     /// Inner child: node index; leaf: first primitive; `u32::MAX` for an empty lane.
     fn child(&self, lane: usize) -> u32;
     /// 0 for an inner child, else the leaf's primitive count.
@@ -389,31 +390,24 @@ pub(crate) trait WideLanes<const N: usize> {
     }
 }
 
-/// Bit `lane` set for the lanes with a number (not NaN) in `t`: one SIMD compare and mask
-/// extraction for 4 and 8 lanes.
+/// Bit `lane` set where `t0 <= t1` (false for NaN): one SIMD compare and mask extraction for
+/// 4 and 8 lanes.
 #[inline(always)]
-fn hit_lanes<const N: usize>(t: &[f32; N]) -> u32 {
-    use wide::CmpEq;
-    if let Ok(t8) = <&[f32; 8]>::try_from(&t[..]) {
-        let v = wide::f32x8::from(*t8);
-        return v.cmp_eq(v).move_mask() as u32;
+fn le_lanes<const N: usize>(t0: &[f32; N], t1: &[f32; N]) -> u32 {
+    use wide::{CmpLe, f32x4, f32x8};
+    let (a, b) = (&t0[..], &t1[..]);
+    if let (Ok(a), Ok(b)) = (<[f32; 8]>::try_from(a), <[f32; 8]>::try_from(b)) {
+        return f32x8::from(a).cmp_le(f32x8::from(b)).move_mask() as u32;
     }
-    if let Ok(t4) = <&[f32; 4]>::try_from(&t[..]) {
-        let v = wide::f32x4::from(*t4);
-        return v.cmp_eq(v).move_mask() as u32;
+    if let (Ok(a), Ok(b)) = (<[f32; 4]>::try_from(a), <[f32; 4]>::try_from(b)) {
+        return f32x4::from(a).cmp_le(f32x4::from(b)).move_mask() as u32;
     }
-    let mut m = 0u32;
-    for (l, &x) in t.iter().enumerate() {
-        #[allow(clippy::eq_op)] // x == x is false only for NaN
-        let hit = x == x;
-        m |= (hit as u32) << l;
-    }
-    m
+    (0..N).fold(0, |m, l| m | ((t0[l] <= t1[l]) as u32) << l)
 }
 
 impl<const N: usize> WideLanes<N> for WideNode<N> {
     #[inline(always)]
-    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> [f32; N] {
+    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; N]) {
         lane_entries(&self.min, &self.max, ray, tmin, tmax)
     }
 
@@ -486,8 +480,8 @@ pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: 
                     }
                 } else {
                     let node = &nodes[child as usize];
-                    let t = node.entries(&slab, r.tmin, r.tmax);
-                    let mut mask = hit_lanes(&t) & node.used_mask();
+                    let (entered, t) = node.entries(&slab, r.tmin, r.tmax);
+                    let mut mask = entered & node.used_mask();
                     if mask != 0 {
                         let lane = mask.trailing_zeros() as usize;
                         mask &= mask - 1;
@@ -545,9 +539,11 @@ thread_local! {
     static STACK: std::cell::RefCell<Vec<(u32, u32, f32)>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// Entry distance per lane into the boxes `min..max` (per axis, per lane), NaN for lanes the
-/// ray misses (written as plain lane loops: one SIMD operation each after vectorisation).
-/// Conservative like [`SlabRay::entry`]: the entry returned is never later
+/// The lanes whose boxes `min..max` (per axis, per lane) the ray enters within `[tmin, tmax]`
+/// (bit `lane`) and the entry distance per lane (meaningful for those; written as plain lane
+/// loops: one SIMD operation each after vectorisation). The mask comes from the interval
+/// compare itself (a lane's entry no later than its exit): no NaN written for the misses and
+/// tested again. Conservative like [`SlabRay::entry`]: the entry returned is never later
 /// than the true one and never before `tmin`.
 #[inline(always)]
 pub(crate) fn lane_entries<const N: usize>(
@@ -556,7 +552,7 @@ pub(crate) fn lane_entries<const N: usize>(
     ray: &SlabRay,
     tmin: f32,
     tmax: f32,
-) -> [f32; N] {
+) -> (u32, [f32; N]) {
     let mut t0 = [tmin; N];
     let mut t1 = [tmax; N];
     for a in 0..3 {
@@ -579,11 +575,7 @@ pub(crate) fn lane_entries<const N: usize>(
             (t0[l], t1[l]) = pad_interval(t0[l], t1[l], tmin);
         }
     }
-    let mut out = [f32::NAN; N];
-    for l in 0..N {
-        out[l] = if t0[l] <= t1[l] { t0[l] } else { f32::NAN };
-    }
-    out
+    (le_lanes(&t0, &t1), t0)
 }
 
 /// Writes the wide node for inner binary node `b` with the lanes `lanes(b)` and its subtree;
