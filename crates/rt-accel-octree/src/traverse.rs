@@ -197,7 +197,9 @@ impl<P: Primitive> Walk<'_, P> {
     #[inline(always)]
     fn entered_octants(&self, node: &OctNode, cell: &Aabb, mid: Vec3) -> (u8, [f32; 8]) {
         let mut t = (f32x8::splat(self.ray.tmin), f32x8::splat(self.ray.tmax));
-        let planes = |a: usize| (cell.min[a], mid[a], cell.max[a]);
+        // One quantization step for the eight octants: the build's own formula.
+        let step = content_step(cell);
+        let planes = |a: usize| (cell.min[a], mid[a], step[a]);
         self.narrow_along(0, node, planes(0), &mut t);
         self.narrow_along(1, node, planes(1), &mut t);
         self.narrow_along(2, node, planes(2), &mut t);
@@ -217,14 +219,15 @@ impl<P: Primitive> Walk<'_, P> {
     /// Narrows the eight intervals `t` to the slabs of the octants' content boxes along axis
     /// `a`. A content box lies inside its octant (code 255 reaches 1/254 of the side beyond
     /// it, see [`crate::node`]), so the octant's own slab would narrow nothing more and is not
-    /// computed. NaN (origin in a plane, zero direction) leaves an interval unchanged, as in
-    /// the box test.
+    /// computed. `(lo, mid, step)`: the cell's low plane and centre along `a`, and the
+    /// octants' quantization step ([`content_step`]). NaN (origin in a plane, zero direction)
+    /// leaves an interval unchanged, as in the box test.
     #[inline(always)]
     fn narrow_along(
         &self,
         a: usize,
         node: &OctNode,
-        (lo, mid, hi): (f32, f32, f32),
+        (lo, mid, step): (f32, f32, f32),
         t: &mut (f32x8, f32x8),
     ) {
         let o = f32x8::splat(self.origin[a]);
@@ -234,8 +237,7 @@ impl<P: Primitive> Walk<'_, P> {
         let upper = self.upper_half[a];
         let half = |below: f32, above: f32| upper.blend(f32x8::splat(above), f32x8::splat(below));
         let base = half(lo, mid);
-        // One step for the eight octants (`node::content_step`, the same arithmetic).
-        let step = f32x8::splat((hi - lo) * (1.0 / 508.0));
+        let step = f32x8::splat(step);
         // Distances to the planes met as the box's lower and upper plane.
         let box_a = (base + codes_to_f32(&node.lo[a]) * step - o) * inv_lo;
         let box_b = (base + codes_to_f32(&node.hi[a]) * step - o) * inv_hi;
