@@ -467,7 +467,7 @@ const BASE: &[AccelEntry] = &[
     ),
     generic!(
         "grid",
-        "rt uniform grid, 2 cells per primitive, exact triangle/cell overlap, 3D-DDA (Amanatides & Woo)",
+        "rt uniform grid, 1 cell per 2 primitives, exact triangle/cell overlap, 3D-DDA (Amanatides & Woo) crossing empty cubes in one step",
         |p| boxed(Grid::build(p, GridParams::uniform())),
     ),
     generic!(
@@ -477,17 +477,17 @@ const BASE: &[AccelEntry] = &[
     ),
     generic!(
         "grid2",
-        "rt two-level grid (Kalojanov et al. 2011): 1 top cell per 8 primitives, each refined at 2 per primitive",
+        "rt two-level grid (Kalojanov et al. 2011): 1 top cell per 100 primitives, each cell's content refined at 1 cell per 2 primitives",
         |p| boxed(Grid::build(p, GridParams::two_level())),
     ),
     generic!(
         "grid-adaptive",
-        "rt adaptive grid (Jevans & Wyvill): cells of more than 8 primitives refined recursively, up to 4 levels",
+        "rt adaptive grid (Jevans & Wyvill): 1 cell per 8 primitives, cells of more than 24 refined the same way over their content, up to 4 levels",
         |p| boxed(Grid::build(p, GridParams::adaptive())),
     ),
     generic!(
         "octree",
-        "rt octree, split at the centre above 10 primitives (depth <= 16), parametric walk (Revelles et al. 2000)",
+        "rt octree, split at the centre above 24 primitives (depth <= 16), parametric walk (Revelles et al. 2000)",
         |p| boxed(Octree::build(p, OctreeParams::standard())),
     ),
     generic!(

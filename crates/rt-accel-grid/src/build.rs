@@ -4,6 +4,7 @@
 
 use crate::level::{Level, NO_CHILD};
 use crate::params::{GridKind, GridParams};
+use crate::skip;
 use rayon::prelude::*;
 use rt_geom::{Aabb, Primitive};
 
@@ -196,6 +197,9 @@ pub(crate) struct Flat {
     pub offsets: Vec<u32>,
     pub children: Vec<u32>,
     pub refs: Vec<u32>,
+    /// Per cell, in step with `offsets`: its distance to the nearest occupied cell
+    /// ([`crate::skip`]).
+    pub skip: Vec<u8>,
 }
 
 /// Appends `b` and its sub-grids; returns the index of `b`'s level.
@@ -224,6 +228,15 @@ pub(crate) fn flatten(b: &LevelBuild, out: &mut Flat) -> u32 {
             .extend_from_slice(&b.refs[b.offsets[c] as usize..b.offsets[c + 1] as usize]);
     }
     out.offsets.push(out.refs.len() as u32);
+    // A cell is occupied when it holds references or a sub-grid.
+    let mut occupied: Vec<bool> = b.offsets.windows(2).map(|w| w[0] < w[1]).collect();
+    for (c, _) in &b.children {
+        occupied[*c as usize] = true;
+    }
+    out.skip
+        .extend(skip::chessboard_distances(b.level.res, |c| occupied[c]));
+    out.skip.push(0);
+    debug_assert_eq!(out.skip.len(), out.offsets.len());
     for (c, child) in &b.children {
         let l = flatten(child, out);
         let first_child = out.levels[me].first_child;

@@ -5,6 +5,7 @@
 //! | [`params`] | [`GridParams`] with presets `uniform()`, `two_level()`, `adaptive()`; [`GridKind`] |
 //! | [`level`] | [`Level`]: one grid's box, resolution and cell planes; the array layout |
 //! | `build` | primitives into the cells they overlap (clipped, not just boxed), counting sort, sub-grids, flattening |
+//! | [`skip`] | per cell, the distance to the nearest occupied cell, to cross empty space in one step |
 //! | `traverse` | the 3D-DDA (Amanatides & Woo 1987) through every level, optional mailboxes |
 //!
 //! ```
@@ -24,6 +25,7 @@
 mod build;
 pub mod level;
 pub mod params;
+pub mod skip;
 mod traverse;
 
 pub use level::Level;
@@ -41,6 +43,8 @@ pub struct Grid<P> {
     offsets: Vec<u32>,
     children: Vec<u32>,
     refs: Vec<u32>,
+    /// Per cell, its distance to the nearest occupied cell of its level ([`skip`]).
+    skip: Vec<u8>,
     prims: Vec<P>,
     /// The primitives of every cell, in `refs` order, laid out for the cell test.
     listed: LeafPrims<P>,
@@ -76,6 +80,7 @@ impl<P: Primitive> Grid<P> {
             offsets: flat.offsets,
             children: flat.children,
             refs: flat.refs,
+            skip: flat.skip,
             prims: prims.to_vec(),
             params,
         })
@@ -92,6 +97,12 @@ impl<P: Primitive> Grid<P> {
 
     pub fn refs(&self) -> &[u32] {
         &self.refs
+    }
+
+    /// Per cell, at its place in [`Self::offsets`], the distance to the nearest occupied cell
+    /// of its level ([`skip`]).
+    pub fn skip(&self) -> &[u8] {
+        &self.skip
     }
 
     pub fn params(&self) -> &GridParams {
@@ -145,6 +156,7 @@ impl<P: Primitive> Accel for Grid<P> {
                 + std::mem::size_of_val(self.offsets.as_slice())
                 + std::mem::size_of_val(self.children.as_slice())
                 + std::mem::size_of_val(self.refs.as_slice())
+                + std::mem::size_of_val(self.skip.as_slice())
                 + std::mem::size_of_val(self.prims.as_slice())
                 + self.listed.bytes(),
             ..AccelStats::default()
@@ -173,6 +185,9 @@ impl<P: Primitive> Accel for Grid<P> {
                 Err("no levels for a non-empty scene".into())
             };
         }
+        if self.skip.len() != self.offsets.len() {
+            return Err("the skip distances do not follow the offsets".into());
+        }
         if self.offsets.windows(2).any(|w| w[0] > w[1])
             || self
                 .offsets
@@ -190,6 +205,19 @@ impl<P: Primitive> Accel for Grid<P> {
             if lv.first as usize + lv.cell_count() >= self.offsets.len() {
                 err.get_or_insert(format!("level {l} has cells past the offsets"));
                 return;
+            }
+            // The skip distances are the level's own: a larger one would jump over content.
+            let child_of = |c: usize| {
+                (lv.first_child != NO_CHILD)
+                    .then(|| self.children[lv.first_child as usize + c])
+                    .filter(|&child| child != NO_CHILD)
+            };
+            let occupied = |c: usize| self.cell_list(lv, c).1 > 0 || child_of(c).is_some();
+            let first = lv.first as usize;
+            if skip::chessboard_distances(lv.res, occupied)[..]
+                != self.skip[first..first + lv.cell_count()]
+            {
+                err.get_or_insert(format!("level {l}: skip distances are not the level's"));
             }
             for c in 0..lv.cell_count() {
                 let cell = lv.cell_box(lv.coords(c));
@@ -306,5 +334,90 @@ mod content_tests {
                 );
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod skip_tests {
+    use super::*;
+    use rt_geom::{Triangle, Vec3};
+    use rt_testkit::Scene;
+    use rt_testkit::scenes::tessellated_sphere;
+
+    /// Small clusters far apart, a long sliver across the empty space between them, and a
+    /// flat triangle on a cell plane: most cells are empty, many far from any occupied one,
+    /// so walks leave whole empty cubes in one step (jumps that end on cell walls, in the
+    /// middle of cubes, at the grid's edge) and must still answer as brute force does.
+    #[test]
+    fn empty_cubes_are_crossed_exactly() {
+        let mut tris = Vec::new();
+        for (k, c) in [
+            Vec3::new(-0.9, -0.9, -0.9),
+            Vec3::new(0.9, 0.85, -0.9),
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(-0.8, 0.9, 0.7),
+            Vec3::new(0.7, -0.6, 0.9),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            tris.extend(tessellated_sphere(200 + 100 * k, c, 0.03));
+        }
+        tris.push(Triangle::new(
+            Vec3::new(-1.0, -1.0, 1.0),
+            Vec3::new(1.0, 1.0, -1.0),
+            Vec3::new(1.0, 1.0, -0.999),
+        ));
+        tris.push(Triangle::new(
+            Vec3::new(0.5, -1.0, 0.0),
+            Vec3::new(0.5, -0.5, 0.0),
+            Vec3::new(0.6, -1.0, 0.0),
+        ));
+        let scene = Scene::new("sparse_clusters", tris);
+        // (parameters, the least skip distance some cell must reach: fine grids have large
+        // empty cubes; the presets' coarse levels over 1.5k triangles have small ones).
+        for (params, reach) in [
+            (
+                GridParams {
+                    density: 8.0,
+                    ..GridParams::uniform()
+                },
+                8,
+            ),
+            (GridParams::uniform(), 3),
+            (GridParams::two_level(), 2),
+            (
+                GridParams {
+                    kind: GridKind::TwoLevel { top_density: 1.0 },
+                    ..GridParams::two_level()
+                },
+                4,
+            ),
+            (GridParams::adaptive(), 2),
+        ] {
+            let grid = Grid::build(&scene.prims, params).unwrap();
+            let farthest = grid.skip().iter().copied().max().unwrap_or(0);
+            assert!(
+                farthest >= reach,
+                "{params:?}: empty cubes of radius {farthest} at most"
+            );
+            rt_testkit::conformance::assert_conforms(&scene, |p| Grid::build(p, params));
+        }
+    }
+
+    /// The skip distances are part of what `validate` checks: one made larger than the
+    /// level's (a jump over content) is caught.
+    #[test]
+    fn validate_catches_a_wrong_skip_distance() {
+        let tris = tessellated_sphere(500, Vec3::ZERO, 1.0);
+        let mut grid = Grid::build(&tris, GridParams::uniform()).unwrap();
+        grid.validate().unwrap();
+        let c = grid
+            .skip
+            .iter()
+            .position(|&d| d == 1)
+            .expect("an empty cell by the sphere");
+        grid.skip[c] = 3;
+        assert!(grid.validate().unwrap_err().contains("skip"));
     }
 }
