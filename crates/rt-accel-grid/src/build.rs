@@ -200,6 +200,8 @@ pub(crate) struct Flat {
     /// Per cell, in step with `offsets`: its distance to the nearest occupied cell
     /// ([`crate::skip`]).
     pub skip: Vec<u8>,
+    /// Every level's planes (see [`crate::level`]).
+    pub planes: Vec<f32>,
 }
 
 /// Appends `b` and its sub-grids; returns the index of `b`'s level.
@@ -207,6 +209,11 @@ pub(crate) fn flatten(b: &LevelBuild, out: &mut Flat) -> u32 {
     let me = out.levels.len();
     let mut level = b.level.clone();
     level.first = out.offsets.len() as u32;
+    for a in 0..3 {
+        level.plane_first[a] = out.planes.len() as u32;
+        out.planes
+            .extend((0..=level.res[a]).map(|i| level.plane(a, i)));
+    }
     let count = level.cell_count();
     level.first_child = if b.children.is_empty() {
         NO_CHILD

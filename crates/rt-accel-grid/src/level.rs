@@ -8,6 +8,9 @@
 //! Grid.children      per level that has sub-grids, one entry per cell from `first_child`:
 //!                    the level refining that cell, or NO_CHILD
 //! Grid.refs          primitive indices (u32), cell after cell
+//! Grid.planes        per level and axis, from `plane_first[a]`: the `res[a] + 1` values of
+//!                    `Level::plane(a, 0..=res[a])` (the walk reads them instead of
+//!                    computing them)
 //! ```
 //!
 //! Cells are numbered `x + res_x * (y + res_y * z)`. Plane `i` along an axis is
@@ -32,6 +35,8 @@ pub struct Level {
     pub first: u32,
     /// Index in `Grid.children` of this level's first cell, or [`NO_CHILD`].
     pub first_child: u32,
+    /// Per axis, index in `Grid.planes` of this level's plane 0.
+    pub plane_first: [u32; 3],
 }
 
 impl Level {
@@ -70,6 +75,7 @@ impl Level {
             inv_cell,
             first: 0,
             first_child: NO_CHILD,
+            plane_first: [0; 3],
         }
     }
 
@@ -91,6 +97,13 @@ impl Level {
     /// the grid), exact with respect to [`Self::plane`].
     #[inline(always)]
     pub fn index_of(&self, a: usize, x: f32) -> u32 {
+        self.index_by(a, x, |i| self.plane(a, i))
+    }
+
+    /// [`Self::index_of`] with the level's planes along `a` given by `plane` (a table of
+    /// [`Self::plane`]'s values).
+    #[inline(always)]
+    pub fn index_by(&self, a: usize, x: f32, plane: impl Fn(u32) -> f32) -> u32 {
         let last = self.res[a] - 1;
         let guess = ((x - self.bounds.min[a]) * self.inv_cell[a]).floor();
         let mut i = if guess >= 0.0 {
@@ -98,10 +111,10 @@ impl Level {
         } else {
             0
         };
-        while i > 0 && x < self.plane(a, i) {
+        while i > 0 && x < plane(i) {
             i -= 1;
         }
-        while i < last && x >= self.plane(a, i + 1) {
+        while i < last && x >= plane(i + 1) {
             i += 1;
         }
         i

@@ -45,6 +45,8 @@ pub struct Grid<P> {
     refs: Vec<u32>,
     /// Per cell, its distance to the nearest occupied cell of its level ([`skip`]).
     skip: Vec<u8>,
+    /// Every level's cell planes ([`level`]).
+    planes: Vec<f32>,
     prims: Vec<P>,
     /// The primitives of every cell, in `refs` order, laid out for the cell test.
     listed: LeafPrims<P>,
@@ -81,6 +83,7 @@ impl<P: Primitive> Grid<P> {
             children: flat.children,
             refs: flat.refs,
             skip: flat.skip,
+            planes: flat.planes,
             prims: prims.to_vec(),
             params,
         })
@@ -157,6 +160,7 @@ impl<P: Primitive> Accel for Grid<P> {
                 + std::mem::size_of_val(self.children.as_slice())
                 + std::mem::size_of_val(self.refs.as_slice())
                 + std::mem::size_of_val(self.skip.as_slice())
+                + std::mem::size_of_val(self.planes.as_slice())
                 + std::mem::size_of_val(self.prims.as_slice())
                 + self.listed.bytes(),
             ..AccelStats::default()
@@ -204,6 +208,17 @@ impl<P: Primitive> Accel for Grid<P> {
             let lv = &self.levels[l];
             if lv.first as usize + lv.cell_count() >= self.offsets.len() {
                 err.get_or_insert(format!("level {l} has cells past the offsets"));
+                return;
+            }
+            // The plane table holds the level's planes.
+            let table = |a: usize| {
+                let first = lv.plane_first[a] as usize;
+                self.planes.get(first..first + lv.res[a] as usize + 1)
+            };
+            if (0..3).any(|a| {
+                table(a).is_none_or(|t| (0..=lv.res[a]).any(|i| t[i as usize] != lv.plane(a, i)))
+            }) {
+                err.get_or_insert(format!("level {l}: the plane table is not the level's"));
                 return;
             }
             // The skip distances are the level's own: a larger one would jump over content.

@@ -25,7 +25,7 @@
 //! cells (Amanatides & Woo's mailboxes, kept per ray so that threads share nothing).
 
 use crate::Grid;
-use crate::level::NO_CHILD;
+use crate::level::{Level, NO_CHILD};
 use rt_geom::aabb::{pad_down, pad_up};
 use rt_geom::{Hit, Mailbox, Primitive, Ray};
 
@@ -60,17 +60,24 @@ impl<P: Primitive> Walk<'_, P> {
             })
     }
 
+    /// Plane `i` (`0..=res`) of level `lv` along axis `a`: [`Level::plane`] read from the
+    /// grid's table.
+    #[inline(always)]
+    fn plane(&self, lv: &Level, a: usize, i: u32) -> f32 {
+        self.grid.planes[lv.plane_first[a] as usize + i as usize]
+    }
+
     /// The distance at which the ray crosses the wall ahead of cell `i` along axis `a`,
     /// computed from the level's plane (never accumulated); +inf when that wall is the
     /// level's own box. Walls of the level's box are not walls to step across: the interval
     /// [t0, t1] (padded) already ends there, and a ray that grazes the box (or a flat level)
     /// may still cross inner walls along the other axes before t1.
     #[inline(always)]
-    fn next_wall(&self, lv: &crate::level::Level, a: usize, i: u32) -> f32 {
+    fn next_wall(&self, lv: &Level, a: usize, i: u32) -> f32 {
         let wall = if self.dir[a] > 0.0 && i + 1 < lv.res[a] {
-            lv.plane(a, i + 1)
+            self.plane(lv, a, i + 1)
         } else if self.dir[a] < 0.0 && i > 0 {
-            lv.plane(a, i)
+            self.plane(lv, a, i)
         } else {
             return f32::INFINITY;
         };
@@ -82,13 +89,13 @@ impl<P: Primitive> Walk<'_, P> {
     /// lies in, or the one before it when the point lies within rounding of the wall behind
     /// (an extra cell costs a few tests; a cell skipped would lose hits).
     #[inline(always)]
-    fn cell_at(&self, lv: &crate::level::Level, a: usize, t: f32) -> u32 {
+    fn cell_at(&self, lv: &Level, a: usize, t: f32) -> u32 {
         let x = self.origin[a] + t * self.dir[a];
-        let i = lv.index_of(a, x);
+        let i = lv.index_by(a, x, |i| self.plane(lv, a, i));
         let tol = 1e-6 * (self.origin[a].abs() + (t * self.dir[a]).abs());
-        if self.dir[a] > 0.0 && i > 0 && x - lv.plane(a, i) <= tol {
+        if self.dir[a] > 0.0 && i > 0 && x - self.plane(lv, a, i) <= tol {
             i - 1
-        } else if self.dir[a] < 0.0 && i + 1 < lv.res[a] && lv.plane(a, i + 1) - x <= tol {
+        } else if self.dir[a] < 0.0 && i + 1 < lv.res[a] && self.plane(lv, a, i + 1) - x <= tol {
             i + 1
         } else {
             i
@@ -104,7 +111,7 @@ impl<P: Primitive> Walk<'_, P> {
     #[inline(never)]
     fn leave_empty_cube(
         &self,
-        lv: &crate::level::Level,
+        lv: &Level,
         idx: &mut [u32; 3],
         next: &mut [f32; 3],
         empty_around: u8,
