@@ -178,11 +178,10 @@ impl<P: Primitive> Walk<'_, P> {
             if child != NO_CHILD {
                 // The sub-grid spans the cell's content: the part of the ray in the cell,
                 // clipped to that box (padded, as every box test), or nothing.
-                let mut inside = self.ray;
-                inside.tmin = entry.max(t0);
-                inside.tmax = pad_up(exit).min(t1);
+                let inside = (entry.max(t0), pad_up(exit).min(t1));
                 let sub = child as usize;
-                if let Some((s0, s1)) = grid.levels[sub].bounds.clip_ray(&inside) {
+                let content = &grid.levels[sub].bounds;
+                if let Some((s0, s1)) = content.clip_interval(&self.origin, &self.inv, inside) {
                     if self.level::<ANY_HIT, MAILBOXES>(sub, s0, s1) {
                         return true;
                     }

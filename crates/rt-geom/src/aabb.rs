@@ -260,10 +260,21 @@ impl Aabb {
     /// beyond `ray.tmax`, never below `ray.tmin`.
     #[inline]
     pub fn clip_ray(&self, ray: &Ray) -> Option<(f32, f32)> {
-        let o = ray.origin();
-        let inv = ray.inv_dir();
-        let mut t0 = ray.tmin;
-        let mut t1 = ray.tmax;
+        let (o, inv) = (ray.origin().to_array(), ray.inv_dir().to_array());
+        self.clip_interval(&o, &inv, (ray.tmin, ray.tmax))
+    }
+
+    /// [`Self::clip_ray`] of the ray from `o` with reciprocal direction `inv` over
+    /// `[tmin, tmax]` (for walks that keep a ray's numbers as arrays).
+    #[inline(always)]
+    pub fn clip_interval(
+        &self,
+        o: &[f32; 3],
+        inv: &[f32; 3],
+        (tmin, tmax): (f32, f32),
+    ) -> Option<(f32, f32)> {
+        let mut t0 = tmin;
+        let mut t1 = tmax;
         for a in 0..3 {
             let (near, far) = if inv[a].is_sign_negative() {
                 (self.max[a], self.min[a])
@@ -282,7 +293,7 @@ impl Aabb {
         let t0 = pad_down(t0);
         let t1 = pad_up(t1);
         if t0 <= t1 {
-            Some((t0.max(ray.tmin), t1))
+            Some((t0.max(tmin), t1))
         } else {
             None
         }
