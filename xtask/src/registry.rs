@@ -476,6 +476,11 @@ const BASE: &[AccelEntry] = &[
         |p| boxed(Grid::build(p, GridParams::uniform().with_mailbox(true))),
     ),
     generic!(
+        "grid-dda",
+        "the same uniform grid walked cell by cell (the classic 3D-DDA, no empty-space skipping)",
+        |p| boxed(Grid::build(p, GridParams::uniform().with_skip_empty(false))),
+    ),
+    generic!(
         "grid2",
         "rt two-level grid (Kalojanov et al. 2011): 1 top cell per 100 primitives, each cell's content refined at 1 cell per 2 primitives",
         |p| boxed(Grid::build(p, GridParams::two_level())),

@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// The sweep's structures: one of each kind, brute force where affordable, obvhs.
-pub const SWEEP_ACCELS: &str = "brute,bvh,bvh8,kd,kd-midpoint,bsp,grid,grid2,octree,obvhs";
+pub const SWEEP_ACCELS: &str = "brute,bvh,bvh8,kd,kd-midpoint,bsp,grid,grid-dda,grid2,octree,obvhs";
 
 /// The SPD renders' structures (those that hold spheres and cones).
 pub const SPD_ACCELS: &str = "bvh8,kd,bsp,grid,grid2,octree";

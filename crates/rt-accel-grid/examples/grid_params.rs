@@ -5,13 +5,18 @@
 //! `cargo run --release -p rt-accel-grid --example grid_params -- path/to/mesh.obj (or sphere:N, stadium:N)
 //! uniform:DENSITY two-level:TOP_DENSITY:DENSITY adaptive:MAX_CELL_PRIMS:DENSITY ... [SIDE]`
 //! (`SIDE`: camera resolution, default 512), e.g. `two-level:0.01:0.5 adaptive:24:0.125`; a
-//! `+mailbox` suffix turns on per-ray mailboxes (`two-level:0.01:0.5+mailbox`).
+//! `+mailbox` suffix turns on per-ray mailboxes (`two-level:0.01:0.5+mailbox`), a `+noskip`
+//! suffix (last) turns off empty-space skipping (`uniform:0.5+noskip`).
 
 use rt_accel_grid::{Grid, GridKind, GridParams};
 use rt_geom::Triangle;
 use rt_testkit::RaySets;
 
 fn parse_params(s: &str) -> Option<GridParams> {
+    let (s, skip_empty) = match s.strip_suffix("+noskip") {
+        Some(s) => (s, false),
+        None => (s, true),
+    };
     let (s, mailbox) = match s.strip_suffix("+mailbox") {
         Some(s) => (s, true),
         None => (s, false),
@@ -39,12 +44,12 @@ fn parse_params(s: &str) -> Option<GridParams> {
         },
         _ => return None,
     };
-    Some(params.with_mailbox(mailbox))
+    Some(params.with_mailbox(mailbox).with_skip_empty(skip_empty))
 }
 
 fn main() {
     RaySets::race_configs(
-        "usage: grid_params MESH.obj uniform:D | two-level:TOP:D | adaptive:MAX:D[+mailbox] ... [SIDE]",
+        "usage: grid_params MESH.obj uniform:D | two-level:TOP:D | adaptive:MAX:D[+mailbox][+noskip] ... [SIDE]",
         parse_params,
         |tris: &[Triangle], params| Grid::build(tris, *params),
     );

@@ -282,6 +282,7 @@ mod tests {
     rt_testkit::conformance_per_params!(Grid::build {
         uniform: GridParams::uniform(),
         uniform_mailbox: GridParams::uniform().with_mailbox(true),
+        uniform_dda: GridParams::uniform().with_skip_empty(false),
         uniform_coarse: GridParams {
             density: 0.05,
             ..GridParams::uniform()

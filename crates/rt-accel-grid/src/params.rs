@@ -41,6 +41,10 @@ pub struct GridParams {
     /// one thread, `grid_params -- MESH two-level:0.01:0.5 two-level:0.01:0.5+mailbox`: 10-24%
     /// slower with mailboxes on bunny, dragon and sponza).
     pub mailbox: bool,
+    /// Cross empty space a whole empty cube at a time ([`crate::skip`]); off, the walk steps
+    /// through every cell (the classic 3D-DDA, whose cost per ray grows as the cube root of
+    /// the cell count). On in every preset.
+    pub skip_empty: bool,
 }
 
 impl GridParams {
@@ -61,6 +65,7 @@ impl GridParams {
             max_cells: 1 << 25,
             max_refs_per_prim: 32.0,
             mailbox: false,
+            skip_empty: true,
         }
     }
 
@@ -92,6 +97,11 @@ impl GridParams {
 
     pub const fn with_mailbox(mut self, mailbox: bool) -> Self {
         self.mailbox = mailbox;
+        self
+    }
+
+    pub const fn with_skip_empty(mut self, skip_empty: bool) -> Self {
+        self.skip_empty = skip_empty;
         self
     }
 

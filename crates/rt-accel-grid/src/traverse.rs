@@ -196,7 +196,7 @@ impl<P: Primitive> Walk<'_, P> {
                     if self.test::<ANY_HIT, MAILBOXES>((s, e)) {
                         return true;
                     }
-                } else if grid.skip[first] >= JUMP_MIN {
+                } else if grid.params.skip_empty && grid.skip[first] >= JUMP_MIN {
                     // Empty, and so is every cell around it up to `skip - 1` cells away.
                     match self.leave_empty_cube(lv, &mut idx, &mut next, grid.skip[first], t1) {
                         Some(t) => {
