@@ -421,8 +421,8 @@ mod skip_tests {
         }
     }
 
-    /// The skip distances are part of what `validate` checks: one made larger than the
-    /// level's (a jump over content) is caught.
+    /// The skip distances and the plane table are part of what `validate` checks: a skip
+    /// distance larger than the level's (a jump over content), or a plane moved, is caught.
     #[test]
     fn validate_catches_a_wrong_skip_distance() {
         let tris = tessellated_sphere(500, Vec3::ZERO, 1.0);
@@ -435,5 +435,11 @@ mod skip_tests {
             .expect("an empty cell by the sphere");
         grid.skip[c] = 3;
         assert!(grid.validate().unwrap_err().contains("skip"));
+        // So is the plane table the walk reads.
+        let mut grid = Grid::build(&tris, GridParams::two_level()).unwrap();
+        grid.validate().unwrap();
+        let last = grid.planes.len() - 1;
+        grid.planes[last] += 1e-3;
+        assert!(grid.validate().unwrap_err().contains("plane table"));
     }
 }
