@@ -351,25 +351,35 @@ fn refine_lanes<const N: usize>(
         }
         // Per lane, by its axes (kx, ky, kz): direction, origin and the vertices' coordinates.
         let (mut d, mut o, mut v) = ([[0.0f64; 4]; 3], [[0.0f64; 4]; 3], [[[0.0f64; 4]; 3]; 3]);
-        let mut orient = [0.0f64; 4];
-        for (k, &l) in pick.iter().enumerate() {
-            let ray = &p.rays[base + l];
-            // Arrays indexed by the lane's axes (a `Vec3` indexed at run time branches).
-            let (dir, org) = (ray.dir().to_array(), ray.origin().to_array());
-            let verts = tri.v.map(|v| v.to_array());
-            for (j, &axis) in ray.watertight_axes().iter().enumerate() {
-                d[j][k] = dir[axis] as f64;
-                o[j][k] = org[axis] as f64;
-                for (i, vert) in verts.iter().enumerate() {
-                    v[i][j][k] = vert[axis] as f64;
+        let verts = tri.v.map(|v| v.to_array());
+        let axes = pick.map(|l| p.rays[base + l].watertight_axes());
+        if axes.iter().all(|a| *a == axes[0]) {
+            // One permutation for the four (rays of a tile share their dominant axis): the
+            // vertices' coordinates once, the lanes' from the packet's rows.
+            for (j, &axis) in axes[0].iter().enumerate() {
+                for (k, &l) in pick.iter().enumerate() {
+                    d[j][k] = p.dir[axis][base + l] as f64;
+                    o[j][k] = p.origin[axis][base + l] as f64;
+                }
+                for (vi, vert) in v.iter_mut().zip(&verts) {
+                    vi[j] = [vert[axis] as f64; 4];
                 }
             }
-            orient[k] = if eu[l] + ev[l] + ew[l] < 0.0 {
-                -1.0
-            } else {
-                1.0
-            };
+        } else {
+            for (k, (&l, lane_axes)) in pick.iter().zip(&axes).enumerate() {
+                let ray = &p.rays[base + l];
+                // Arrays indexed by the lane's axes (a `Vec3` indexed at run time branches).
+                let (dir, org) = (ray.dir().to_array(), ray.origin().to_array());
+                for (j, &axis) in lane_axes.iter().enumerate() {
+                    d[j][k] = dir[axis] as f64;
+                    o[j][k] = org[axis] as f64;
+                    for (i, vert) in verts.iter().enumerate() {
+                        v[i][j][k] = vert[axis] as f64;
+                    }
+                }
+            }
         }
+        let orient = pick.map(|l| if eu[l] + ev[l] + ew[l] < 0.0 { -1.0 } else { 1.0 });
         let [dx, dy, dz] = d.map(f64x4::new);
         let [ox, oy, oz] = o.map(f64x4::new);
         let (sx, sy, sz) = (dx / dz, dy / dz, f64x4::ONE / dz);
