@@ -22,7 +22,9 @@ pub trait PacketTraversal {
     fn intersect_rays<const N: usize>(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
         let mut out = Vec::with_capacity(rays.len());
         for chunk in rays.chunks(N) {
-            let hits = self.intersect_packet(&mut RayPacket::<N>::new(chunk));
+            let p = &mut RayPacket::<N>::empty(chunk);
+            p.fill();
+            let hits = self.intersect_packet(p);
             out.extend_from_slice(&hits[..chunk.len()]);
         }
         out
@@ -32,7 +34,9 @@ pub trait PacketTraversal {
     fn occluded_rays<const N: usize>(&self, rays: &[Ray]) -> Vec<bool> {
         let mut out = Vec::with_capacity(rays.len());
         for chunk in rays.chunks(N) {
-            let blocked = self.occluded_packet(&mut RayPacket::<N>::new(chunk));
+            let p = &mut RayPacket::<N>::empty(chunk);
+            p.fill();
+            let blocked = self.occluded_packet(p);
             out.extend_from_slice(&blocked[..chunk.len()]);
         }
         out
@@ -146,19 +150,23 @@ macro_rules! as_one_packet {
         let n = rays.len();
         match packet_lanes(n) {
             4 => {
-                let $p = &mut RayPacket::<4>::new(rays);
+                let $p = &mut RayPacket::<4>::empty(rays);
+                $p.fill();
                 out.copy_from_slice(&$query[..n])
             }
             16 => {
-                let $p = &mut RayPacket::<16>::new(rays);
+                let $p = &mut RayPacket::<16>::empty(rays);
+                $p.fill();
                 out.copy_from_slice(&$query[..n])
             }
             64 => {
-                let $p = &mut RayPacket::<64>::new(rays);
+                let $p = &mut RayPacket::<64>::empty(rays);
+                $p.fill();
                 out.copy_from_slice(&$query[..n])
             }
             _ => {
-                let $p = &mut RayPacket::<256>::new(rays);
+                let $p = &mut RayPacket::<256>::empty(rays);
+                $p.fill();
                 out.copy_from_slice(&$query[..n])
             }
         }

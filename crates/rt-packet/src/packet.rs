@@ -43,18 +43,23 @@ pub struct RayPacket<'a, const N: usize> {
 impl<'a, const N: usize> RayPacket<'a, N> {
     /// A packet of up to `N` rays (the first `rays.len()` lanes).
     pub fn new(rays: &'a [Ray]) -> Self {
+        let mut p = Self::empty(rays);
+        p.fill();
+        p
+    }
+
+    /// The packet before [`Self::fill`]: every lane as the lanes past the rays read
+    /// (inactive, an empty interval). Hot paths make it where it stays and fill it there
+    /// (`let p = &mut RayPacket::empty(rays); p.fill();`): returned filled from [`Self::new`],
+    /// the whole packet was copied once more (26 KiB for 256 lanes, callgrind).
+    pub fn empty(rays: &'a [Ray]) -> Self {
         const { assert!(N > 0 && N % 4 == 0, "packets hold a multiple of 4 lanes") };
         assert!(
             rays.len() <= N,
             "{} rays do not fit a packet of {N}",
             rays.len()
         );
-        // Every field starts as the lanes past the rays read (inactive, an empty interval),
-        // then one pass over the rays writes each lane in place: building the fields as
-        // arrays of their own and moving them into the packet copied every byte once more
-        // (64 `memcpy` calls per 16x16 packet, an eighth of the packet walk's instructions,
-        // callgrind).
-        let mut p = Self {
+        Self {
             rays,
             origin: [[0.0; N]; 3],
             dir: [[0.0; N]; 3],
@@ -66,7 +71,15 @@ impl<'a, const N: usize> RayPacket<'a, N> {
             tmin: [0.0; N],
             tmax: [f32::NEG_INFINITY; N],
             active: [false; N],
-        };
+        }
+    }
+
+    /// Writes the lanes of the rays, in place (the fields are written lane block by lane block:
+    /// building them as arrays of their own and moving them into the packet copied every byte
+    /// once more, 64 `memcpy` calls per 16x16 packet, an eighth of the packet walk's
+    /// instructions, callgrind).
+    pub fn fill(&mut self) {
+        let rays = self.rays;
         // A block of lanes at a time: the rays' own numbers (origin, direction, interval; one
         // row of 8 per ray, transposed into lanes), then everything derived from them
         // (reciprocals, folded reciprocals, shear rows) in SIMD, with the operations of
@@ -76,12 +89,11 @@ impl<'a, const N: usize> RayPacket<'a, N> {
         let mut pad_after = false;
         for base in (0..rays.len().min(N)).step_by(crate::lanes::block_width(N)) {
             pad_after |= match crate::lanes::block_width(N) {
-                8 => p.fill_block::<8>(base),
-                _ => p.fill_block::<4>(base),
+                8 => self.fill_block::<8>(base),
+                _ => self.fill_block::<4>(base),
             };
         }
-        p.pad_after = pad_after;
-        p
+        self.pad_after = pad_after;
     }
 
     /// Fills the `W` lanes from `base` (a block of 8, or of 4 in packets of 4): the rays'
