@@ -379,7 +379,13 @@ fn refine_lanes<const N: usize>(
                 }
             }
         }
-        let orient = pick.map(|l| if eu[l] + ev[l] + ew[l] < 0.0 { -1.0 } else { 1.0 });
+        let orient = pick.map(|l| {
+            if eu[l] + ev[l] + ew[l] < 0.0 {
+                -1.0
+            } else {
+                1.0
+            }
+        });
         let [dx, dy, dz] = d.map(f64x4::new);
         let [ox, oy, oz] = o.map(f64x4::new);
         let (sx, sy, sz) = (dx / dz, dy / dz, f64x4::ONE / dz);

@@ -142,8 +142,14 @@ impl<'a, const N: usize> RayPacket<'a, N> {
             let inv = one / da;
             let neg = inv.cmp_lt(zero);
             st(&mut self.inv_dir[a], valid.blend(inv, zero));
-            st(&mut self.inv_lo[a], valid.blend(inv * neg.blend(far, near), zero));
-            st(&mut self.inv_hi[a], valid.blend(inv * neg.blend(near, far), zero));
+            st(
+                &mut self.inv_lo[a],
+                valid.blend(inv * neg.blend(far, near), zero),
+            );
+            st(
+                &mut self.inv_hi[a],
+                valid.blend(inv * neg.blend(near, far), zero),
+            );
         }
         // `Ray::segment`'s axes: `kz` the dominant one (ties to the lower axis), `kx`, `ky`
         // the next ones, swapped when `dir[kz] < 0`.
@@ -319,7 +325,11 @@ mod tests {
                 }
                 assert_eq!(p.pad_after, pad_after);
                 assert!(!p.active[chunk.len()..].iter().any(|&a| a));
-                assert!(p.tmax[chunk.len()..].iter().all(|&t| t == f32::NEG_INFINITY));
+                assert!(
+                    p.tmax[chunk.len()..]
+                        .iter()
+                        .all(|&t| t == f32::NEG_INFINITY)
+                );
             }
         }
         check::<4>(&rays);
