@@ -22,9 +22,9 @@ pub trait PacketTraversal {
     fn intersect_rays<const N: usize>(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
         let mut out = Vec::with_capacity(rays.len());
         for chunk in rays.chunks(N) {
-            let p = &mut RayPacket::<N>::empty(chunk);
-            p.fill();
-            let hits = self.intersect_packet(p);
+            let mut p = RayPacket::<N>::new(chunk);
+            let hits = self.intersect_packet(&mut p);
+            p.recycle();
             out.extend_from_slice(&hits[..chunk.len()]);
         }
         out
@@ -34,9 +34,9 @@ pub trait PacketTraversal {
     fn occluded_rays<const N: usize>(&self, rays: &[Ray]) -> Vec<bool> {
         let mut out = Vec::with_capacity(rays.len());
         for chunk in rays.chunks(N) {
-            let p = &mut RayPacket::<N>::empty(chunk);
-            p.fill();
-            let blocked = self.occluded_packet(p);
+            let mut p = RayPacket::<N>::new(chunk);
+            let blocked = self.occluded_packet(&mut p);
+            p.recycle();
             out.extend_from_slice(&blocked[..chunk.len()]);
         }
         out
@@ -150,24 +150,36 @@ macro_rules! as_one_packet {
         let n = rays.len();
         match packet_lanes(n) {
             4 => {
-                let $p = &mut RayPacket::<4>::empty(rays);
-                $p.fill();
-                out.copy_from_slice(&$query[..n])
+                let mut packet = RayPacket::<4>::new(rays);
+                {
+                    let $p = &mut packet;
+                    out.copy_from_slice(&$query[..n]);
+                }
+                packet.recycle()
             }
             16 => {
-                let $p = &mut RayPacket::<16>::empty(rays);
-                $p.fill();
-                out.copy_from_slice(&$query[..n])
+                let mut packet = RayPacket::<16>::new(rays);
+                {
+                    let $p = &mut packet;
+                    out.copy_from_slice(&$query[..n]);
+                }
+                packet.recycle()
             }
             64 => {
-                let $p = &mut RayPacket::<64>::empty(rays);
-                $p.fill();
-                out.copy_from_slice(&$query[..n])
+                let mut packet = RayPacket::<64>::new(rays);
+                {
+                    let $p = &mut packet;
+                    out.copy_from_slice(&$query[..n]);
+                }
+                packet.recycle()
             }
             _ => {
-                let $p = &mut RayPacket::<256>::empty(rays);
-                $p.fill();
-                out.copy_from_slice(&$query[..n])
+                let mut packet = RayPacket::<256>::new(rays);
+                {
+                    let $p = &mut packet;
+                    out.copy_from_slice(&$query[..n]);
+                }
+                packet.recycle()
             }
         }
     }};

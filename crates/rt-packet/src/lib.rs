@@ -2,7 +2,7 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`packet`] | [`RayPacket`]: `N` rays in structure-of-arrays form with an active mask; [`tiles`] of an image |
+//! | [`packet`] | [`RayPacket`]: `N` rays in structure-of-arrays form with an active mask (its [`Lanes`], reused by the thread's next packet); [`tiles`] of an image |
 //! | [`api`] | [`PacketTraversal`] (`intersect_packet`, `occluded_packet`) and [`PacketAccel`], the same behind a trait object for groups of up to [`MAX_GROUP`] rays; [`WithSingleRays`], a packet path with its own single-ray structure |
 //! | [`lanes`] | the kernels over blocks of 8 lanes: the slab test, and [`PacketPrimitive`] (watertight triangle test of 8 lanes at once) |
 //! | [`beam`] | [`Beam`]: a packet bounded by interval arithmetic, for culling and entry points |
@@ -57,4 +57,4 @@ pub use api::{COHERENT_COS, MAX_GROUP, PacketAccel, PacketTraversal, WithSingleR
 pub use beam::Beam;
 pub use kd::{EntryPoint, MlrtaKdTree};
 pub use lanes::PacketPrimitive;
-pub use packet::{RayPacket, TILE_SIDES, tiles};
+pub use packet::{Lanes, RayPacket, TILE_SIDES, tiles};

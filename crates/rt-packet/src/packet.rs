@@ -18,6 +18,14 @@ pub const TILE_SIDES: [usize; 4] = [2, 4, 8, 16];
 pub struct RayPacket<'a, const N: usize> {
     /// The rays themselves (the primitive kernels take them whole): lane `i` is `rays[i]`.
     pub rays: &'a [Ray],
+    /// The lanes, on the heap: a packet is a pointer and a slice, cheap to return, and its
+    /// lanes are reused by the next packet of the thread ([`RayPacket::recycle`]).
+    lanes: Box<Lanes<N>>,
+}
+
+/// The lanes of a [`RayPacket`] (which dereferences to them).
+#[derive(Clone, Debug)]
+pub struct Lanes<const N: usize> {
     pub origin: [[f32; N]; 3],
     pub dir: [[f32; N]; 3],
     /// `1 / dir` per axis (`+-inf` for zero components, as `Ray::inv_dir`).
@@ -40,46 +48,81 @@ pub struct RayPacket<'a, const N: usize> {
     pub active: [bool; N],
 }
 
-impl<'a, const N: usize> RayPacket<'a, N> {
-    /// A packet of up to `N` rays (the first `rays.len()` lanes).
-    pub fn new(rays: &'a [Ray]) -> Self {
-        let mut p = Self::empty(rays);
-        p.fill();
-        p
+impl<const N: usize> std::ops::Deref for RayPacket<'_, N> {
+    type Target = Lanes<N>;
+    #[inline(always)]
+    fn deref(&self) -> &Lanes<N> {
+        &self.lanes
     }
+}
 
-    /// The packet before [`Self::fill`]: every lane as the lanes past the rays read
-    /// (inactive, an empty interval). Hot paths make it where it stays and fill it there
-    /// (`let p = &mut RayPacket::empty(rays); p.fill();`): returned filled from [`Self::new`],
-    /// the whole packet was copied once more (26 KiB for 256 lanes, callgrind).
-    pub fn empty(rays: &'a [Ray]) -> Self {
+impl<const N: usize> std::ops::DerefMut for RayPacket<'_, N> {
+    #[inline(always)]
+    fn deref_mut(&mut self) -> &mut Lanes<N> {
+        &mut self.lanes
+    }
+}
+
+thread_local! {
+    /// Lanes of packets this thread traced, for its next ones (one per size at most).
+    static SPARE_LANES: std::cell::RefCell<Vec<Box<dyn std::any::Any>>> =
+        const { std::cell::RefCell::new(Vec::new()) };
+}
+
+impl<'a, const N: usize> RayPacket<'a, N> {
+    /// A packet of up to `N` rays (the first `rays.len()` lanes), its lanes from the ones this
+    /// thread's last packet of `N` lanes gave back ([`Self::recycle`]), or new.
+    pub fn new(rays: &'a [Ray]) -> Self {
         const { assert!(N > 0 && N % 4 == 0, "packets hold a multiple of 4 lanes") };
         assert!(
             rays.len() <= N,
             "{} rays do not fit a packet of {N}",
             rays.len()
         );
-        Self {
-            rays,
-            origin: [[0.0; N]; 3],
-            dir: [[0.0; N]; 3],
-            inv_dir: [[0.0; N]; 3],
-            inv_lo: [[0.0; N]; 3],
-            inv_hi: [[0.0; N]; 3],
-            pad_after: false,
-            shear: [[0.0; N]; 6],
-            tmin: [0.0; N],
-            tmax: [f32::NEG_INFINITY; N],
-            active: [false; N],
-        }
+        let spare = SPARE_LANES.with(|spare| {
+            let mut spare = spare.borrow_mut();
+            let at = spare.iter().position(|l| l.is::<Lanes<N>>())?;
+            spare.swap_remove(at).downcast::<Lanes<N>>().ok()
+        });
+        let lanes = spare.unwrap_or_else(|| {
+            Box::new(Lanes {
+                origin: [[0.0; N]; 3],
+                dir: [[0.0; N]; 3],
+                inv_dir: [[0.0; N]; 3],
+                inv_lo: [[0.0; N]; 3],
+                inv_hi: [[0.0; N]; 3],
+                pad_after: false,
+                shear: [[0.0; N]; 6],
+                tmin: [0.0; N],
+                tmax: [f32::NEG_INFINITY; N],
+                active: [false; N],
+            })
+        });
+        let mut p = Self { rays, lanes };
+        p.fill();
+        p
     }
 
-    /// Writes the lanes of the rays, in place (the fields are written lane block by lane block:
-    /// building them as arrays of their own and moving them into the packet copied every byte
-    /// once more, 64 `memcpy` calls per 16x16 packet, an eighth of the packet walk's
-    /// instructions, callgrind).
-    pub fn fill(&mut self) {
-        let rays = self.rays;
+    /// Gives the packet's lanes back for this thread's next packet of `N` lanes, which then
+    /// needs no allocation and no zeroing (every lane is written again: the rays' lanes, and
+    /// the lanes past them as inactive). Zeroing a new 256-lane packet's 26 KiB each time, and
+    /// before that copying it once more on return, were a measurable part of a packet's time.
+    pub fn recycle(self) {
+        let lanes: Box<dyn std::any::Any> = self.lanes;
+        SPARE_LANES.with(|spare| {
+            let mut spare = spare.borrow_mut();
+            if spare.len() < 8 {
+                spare.push(lanes);
+            }
+        });
+    }
+
+    /// Writes every lane, in place: the rays' lanes and the lanes past them (inactive, an
+    /// empty interval). The fields are written lane block by lane block: building them as
+    /// arrays of their own and moving them into the packet copied every byte once more (64
+    /// `memcpy` calls per 16x16 packet, an eighth of the packet walk's instructions,
+    /// callgrind).
+    fn fill(&mut self) {
         // A block of lanes at a time: the rays' own numbers (origin, direction, interval; one
         // row of 8 per ray, transposed into lanes), then everything derived from them
         // (reciprocals, folded reciprocals, shear rows) in SIMD, with the operations of
@@ -87,7 +130,7 @@ impl<'a, const N: usize> RayPacket<'a, N> {
         // rays took 23 scalar loads and stores per ray, and filling a 16x16 packet was a third
         // of the teapot's packet time.
         let mut pad_after = false;
-        for base in (0..rays.len().min(N)).step_by(crate::lanes::block_width(N)) {
+        for base in (0..N).step_by(crate::lanes::block_width(N)) {
             pad_after |= match crate::lanes::block_width(N) {
                 8 => self.fill_block::<8>(base),
                 _ => self.fill_block::<4>(base),
