@@ -148,39 +148,21 @@ macro_rules! as_one_packet {
         let (rays, out) = ($rays, $out);
         assert!(rays.len() <= MAX_GROUP && rays.len() == out.len());
         let n = rays.len();
+        macro_rules! trace {
+            ($lanes:literal) => {{
+                let mut packet = RayPacket::<$lanes>::new(rays);
+                {
+                    let $p = &mut packet;
+                    out.copy_from_slice(&$query[..n]);
+                }
+                packet.recycle()
+            }};
+        }
         match packet_lanes(n) {
-            4 => {
-                let mut packet = RayPacket::<4>::new(rays);
-                {
-                    let $p = &mut packet;
-                    out.copy_from_slice(&$query[..n]);
-                }
-                packet.recycle()
-            }
-            16 => {
-                let mut packet = RayPacket::<16>::new(rays);
-                {
-                    let $p = &mut packet;
-                    out.copy_from_slice(&$query[..n]);
-                }
-                packet.recycle()
-            }
-            64 => {
-                let mut packet = RayPacket::<64>::new(rays);
-                {
-                    let $p = &mut packet;
-                    out.copy_from_slice(&$query[..n]);
-                }
-                packet.recycle()
-            }
-            _ => {
-                let mut packet = RayPacket::<256>::new(rays);
-                {
-                    let $p = &mut packet;
-                    out.copy_from_slice(&$query[..n]);
-                }
-                packet.recycle()
-            }
+            4 => trace!(4),
+            16 => trace!(16),
+            64 => trace!(64),
+            _ => trace!(256),
         }
     }};
 }

@@ -64,7 +64,8 @@ impl<const N: usize> std::ops::DerefMut for RayPacket<'_, N> {
 }
 
 thread_local! {
-    /// Lanes of packets this thread traced, for its next ones (one per size at most).
+    /// Lanes of packets this thread traced, for its next ones (a few: one per packet size
+    /// in use, more only while packets are nested).
     static SPARE_LANES: std::cell::RefCell<Vec<Box<dyn std::any::Any>>> =
         const { std::cell::RefCell::new(Vec::new()) };
 }
