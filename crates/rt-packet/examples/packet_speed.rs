@@ -24,9 +24,14 @@ fn median_mrays(rays: usize, mut run: impl FnMut() -> usize) -> (f64, usize) {
 
 /// Single rays, then packets of every tile size, of one structure.
 fn report<T: Accel + PacketTraversal>(name: &str, accel: &T, rays: &[Ray], (w, h): (usize, usize)) {
-    let (single, hits) = median_mrays(rays.len(), || {
-        rays.iter().filter(|r| accel.intersect(r).is_some()).count()
-    });
+    // `PACKETS_ONLY=1` skips the single rays (for a profile of the packets alone).
+    let (single, hits) = if std::env::var_os("PACKETS_ONLY").is_some() {
+        (f64::NAN, 0)
+    } else {
+        median_mrays(rays.len(), || {
+            rays.iter().filter(|r| accel.intersect(r).is_some()).count()
+        })
+    };
     println!("{name:<10} single rays  {single:7.2} Mrays/s  ({hits} hits)");
     let only: Option<usize> = std::env::args().nth(3).and_then(|s| s.parse().ok());
     for side in TILE_SIDES
@@ -52,7 +57,12 @@ fn report<T: Accel + PacketTraversal>(name: &str, accel: &T, rays: &[Ray], (w, h
             let (rate, _) = median_mrays(tiled.len(), || {
                 tiled
                     .chunks(256)
-                    .map(|c| std::hint::black_box(RayPacket::<256>::new(c)).active_count())
+                    .map(|c| {
+                        let packet = std::hint::black_box(RayPacket::<256>::new(c));
+                        let active = packet.active_count();
+                        packet.recycle();
+                        active
+                    })
                     .sum()
             });
             println!("{name:<10} 16x16 packets filled, not traced {rate:7.2} Mrays/s");

@@ -161,6 +161,28 @@ impl Beam {
         }
     }
 
+    /// [`Self::limit`] to the largest `tmax` of the lanes of `range` of `p`: their closest
+    /// hits so far bound how far the beam may still find one. Inactive lanes hold `-inf`
+    /// (see [`RayPacket`]'s `tmax`), so no lane is filtered: eight lanes are one `max`.
+    pub fn limit_to_lanes<const N: usize>(
+        &mut self,
+        p: &RayPacket<'_, N>,
+        range: std::ops::Range<usize>,
+    ) {
+        use wide::f32x8;
+        let ninf = f32::NEG_INFINITY;
+        let mut far = f32x8::splat(ninf);
+        let mut end = range.start;
+        for base in range.clone().step_by(8).take_while(|b| b + 8 <= range.end) {
+            far = far.max(f32x8::new(
+                p.tmax[base..base + 8].try_into().expect("8 lanes"),
+            ));
+            end = base + 8;
+        }
+        let far = far.to_array().into_iter().fold(ninf, f32::max);
+        self.limit(p.tmax[end..range.end].iter().fold(far, |m, &t| m.max(t)));
+    }
+
     /// The lanes' common direction sign along `axis` (`Some(true)`: all negative), if any.
     pub fn sign(&self, axis: usize) -> Option<bool> {
         let (lo, hi) = self.slope[axis];
@@ -265,5 +287,50 @@ mod tests {
             culled > 500,
             "the beam culls most far-away boxes ({culled})"
         );
+    }
+
+    #[test]
+    fn a_beam_limited_to_its_lanes_hits_keeps_every_box_before_them() {
+        // The lanes' intervals end at hits from 4 to 7 (some lanes done: `-inf`); a box that a
+        // lane enters before its own end is kept, and boxes past every end are culled.
+        let rays: Vec<Ray> = (0..64)
+            .map(|i| {
+                let (x, y) = ((i % 8) as f32 / 8.0, (i / 8) as f32 / 8.0);
+                Ray::new(
+                    Vec3::new(0.0, 0.0, 5.0),
+                    Vec3::new((x - 0.5) * 0.2, (y - 0.5) * 0.2, -1.0),
+                )
+            })
+            .collect();
+        let mut p = RayPacket::<64>::new(&rays);
+        for i in 0..64 {
+            p.tmax[i] = 4.0 + (i * 37 % 64) as f32 * 3.0 / 63.0;
+            if i % 9 == 4 {
+                p.active[i] = false;
+                p.tmax[i] = f32::NEG_INFINITY;
+            }
+        }
+        let mut beam = Beam::new(&p, 0..64);
+        beam.limit_to_lanes(&p, 0..64);
+        let (mut kept, mut culled) = (0, 0);
+        // Small boxes along each lane's ray, from half its end to past it, and far beyond.
+        for k in 0..4000u32 {
+            let f = |s: u32| ((k.wrapping_mul(2654435761).rotate_left(s) % 1000) as f32) / 1000.0;
+            let (i, s) = (k as usize % 64, 0.5 + f(3) * 0.7);
+            let end = if p.tmax[i].is_finite() {
+                p.tmax[i]
+            } else {
+                5.0
+            };
+            let c = rays[i].at(end * s) + Vec3::new(f(9), f(17), f(25)) * 0.01;
+            let b = Aabb::new(c - Vec3::splat(0.004), c + Vec3::splat(0.004));
+            let entered = (0..64).any(|i| p.active[i] && b.clip_ray(&p.ray(i)).is_some());
+            let may = beam.may_enter(&b.min.to_array(), &b.max.to_array());
+            assert!(may || !entered, "box {b:?} culled but entered");
+            kept += entered as u32;
+            culled += (!may) as u32;
+        }
+        assert!(kept > 300, "boxes entered before the hits ({kept})");
+        assert!(culled > 200, "boxes past every hit culled ({culled})");
     }
 }

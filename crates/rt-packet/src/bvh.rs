@@ -61,6 +61,50 @@ pub(crate) fn lane_entry<const N: usize>(
     }
 }
 
+/// A packet's [`Beam`] for culling whole nodes, made when first needed (interval culling pays
+/// off for packets of 64 lanes and more only) and ended at the lanes' closest hits so far each
+/// time it is asked after a leaf was tested: a node behind the surface the packet has hit is
+/// culled by one test, not by a slab test of every block of lanes.
+pub(crate) struct Culling {
+    beam: Option<Beam>,
+    /// A leaf was tested since the beam was last limited: the lanes' `tmax` may have shrunk.
+    stale: bool,
+}
+
+impl Culling {
+    pub(crate) fn new() -> Self {
+        Self {
+            beam: None,
+            stale: false,
+        }
+    }
+
+    /// Lanes' closest hits may have come nearer (a leaf was tested).
+    #[inline(always)]
+    pub(crate) fn leaf_tested(&mut self) {
+        self.stale = true;
+    }
+
+    /// False only when no active lane of `p` can enter the box `node`.
+    #[inline(always)]
+    fn may_enter<const N: usize>(&mut self, node: Bounds<'_>, p: &RayPacket<'_, N>) -> bool {
+        if N < 64 {
+            return true;
+        }
+        let beam = match &mut self.beam {
+            Some(beam) => {
+                if self.stale {
+                    beam.limit_to_lanes(p, 0..N);
+                }
+                beam
+            }
+            none => none.insert(Beam::new(p, 0..N)),
+        };
+        self.stale = false;
+        beam.may_enter(node.0, node.1)
+    }
+}
+
 /// The first and the last active lane in `lanes` (inclusive) that enter `node`, if any: the
 /// first active ray is tried alone, and when it misses, the beam may cull the node for the
 /// whole packet before the following lanes are tried a block at a time; the last lane is
@@ -69,19 +113,14 @@ pub(crate) fn lane_entry<const N: usize>(
 pub(crate) fn entering_range<const N: usize, const W: usize>(
     node: Bounds<'_>,
     p: &RayPacket<'_, N>,
-    beam: &mut Option<Beam>,
+    culling: &mut Culling,
     (from, to): (usize, usize),
 ) -> Option<(usize, usize)> {
     let first = (from..=to).find(|&i| p.active[i])?;
     let first = if lane_enters(node, p, first) {
         first
     } else {
-        // Interval culling pays off for large packets only; the beam is made when first needed.
-        if N >= 64
-            && !beam
-                .get_or_insert_with(|| Beam::new(p, 0..N))
-                .may_enter(node.0, node.1)
-        {
+        if !culling.may_enter(node, p) {
             return None;
         }
         scan::<N, W>(node, p, first + 1..=to, false)?
@@ -187,7 +226,7 @@ fn traverse<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: b
         return;
     }
     let (prims, ids) = (bvh.prims(), bvh.ids());
-    let mut beam = None;
+    let mut culling = Culling::new();
     // Pending far children with the first and last lanes that entered their parent.
     let mut stack = [(0u32, 0u32, 0u32); MAX_DEPTH + 1];
     let mut sp = 0;
@@ -201,7 +240,7 @@ fn traverse<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: b
     }) {
         let node = &nodes[index];
         let Some((first, last)) =
-            entering_range::<N, W>((&node.min, &node.max), p, &mut beam, (from, to))
+            entering_range::<N, W>((&node.min, &node.max), p, &mut culling, (from, to))
         else {
             continue;
         };
@@ -209,6 +248,7 @@ fn traverse<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: b
             let leaf = (node.offset, node.count());
             let b = (&node.min, &node.max);
             test_leaf::<P, N, W, ANY_HIT>((prims, ids), leaf, b, p, best, (first, last));
+            culling.leaf_tested();
             continue;
         }
         // Near child first, by the first entering lane's direction on the split axis.
@@ -246,6 +286,7 @@ mod tests {
         let tris = scenes::tessellated_sphere(5000, rt_geom::Vec3::splat(0.5), 0.4);
         let bvh = Bvh::build(&tris, BvhParams::balanced()).unwrap();
         crate::check::camera_tiles(&bvh, &tris);
+        crate::check::enclosed_tiles(|t| Bvh::build(t, BvhParams::balanced()).unwrap());
     }
 
     #[test]

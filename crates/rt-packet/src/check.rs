@@ -48,10 +48,25 @@ pub fn all_sizes<T: PacketTraversal + Accel>(accel: &T, rays: &[Ray], what: &str
 
 /// A front camera's rays over `tris`, cut into tiles of every [`crate::TILE_SIDES`] size.
 pub fn camera_tiles<T: PacketTraversal + Accel>(accel: &T, tris: &[Triangle]) {
-    let bounds = tris
-        .iter()
-        .fold(rt_geom::Aabb::EMPTY, |b, t| b.union(t.bounds()));
-    let view = rt_testkit::View::front(&bounds);
+    view_tiles(accel, rt_testkit::View::front(&bounds(tris)));
+}
+
+/// A random soup inside a closed sphere, and a camera inside it: every ray of every tile hits
+/// something, so a packet's closest hits so far bound it (what culls nodes behind them).
+pub fn enclosed_tiles<T: PacketTraversal + Accel>(build: impl Fn(&[Triangle]) -> T) {
+    let center = rt_geom::Vec3::splat(0.5);
+    let mut tris = rt_testkit::scenes::tessellated_sphere(2000, center, 1.0);
+    tris.extend(rt_testkit::scenes::random_soup(2000, 11));
+    view_tiles(&build(&tris), rt_testkit::View::interior(&bounds(&tris)));
+}
+
+fn bounds(tris: &[Triangle]) -> rt_geom::Aabb {
+    tris.iter()
+        .fold(rt_geom::Aabb::EMPTY, |b, t| b.union(t.bounds()))
+}
+
+/// `view`'s rays cut into tiles of every [`crate::TILE_SIDES`] size, in packets of every size.
+fn view_tiles<T: PacketTraversal + Accel>(accel: &T, view: rt_testkit::View) {
     let (w, h) = (48, 40);
     let rays = view.camera_rays(w, h);
     for side in crate::TILE_SIDES {

@@ -450,7 +450,7 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
         for (k, e) in entries.iter().enumerate() {
             if k > 0 {
                 // Cells beyond every lane's closest hit so far are culled for the whole beam.
-                beam.limit(reach(p, range.clone()));
+                beam.limit_to_lanes(p, range.clone());
                 if !beam.may_enter(&e.cell.min.to_array(), &e.cell.max.to_array()) {
                     continue;
                 }
@@ -459,22 +459,6 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
             trace_from::<P, N, W, ANY_HIT>(&self.tree, p, best, range.clone(), entry, stack);
         }
     }
-}
-
-/// The largest `tmax` of the active lanes of `range` (`-inf` when none is), eight lanes at a
-/// time: how far any ray of the beam may still find a closer hit.
-fn reach<const N: usize>(p: &RayPacket<'_, N>, range: std::ops::Range<usize>) -> f32 {
-    use wide::f32x8;
-    let ninf = f32::NEG_INFINITY;
-    let lane = |i: usize| if p.active[i] { p.tmax[i] } else { ninf };
-    let mut far = f32x8::splat(ninf);
-    let mut end = range.start;
-    for base in range.clone().step_by(8).take_while(|b| b + 8 <= range.end) {
-        far = far.max(f32x8::new(std::array::from_fn(|l| lane(base + l))));
-        end = base + 8;
-    }
-    let far = far.to_array().into_iter().fold(ninf, f32::max);
-    (end..range.end).fold(far, |m, i| m.max(lane(i)))
 }
 
 /// The cells below and above a plane.
@@ -559,6 +543,8 @@ mod tests {
         let kd = KdTree::build(&tris, KdParams::sah()).unwrap();
         camera_tiles(&kd, &tris);
         camera_tiles(&MlrtaKdTree::new(kd), &tris);
+        let build = |t: &[rt_geom::Triangle]| KdTree::build(t, KdParams::sah()).unwrap();
+        crate::check::enclosed_tiles(|t| MlrtaKdTree::new(build(t)));
     }
 
     #[test]

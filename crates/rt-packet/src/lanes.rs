@@ -223,6 +223,7 @@ pub(crate) fn test_block<'a, P, const N: usize, const W: usize, const ANY_HIT: b
             if ANY_HIT {
                 best[lane] = Some(Hit::new(h, id));
                 p.active[lane] = false;
+                p.tmax[lane] = f32::NEG_INFINITY;
                 lanes &= !(1 << l);
             } else if replaces(h.t, id, best[lane].as_ref().map(Hit::key)) {
                 best[lane] = Some(Hit::new(h, id));

@@ -43,7 +43,9 @@ pub struct Lanes<const N: usize> {
     /// `z` of row 0, then of row 1.
     pub shear: [[f32; N]; 6],
     pub tmin: [f32; N],
-    /// Shrinks to each lane's closest hit during traversal.
+    /// Shrinks to each lane's closest hit during traversal; `-inf` in inactive lanes (from
+    /// the fill, and once an any-hit query is done with a lane), so that the largest `tmax`
+    /// bounds how far the packet may still find hits.
     pub tmax: [f32; N],
     pub active: [bool; N],
 }
@@ -156,28 +158,37 @@ impl<'a, const N: usize> RayPacket<'a, N> {
         let past = f32x8::new([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, f32::NEG_INFINITY]);
         // Validity as a lane mask (all ones or all zeros).
         let mut valid = [0.0; 8];
-        let rows = std::array::from_fn(|l| match self.rays.get(base + l) {
-            Some(r) if l < W => {
-                valid[l] = f32::from_bits(if r.is_valid() { u32::MAX } else { 0 });
-                let (o, d) = (r.origin(), r.dir());
-                f32x8::new([o.x, o.y, o.z, d.x, d.y, d.z, r.tmin, r.tmax])
-            }
-            _ => past,
-        });
+        let mut row = |l: usize, r: &Ray| {
+            valid[l] = f32::from_bits(if r.is_valid() { u32::MAX } else { 0 });
+            let (o, d) = (r.origin(), r.dir());
+            f32x8::new([o.x, o.y, o.z, d.x, d.y, d.z, r.tmin, r.tmax])
+        };
+        // A whole block of rays (all but the last block of a packet) without a check per lane.
+        let rows = match self.rays.get(base..base + W) {
+            Some(rays) => std::array::from_fn(|l| if l < W { row(l, &rays[l]) } else { past }),
+            None => std::array::from_fn(|l| match self.rays.get(base + l) {
+                Some(r) if l < W => row(l, r),
+                _ => past,
+            }),
+        };
         let [ox, oy, oz, dx, dy, dz, tmin, tmax] = f32x8::transpose(rows);
         let (d, zero, one) = ([dx, dy, dz], f32x8::ZERO, f32x8::ONE);
         for (a, o) in [ox, oy, oz].into_iter().enumerate() {
             st(&mut self.origin[a], o);
             st(&mut self.dir[a], d[a]);
         }
-        st(&mut self.tmin, tmin);
-        st(&mut self.tmax, tmax);
         let valid = f32x8::new(valid);
         let active = valid & tmin.cmp_le(tmax);
+        st(&mut self.tmin, tmin);
+        // Inactive lanes end at `-inf`: the largest `tmax` of a packet's lanes bounds how far
+        // its active ones may still find a hit (`Beam::limit_to_lanes`).
+        st(
+            &mut self.tmax,
+            active.blend(tmax, f32x8::splat(f32::NEG_INFINITY)),
+        );
         let active_bits = active.move_mask() as u32;
-        for l in 0..W {
-            self.active[base + l] = active_bits >> l & 1 == 1;
-        }
+        let lanes: [bool; 8] = spread_bits(active_bits).map(|b| b != 0);
+        self.active[base..base + W].copy_from_slice(&lanes[..W]);
         // `SlabRay::fold_factors` and `SlabRay::new`.
         let folds = tmin.cmp_ge(zero);
         let near = folds.blend(f32x8::splat(1.0 - PAD), one);
@@ -236,6 +247,16 @@ impl<'a, const N: usize> RayPacket<'a, N> {
     }
 }
 
+/// The low 8 bits of `bits` as 8 bytes, byte `l` one when bit `l` is set (a few integer
+/// operations instead of a shift, mask and store per lane).
+#[inline(always)]
+fn spread_bits(bits: u32) -> [u8; 8] {
+    const LOW7: u64 = 0x7f7f_7f7f_7f7f_7f7f;
+    // Byte `l` keeps bit `l` of a copy of the 8 bits, then any non-zero byte becomes 1.
+    let y = ((bits as u64 & 0xff) * 0x0101_0101_0101_0101) & 0x8040_2010_0804_0201;
+    ((((y & LOW7) + LOW7) | y) >> 7 & 0x0101_0101_0101_0101).to_le_bytes()
+}
+
 /// Indices of a row-major `width x height` image's pixels grouped into `tw x th` tiles, tiles
 /// in row-major order (edge tiles are smaller). Inside a tile the pixels go by blocks of 4x2,
 /// the blocks in Morton order: each block of 8 lanes covers a compact patch of the image (and
@@ -275,6 +296,14 @@ fn lane_order(x: usize, y: usize) -> (usize, usize, usize) {
 mod tests {
     use super::*;
     use rt_geom::Vec3;
+
+    #[test]
+    fn spread_bits_gives_one_byte_per_bit() {
+        for bits in 0..1024u32 {
+            let want: [u8; 8] = std::array::from_fn(|l| (bits >> l & 1) as u8);
+            assert_eq!(spread_bits(bits), want, "{bits:#b}");
+        }
+    }
 
     #[test]
     fn tiles_cover_every_pixel_once() {
@@ -347,6 +376,7 @@ mod tests {
                     let active = r.is_valid() && r.tmin <= r.tmax;
                     assert_eq!(p.active[i], active, "{r:?}");
                     if !active {
+                        assert_eq!(p.tmax[i], f32::NEG_INFINITY, "{r:?}");
                         continue;
                     }
                     let slab = rt_geom::aabb::SlabRay::new(r);

@@ -6,8 +6,7 @@
 //! at a time, as in the binary tree, with the same tie rule: every lane's answer equals the
 //! wide BVH's single-ray answer.
 
-use crate::beam::Beam;
-use crate::bvh::{entering_range, lane_entry, test_leaf};
+use crate::bvh::{Culling, entering_range, lane_entry, test_leaf};
 use crate::lanes::PacketPrimitive;
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_bvh::{WideBvh, WideNode};
@@ -33,7 +32,7 @@ fn expand<const K: usize, const N: usize, const W: usize>(
     nodes: &[WideNode<K>],
     index: u32,
     p: &RayPacket<'_, N>,
-    beam: &mut Option<Beam>,
+    culling: &mut Culling,
     (from, to): (usize, usize),
     stack: &mut Vec<Pending>,
 ) {
@@ -42,7 +41,7 @@ fn expand<const K: usize, const N: usize, const W: usize>(
     let mut n = 0;
     for c in (0..K).filter(|&c| node.is_used(c)) {
         let (min, max) = child_box(node, c);
-        let Some((lo, hi)) = entering_range::<N, W>((&min, &max), p, beam, (from, to)) else {
+        let Some((lo, hi)) = entering_range::<N, W>((&min, &max), p, culling, (from, to)) else {
             continue;
         };
         let entry = lane_entry((&min, &max), p, lo).unwrap_or(f32::INFINITY);
@@ -81,10 +80,10 @@ fn traverse<
     if nodes.is_empty() {
         return;
     }
-    let mut beam = None;
+    let mut culling = Culling::new();
     // At most K - 1 pending siblings per level, plus the children of the deepest node.
     let mut stack: Vec<Pending> = Vec::with_capacity((K - 1) * (tree.depth() + 1) + K);
-    expand::<K, N, W>(nodes, 0, p, &mut beam, (first, last), &mut stack);
+    expand::<K, N, W>(nodes, 0, p, &mut culling, (first, last), &mut stack);
     while let Some((parent, c, lo, hi)) = stack.pop() {
         let node = &nodes[parent as usize];
         let c = c as usize;
@@ -93,8 +92,9 @@ fn traverse<
             let (min, max) = child_box(node, c);
             let range = (node.child[c], node.count[c]);
             test_leaf::<P, N, W, ANY_HIT>(prims, range, (&min, &max), p, best, lanes);
+            culling.leaf_tested();
         } else {
-            expand::<K, N, W>(nodes, node.child[c], p, &mut beam, lanes, &mut stack);
+            expand::<K, N, W>(nodes, node.child[c], p, &mut culling, lanes, &mut stack);
         }
     }
 }
@@ -157,6 +157,7 @@ mod tests {
         let tris = scenes::tessellated_sphere(5000, rt_geom::Vec3::splat(0.5), 0.4);
         let bvh8 = Bvh8::build(&tris, BvhParams::balanced()).unwrap();
         camera_tiles(&bvh8, &tris);
+        crate::check::enclosed_tiles(|t| Bvh8::build(t, BvhParams::balanced()).unwrap());
         let soup = scenes::random_soup(3000, 9);
         groups(
             &Bvh8::build(&soup, BvhParams::fast()).unwrap(),
