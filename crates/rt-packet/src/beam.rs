@@ -77,52 +77,13 @@ impl Beam {
         beam.negative = negative;
         // One pass over the lanes, 8 at a time (`wide`). |1 / d[k]|: slopes d / |d[k]| by a
         // product (within an ulp of the quotient, far inside the beam's margin). Active lanes
-        // hold no NaN (their direction along k is not zero), inactive ones are blended out.
-        use wide::{CmpEq, f32x8};
-        let (inf, ninf) = (f32x8::splat(f32::INFINITY), f32x8::splat(f32::NEG_INFINITY));
-        let (mut lo8, mut hi8) = ([inf; 8], [ninf; 8]);
-        let mut speed8 = f32x8::ZERO;
-        let (mut dk_lo8, mut dk_hi8) = (inf, ninf);
-        let mut i = lanes.start;
-        while i + 8 <= lanes.end {
-            let ld = |v: &[f32; N]| f32x8::new(v[i..i + 8].try_into().expect("8 lanes"));
-            let on: [f32; 8] = std::array::from_fn(|l| p.active[i + l] as u8 as f32);
-            let on = f32x8::new(on).cmp_eq(f32x8::ONE);
-            let rcp = ld(&p.inv_dir[k]).abs();
-            let speed = ld(&p.dir[k]).abs();
-            let v = [
-                ld(&p.origin[0]),
-                ld(&p.origin[1]),
-                ld(&p.origin[2]),
-                ld(&p.dir[0]) * rcp,
-                ld(&p.dir[1]) * rcp,
-                ld(&p.dir[2]) * rcp,
-                ld(&p.tmin) * speed,
-                ld(&p.tmax) * speed,
-            ];
-            for j in 0..8 {
-                lo8[j] = lo8[j].min(on.blend(v[j], inf));
-                hi8[j] = hi8[j].max(on.blend(v[j], ninf));
-            }
-            speed8 = speed8.max(on.blend(speed, f32x8::ZERO));
-            dk_lo8 = dk_lo8.min(on.blend(ld(&p.dir[k]), inf));
-            dk_hi8 = dk_hi8.max(on.blend(ld(&p.dir[k]), ninf));
-            i += 8;
-        }
-        let fold =
-            |v: f32x8, f: fn(f32, f32) -> f32, init: f32| v.to_array().into_iter().fold(init, f);
-        let mut lo: [f32; 8] = lo8.map(|v| fold(v, f32::min, f32::INFINITY));
-        let mut hi: [f32; 8] = hi8.map(|v| fold(v, f32::max, f32::NEG_INFINITY));
-        beam.speed = fold(speed8, f32::max, 0.0);
-        let mut dk = (
-            fold(dk_lo8, f32::min, f32::INFINITY),
-            fold(dk_hi8, f32::max, f32::NEG_INFINITY),
-        );
-        // The lanes past the last block of 8.
-        for i in (i..lanes.end).filter(|&i| p.active[i]) {
-            let rcp = p.inv_dir[k][i].abs();
-            let speed = p.dir[k][i].abs();
-            let v = [
+        // hold no NaN (their direction along k is not zero); inactive ones take the numbers of
+        // the lane `rep` (which change no range), and are those whose interval is empty
+        // (`tmax` is `-inf` in inactive lanes; conservative for lanes made inactive otherwise).
+        use wide::{CmpLe, f32x8};
+        let numbers = |i: usize| {
+            let (rcp, speed) = (p.inv_dir[k][i].abs(), p.dir[k][i].abs());
+            [
                 p.origin[0][i],
                 p.origin[1][i],
                 p.origin[2][i],
@@ -131,14 +92,53 @@ impl Beam {
                 p.dir[2][i] * rcp,
                 p.tmin[i] * speed,
                 p.tmax[i] * speed,
+                speed,
+                p.dir[k][i],
+            ]
+        };
+        let rep_numbers = numbers(rep).map(f32x8::splat);
+        let (mut lo8, mut hi8) = (rep_numbers, rep_numbers);
+        let mut i = lanes.start;
+        while i + 8 <= lanes.end {
+            let ld = |v: &[f32; N]| f32x8::new(v[i..i + 8].try_into().expect("8 lanes"));
+            let (tmin, tmax) = (ld(&p.tmin), ld(&p.tmax));
+            let on = tmin.cmp_le(tmax);
+            let rcp = ld(&p.inv_dir[k]).abs();
+            let dk = ld(&p.dir[k]);
+            let speed = dk.abs();
+            let v = [
+                ld(&p.origin[0]),
+                ld(&p.origin[1]),
+                ld(&p.origin[2]),
+                ld(&p.dir[0]) * rcp,
+                ld(&p.dir[1]) * rcp,
+                ld(&p.dir[2]) * rcp,
+                tmin * speed,
+                tmax * speed,
+                speed,
+                dk,
             ];
-            for j in 0..8 {
+            for j in 0..v.len() {
+                let v = on.blend(v[j], rep_numbers[j]);
+                lo8[j] = lo8[j].min(v);
+                hi8[j] = hi8[j].max(v);
+            }
+            i += 8;
+        }
+        let fold =
+            |v: f32x8, f: fn(f32, f32) -> f32, init: f32| v.to_array().into_iter().fold(init, f);
+        let mut lo: [f32; 10] = lo8.map(|v| fold(v, f32::min, f32::INFINITY));
+        let mut hi: [f32; 10] = hi8.map(|v| fold(v, f32::max, f32::NEG_INFINITY));
+        // The lanes past the last block of 8.
+        for i in (i..lanes.end).filter(|&i| p.active[i]) {
+            let v = numbers(i);
+            for j in 0..v.len() {
                 lo[j] = lo[j].min(v[j]);
                 hi[j] = hi[j].max(v[j]);
             }
-            beam.speed = beam.speed.max(speed);
-            dk = (dk.0.min(p.dir[k][i]), dk.1.max(p.dir[k][i]));
         }
+        beam.speed = hi[8];
+        let dk = (lo[9], hi[9]);
         // One sign along k over all lanes (no zero component), or no main axis.
         if !(if negative { dk.1 < 0.0 } else { dk.0 > 0.0 }) {
             return beam;
