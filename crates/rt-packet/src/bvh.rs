@@ -63,11 +63,11 @@ pub(crate) fn lane_entry<const N: usize>(
 
 /// A packet's [`Beam`] for culling whole nodes, made when first needed (interval culling pays
 /// off for packets of 64 lanes and more only) and ended at the lanes' closest hits so far each
-/// time it is asked after a leaf was tested: a node behind the surface the packet has hit is
-/// culled by one test, not by a slab test of every block of lanes.
+/// time it is asked after lanes hit something: a node behind the surface the packet has hit
+/// is culled by one test, not by a slab test of every block of lanes.
 pub(crate) struct Culling {
     beam: Option<Beam>,
-    /// A leaf was tested since the beam was last limited: the lanes' `tmax` may have shrunk.
+    /// Lanes hit something since the beam was last limited: their `tmax` shrank.
     stale: bool,
 }
 
@@ -79,9 +79,9 @@ impl Culling {
         }
     }
 
-    /// Lanes' closest hits may have come nearer (a leaf was tested).
+    /// Some lanes' closest hits came nearer (or any-hit lanes are done).
     #[inline(always)]
-    pub(crate) fn leaf_tested(&mut self) {
+    pub(crate) fn lanes_hit(&mut self) {
         self.stale = true;
     }
 
@@ -133,7 +133,8 @@ pub(crate) fn entering_range<const N: usize, const W: usize>(
 }
 
 /// Tests the primitives `first..first + count` (leaf order, with their ids) against the lanes
-/// in `[lo, hi]` that enter the box `b`, a block at a time.
+/// in `[lo, hi]` that enter the box `b`, a block at a time. Returns whether some lane hit
+/// (its `tmax` changed).
 #[inline(always)]
 pub(crate) fn test_leaf<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
     (prims, ids): (&[P], &[u32]),
@@ -142,15 +143,17 @@ pub(crate) fn test_leaf<P: PacketPrimitive, const N: usize, const W: usize, cons
     p: &mut RayPacket<'_, N>,
     best: &mut [Option<Hit>; N],
     (lo, hi): (usize, usize),
-) {
+) -> bool {
     let range = first as usize..(first + count) as usize;
+    let mut changed = false;
     for base in (lo / W..=hi / W).map(|k| k * W) {
         let lanes = enter_mask::<N, W>(b.0, b.1, p, base);
         let leaf = prims[range.clone()]
             .iter()
             .zip(ids[range.clone()].iter().copied());
-        test_block::<P, N, W, ANY_HIT>(leaf, p, best, base, lanes);
+        changed |= test_block::<P, N, W, ANY_HIT>(leaf, p, best, base, lanes);
     }
+    changed
 }
 
 /// The first (or with `backwards`, the last) lane in `lanes` that enters `node`, testing a
@@ -247,8 +250,9 @@ fn traverse<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: b
         if node.is_leaf() {
             let leaf = (node.offset, node.count());
             let b = (&node.min, &node.max);
-            test_leaf::<P, N, W, ANY_HIT>((prims, ids), leaf, b, p, best, (first, last));
-            culling.leaf_tested();
+            if test_leaf::<P, N, W, ANY_HIT>((prims, ids), leaf, b, p, best, (first, last)) {
+                culling.lanes_hit();
+            }
             continue;
         }
         // Near child first, by the first entering lane's direction on the split axis.

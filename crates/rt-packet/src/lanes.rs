@@ -201,7 +201,7 @@ pub trait PacketPrimitive: Primitive {
 /// lanes in `lanes` of the block at `base`, each lane over `[tmin, tmax]` with `tmax` its
 /// closest hit so far. Closest hit: a hit replaces the lane's best by the tie rule
 /// ([`replaces`]) and shrinks its `tmax`. With `ANY_HIT`, a lane that hits anything is done
-/// (made inactive).
+/// (made inactive, its `tmax` `-inf`). Returns whether some lane's `tmax` changed.
 #[inline(always)]
 pub(crate) fn test_block<'a, P, const N: usize, const W: usize, const ANY_HIT: bool>(
     prims: impl Iterator<Item = (&'a P, u32)>,
@@ -209,9 +209,11 @@ pub(crate) fn test_block<'a, P, const N: usize, const W: usize, const ANY_HIT: b
     best: &mut [Option<Hit>; N],
     base: usize,
     mut lanes: u32,
-) where
+) -> bool
+where
     P: PacketPrimitive + 'a,
 {
+    let mut changed = false;
     for (prim, id) in prims {
         if lanes == 0 {
             break;
@@ -229,8 +231,10 @@ pub(crate) fn test_block<'a, P, const N: usize, const W: usize, const ANY_HIT: b
                 best[lane] = Some(Hit::new(h, id));
                 p.tmax[lane] = h.t;
             }
+            changed = true;
         });
     }
+    changed
 }
 
 /// Calls `f` with every set bit of `mask`, lowest first.

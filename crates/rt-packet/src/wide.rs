@@ -91,8 +91,9 @@ fn traverse<
         if node.count[c] > 0 {
             let (min, max) = child_box(node, c);
             let range = (node.child[c], node.count[c]);
-            test_leaf::<P, N, W, ANY_HIT>(prims, range, (&min, &max), p, best, lanes);
-            culling.leaf_tested();
+            if test_leaf::<P, N, W, ANY_HIT>(prims, range, (&min, &max), p, best, lanes) {
+                culling.lanes_hit();
+            }
         } else {
             expand::<K, N, W>(nodes, node.child[c], p, &mut culling, lanes, &mut stack);
         }
