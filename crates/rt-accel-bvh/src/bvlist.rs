@@ -161,10 +161,15 @@ impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
     }
 
     /// Collects `(entry, index)` of the volumes in `range` that the ray enters, nearest first.
-    fn entered(volumes: &[V], range: Range<u32>, r: &Ray, out: &mut Vec<(f32, u32)>) {
+    fn entered(
+        volumes: &[V],
+        range: Range<u32>,
+        (r, data): (&Ray, &V::RayData),
+        out: &mut Vec<(f32, u32)>,
+    ) {
         out.clear();
         for i in range {
-            if let Some(t) = volumes[i as usize].entry_distance(r) {
+            if let Some(t) = volumes[i as usize].entry_from(r, data) {
                 out.push((t, i));
             }
         }
@@ -206,24 +211,22 @@ impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
         }
         let mut r = *ray;
         let mut best = None;
+        let data = V::ray_data(ray);
         SCRATCH.with(|s| {
             let (outer, inner) = &mut *s.borrow_mut();
             if self.top.is_empty() {
-                Self::entered(&self.volumes, 0..self.volumes.len() as u32, &r, inner);
+                let all = 0..self.volumes.len() as u32;
+                Self::entered(&self.volumes, all, (&r, &data), inner);
                 self.visit::<ANY_HIT>(inner, &mut r, &mut best);
                 return;
             }
-            Self::entered(&self.top, 0..self.top.len() as u32, &r, outer);
+            Self::entered(&self.top, 0..self.top.len() as u32, (&r, &data), outer);
             for &(t, g) in outer.iter() {
                 if t > r.tmax {
                     break;
                 }
-                Self::entered(
-                    &self.volumes,
-                    self.top_ranges[g as usize].clone(),
-                    &r,
-                    inner,
-                );
+                let range = self.top_ranges[g as usize].clone();
+                Self::entered(&self.volumes, range, (&r, &data), inner);
                 if self.visit::<ANY_HIT>(inner, &mut r, &mut best) {
                     return;
                 }

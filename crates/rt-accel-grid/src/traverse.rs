@@ -246,12 +246,15 @@ impl<P: Primitive> Grid<P> {
         if self.levels.is_empty() || !ray.is_valid() {
             return None;
         }
-        let (t0, t1) = self.levels[0].bounds.clip_ray(ray)?;
+        let (origin, inv) = (ray.origin().to_array(), ray.inv_dir().to_array());
+        let (t0, t1) = self.levels[0]
+            .bounds
+            .clip_interval(&origin, &inv, (ray.tmin, ray.tmax))?;
         let mut walk = Walk {
             grid: self,
-            origin: ray.origin().to_array(),
+            origin,
             dir: ray.dir().to_array(),
-            inv: ray.inv_dir().to_array(),
+            inv,
             ray: *ray,
             best: None,
             mailbox: Mailbox::default(),

@@ -95,9 +95,10 @@ fn step_folded(slab: &SlabRay, a: usize, split: f32, t0: f32, t1: f32) -> Step {
 /// of an inner node. [`KdTree`] and [`BspTree`](crate::BspTree) implement it; the walks below
 /// are written once for both.
 pub(crate) trait SplitPlanes {
-    /// Per-ray constants (reciprocal direction, ...).
+    /// Per-ray constants (reciprocal direction, ...), from the ray and its reciprocal
+    /// direction `inv` (computed once per query, also for the clip to the root cell).
     type RayData;
-    fn ray_data(ray: &Ray) -> Self::RayData;
+    fn ray_data(ray: &Ray, inv: [f32; 3]) -> Self::RayData;
     fn nodes(&self) -> &[KdNode];
     fn indices(&self) -> &[u32];
     /// `(first, second, step)` at inner node `i` for the ray's interval `[t0, t1]`.
@@ -142,9 +143,9 @@ pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     tree: &T,
     leaves: LeafData<'_, P>,
     ray: &Ray,
+    data: T::RayData,
     (mut t0, mut t1): (f32, f32),
 ) -> Option<Hit> {
-    let data = T::ray_data(ray);
     let (nodes, indices) = (tree.nodes(), tree.indices());
     let mut r = *ray;
     let mut best = None;
@@ -203,6 +204,7 @@ pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     tree: &T,
     leaves: LeafData<'_, P>,
     ray: &Ray,
+    data: T::RayData,
     (t0, t1): (f32, f32),
 ) -> Option<Hit> {
     struct Walk<'a, T: SplitPlanes, P> {
@@ -248,7 +250,7 @@ pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     let mut walk = Walk {
         tree,
         leaves,
-        data: T::ray_data(ray),
+        data,
         r: *ray,
         best: None,
     };
@@ -267,10 +269,10 @@ pub(crate) struct AxisRay {
 impl<P: Primitive> SplitPlanes for KdTree<P> {
     type RayData = AxisRay;
 
-    fn ray_data(ray: &Ray) -> AxisRay {
+    fn ray_data(ray: &Ray, inv: [f32; 3]) -> AxisRay {
         AxisRay {
             dir: ray.dir().to_array(),
-            slab: SlabRay::new(ray),
+            slab: SlabRay::with_inv_dir(ray, inv),
         }
     }
 
@@ -307,10 +309,13 @@ pub(crate) fn query<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     if tree.nodes().is_empty() || !ray.is_valid() {
         return None;
     }
-    let span = bounds.clip_ray(ray)?;
+    let inv = ray.inv_dir().to_array();
+    let o = ray.origin().to_array();
+    let span = bounds.clip_interval(&o, &inv, (ray.tmin, ray.tmax))?;
+    let data = T::ray_data(ray, inv);
     match traversal {
-        KdTraversal::Iterative => iterative::<T, P, ANY_HIT>(tree, leaves, ray, span),
-        KdTraversal::Recursive => recursive::<T, P, ANY_HIT>(tree, leaves, ray, span),
+        KdTraversal::Iterative => iterative::<T, P, ANY_HIT>(tree, leaves, ray, data, span),
+        KdTraversal::Recursive => recursive::<T, P, ANY_HIT>(tree, leaves, ray, data, span),
     }
 }
 

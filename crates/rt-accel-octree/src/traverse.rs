@@ -58,6 +58,8 @@ struct Walk<'a, P> {
     octant_at_step: [u8; 8],
     /// Per axis, the lanes (octants) in the upper half along it.
     upper_half: [f32x8; 3],
+    /// The ray's reciprocal direction (the recursive walk's box tests).
+    inv: [f32; 3],
     ray: Ray,
     best: Option<Hit>,
     /// With `params.mailbox`: primitives listed in several leaves are tested once per ray.
@@ -103,7 +105,8 @@ impl<P: Primitive> Walk<'_, P> {
             if let Some(child) = node.child(o) {
                 let b = octant(cell, o);
                 let content = content_box(&b, step, &node.content(o));
-                if let Some((t0, _)) = content.clip_ray(&self.ray) {
+                let interval = (self.ray.tmin, self.ray.tmax);
+                if let Some((t0, _)) = content.clip_interval(&self.origin, &self.inv, interval) {
                     entered[count] = (t0, child, b);
                     count += 1;
                 }
@@ -345,7 +348,8 @@ impl<P: Primitive> Octree<P> {
             return None;
         }
         // No clip to the root cell first: the root's octant test culls the same rays.
-        let slab = SlabRay::new(ray);
+        let inv = ray.inv_dir().to_array();
+        let slab = SlabRay::with_inv_dir(ray, inv);
         let neg = slab.neg;
         let mirror = (0..3).fold(0, |m, a| m | ((neg[a] as usize) << a));
         let (inv_lo, inv_hi) = slab.plane_reciprocals();
@@ -359,6 +363,7 @@ impl<P: Primitive> Octree<P> {
             sequence: &SEQUENCE_MASKS[mirror],
             octant_at_step: SEQUENCE_ORDER.map(|j| j ^ mirror as u8),
             upper_half: UPPER_HALF.map(f32x8::from).map(|l| l.cmp_ne(f32x8::ZERO)),
+            inv,
             ray: *ray,
             best: None,
             mailbox: Mailbox::default(),

@@ -68,7 +68,13 @@ impl SlabRay {
 
     #[inline(always)]
     pub fn new(ray: &Ray) -> Self {
-        let inv = ray.inv_dir().to_array();
+        Self::with_inv_dir(ray, ray.inv_dir().to_array())
+    }
+
+    /// [`Self::new`] with the ray's reciprocal direction already computed
+    /// ([`Ray::inv_dir`]), for walks that use it elsewhere too.
+    #[inline(always)]
+    pub fn with_inv_dir(ray: &Ray, inv: [f32; 3]) -> Self {
         let pad_after = !(ray.tmin >= 0.0);
         let (near, far) = Self::fold_factors(ray.tmin);
         Self {

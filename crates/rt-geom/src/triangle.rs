@@ -97,7 +97,7 @@ impl Triangle {
         if !ray.is_valid() {
             return None;
         }
-        let [mx, my, _] = ray.watertight_rows();
+        let [mx, my] = ray.watertight_rows();
         let o = ray.origin();
         let a = self.v[0] - o;
         let b = self.v[1] - o;
@@ -705,11 +705,26 @@ mod tests {
             let r = Ray::new(Vec3::ZERO, d);
             let [kx, ky, kz] = r.watertight_axes();
             let s = r.watertight_shear();
-            let [mx, my, mz] = r.watertight_rows();
+            let [mx, my] = r.watertight_rows();
             let a = Vec3::new(rnd(), rnd(), rnd()) * 100.0;
             assert_eq!(a.dot(*mx), a[kx] - s.x * a[kz]);
             assert_eq!(a.dot(*my), a[ky] - s.y * a[kz]);
-            assert_eq!(a.dot(*mz), s.z * a[kz]);
+            // The shear itself, as `Ray::segment` computes it (signed zeros included).
+            let want = [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]];
+            assert_eq!(s.to_array().map(f32::to_bits), want.map(f32::to_bits));
+        }
+        // Axis-aligned directions: shears of `+0` and `-0`.
+        for d in [
+            Vec3::X,
+            -Vec3::Y,
+            Vec3::new(0.0, -0.0, 2.0),
+            Vec3::new(-0.0, 3.0, 0.0),
+        ] {
+            let r = Ray::new(Vec3::ZERO, d);
+            let [kx, ky, kz] = r.watertight_axes();
+            let want = [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]];
+            let got = r.watertight_shear().to_array();
+            assert_eq!(got.map(f32::to_bits), want.map(f32::to_bits), "{d:?}");
         }
     }
 

@@ -20,9 +20,21 @@ pub trait BoundingVolume: Clone + Send + Sync + std::fmt::Debug + 'static {
     /// A volume around both volumes (volumes of volumes).
     fn merge(&self, other: &Self) -> Self;
 
+    /// What [`Self::entry_from`] needs of a ray beyond the ray itself (the reciprocal
+    /// direction for boxes), made once per ray by [`Self::ray_data`] for all the volumes it
+    /// meets.
+    type RayData;
+    fn ray_data(ray: &Ray) -> Self::RayData;
+
+    /// [`Self::entry_distance`] with the ray's [`Self::RayData`].
+    fn entry_from(&self, ray: &Ray, data: &Self::RayData) -> Option<f32>;
+
     /// Where the ray enters the volume, clamped to `ray.tmin`; `None` if it misses it within
     /// `[tmin, tmax]`.
-    fn entry_distance(&self, ray: &Ray) -> Option<f32>;
+    #[inline]
+    fn entry_distance(&self, ray: &Ray) -> Option<f32> {
+        self.entry_from(ray, &Self::ray_data(ray))
+    }
 }
 
 impl BoundingVolume for Aabb {
@@ -36,9 +48,20 @@ impl BoundingVolume for Aabb {
         self.union(*other)
     }
 
+    /// The reciprocal direction ([`Ray::inv_dir`]).
+    type RayData = [f32; 3];
+
     #[inline]
-    fn entry_distance(&self, ray: &Ray) -> Option<f32> {
-        self.hit_distance(ray)
+    fn ray_data(ray: &Ray) -> [f32; 3] {
+        ray.inv_dir().to_array()
+    }
+
+    /// [`Aabb::hit_distance`], the same numbers.
+    #[inline]
+    fn entry_from(&self, ray: &Ray, inv: &[f32; 3]) -> Option<f32> {
+        let interval = (ray.tmin, ray.tmax);
+        self.clip_interval(&ray.origin().to_array(), inv, interval)
+            .map(|(t0, _)| t0)
     }
 }
 
@@ -95,8 +118,13 @@ impl BoundingVolume for BoundingSphere {
         }
     }
 
+    type RayData = ();
+
     #[inline]
-    fn entry_distance(&self, ray: &Ray) -> Option<f32> {
+    fn ray_data(_: &Ray) {}
+
+    #[inline]
+    fn entry_from(&self, ray: &Ray, _: &()) -> Option<f32> {
         if self.radius == 0.0 {
             // A point: pad_radius keeps radius > 0 for anything but a point at the origin.
             return Aabb::new(self.center, self.center).hit_distance(ray);
@@ -184,8 +212,13 @@ impl BoundingVolume for Kdop7 {
         k
     }
 
+    type RayData = ();
+
     #[inline]
-    fn entry_distance(&self, ray: &Ray) -> Option<f32> {
+    fn ray_data(_: &Ray) {}
+
+    #[inline]
+    fn entry_from(&self, ray: &Ray, _: &()) -> Option<f32> {
         if !ray.is_valid() {
             return None;
         }

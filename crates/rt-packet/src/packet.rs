@@ -227,10 +227,13 @@ impl<'a, const N: usize> RayPacket<'a, N> {
         let pick = |k: [f32x8; 3]| k[0].blend(d[0], k[1].blend(d[1], d[2]));
         let sx = valid.blend(pick(kx) / dkz, zero);
         let sy = valid.blend(pick(ky) / dkz, zero);
+        // `Ray::segment`'s rows: one at `kx` (`ky`), `-Sx` (`-Sy`) at `kz`, zero elsewhere.
+        // (Negated by a product: `wide`'s `-x` is `0 - x`, which loses the sign of a zero.)
         let unit = |k: f32x8| k.blend(one, zero);
+        let (nsx, nsy) = (sx * f32x8::splat(-1.0), sy * f32x8::splat(-1.0));
         for a in 0..3 {
-            st(&mut self.shear[a], unit(kx[a]) - unit(kz[a]) * sx);
-            st(&mut self.shear[3 + a], unit(ky[a]) - unit(kz[a]) * sy);
+            st(&mut self.shear[a], kz[a].blend(nsx, unit(kx[a])));
+            st(&mut self.shear[3 + a], kz[a].blend(nsy, unit(ky[a])));
         }
         (active & !folds).any()
     }

@@ -219,7 +219,7 @@ pub(crate) struct PlaneRay {
 impl<P: Primitive> SplitPlanes for BspTree<P> {
     type RayData = PlaneRay;
 
-    fn ray_data(ray: &Ray) -> PlaneRay {
+    fn ray_data(ray: &Ray, _inv: [f32; 3]) -> PlaneRay {
         PlaneRay {
             origin: ray.origin().as_dvec3(),
             dir: ray.dir().as_dvec3(),
