@@ -6,7 +6,7 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`ray`] | [`Ray`] (with cached reciprocal direction and watertight shear), [`Hit`], [`PrimHit`] |
+//! | [`ray`] | [`Ray`] (one 64-byte cache line, with the watertight shear cached), [`Hit`], [`PrimHit`] |
 //! | [`aabb`] | [`Aabb`] and its robust slab test ([`Aabb::clip_ray`], Ize 2013) |
 //! | [`triangle`] | [`Triangle`]: watertight test (Woop, Benthin & Wald 2013), Möller–Trumbore, clipping |
 //! | [`sphere`] | [`Sphere`], solved in the stable form of Ray Tracing Gems ch. 7 |
