@@ -257,19 +257,24 @@ mod tests {
     use super::*;
     use rt_geom::{Aabb, Ray, Vec3};
 
-    #[test]
-    fn a_box_some_lane_enters_is_never_culled() {
-        // Rays of a small camera against boxes all over the place: whenever one lane's own
-        // clip test enters, the beam must say it may.
-        let rays: Vec<Ray> = (0..64)
+    /// 8x8 rays of a small camera at `z = 5` looking down `-z`, spread `spread` wide at `t = 1`.
+    fn camera(spread: f32) -> Vec<Ray> {
+        (0..64)
             .map(|i| {
                 let (x, y) = ((i % 8) as f32 / 8.0, (i / 8) as f32 / 8.0);
                 Ray::new(
                     Vec3::new(0.0, 0.0, 5.0),
-                    Vec3::new((x - 0.5) * 0.1, (y - 0.5) * 0.1, -1.0),
+                    Vec3::new((x - 0.5) * spread, (y - 0.5) * spread, -1.0),
                 )
             })
-            .collect();
+            .collect()
+    }
+
+    #[test]
+    fn a_box_some_lane_enters_is_never_culled() {
+        // Rays of a small camera against boxes all over the place: whenever one lane's own
+        // clip test enters, the beam must say it may.
+        let rays = camera(0.1);
         let p = RayPacket::<64>::new(&rays);
         let beam = Beam::new(&p, 0..64);
         let mut culled = 0;
@@ -293,15 +298,7 @@ mod tests {
     fn a_beam_limited_to_its_lanes_hits_keeps_every_box_before_them() {
         // The lanes' intervals end at hits from 4 to 7 (some lanes done: `-inf`); a box that a
         // lane enters before its own end is kept, and boxes past every end are culled.
-        let rays: Vec<Ray> = (0..64)
-            .map(|i| {
-                let (x, y) = ((i % 8) as f32 / 8.0, (i / 8) as f32 / 8.0);
-                Ray::new(
-                    Vec3::new(0.0, 0.0, 5.0),
-                    Vec3::new((x - 0.5) * 0.2, (y - 0.5) * 0.2, -1.0),
-                )
-            })
-            .collect();
+        let rays = camera(0.2);
         let mut p = RayPacket::<64>::new(&rays);
         for i in 0..64 {
             p.tmax[i] = 4.0 + (i * 37 % 64) as f32 * 3.0 / 63.0;
