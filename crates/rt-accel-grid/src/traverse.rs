@@ -246,13 +246,11 @@ impl<P: Primitive> Grid<P> {
         if self.levels.is_empty() || !ray.is_valid() {
             return None;
         }
-        let (origin, inv) = (ray.origin().to_array(), ray.inv_dir().to_array());
-        let (t0, t1) = self.levels[0]
-            .bounds
-            .clip_interval(&origin, &inv, (ray.tmin, ray.tmax))?;
+        let inv = ray.inv_dir().to_array();
+        let (t0, t1) = self.levels[0].bounds.clip_ray_with_inv(ray, &inv)?;
         let mut walk = Walk {
             grid: self,
-            origin,
+            origin: ray.origin().to_array(),
             dir: ray.dir().to_array(),
             inv,
             ray: *ray,

@@ -310,8 +310,7 @@ pub(crate) fn query<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
         return None;
     }
     let inv = ray.inv_dir().to_array();
-    let o = ray.origin().to_array();
-    let span = bounds.clip_interval(&o, &inv, (ray.tmin, ray.tmax))?;
+    let span = bounds.clip_ray_with_inv(ray, &inv)?;
     let data = T::ray_data(ray, inv);
     match traversal {
         KdTraversal::Iterative => iterative::<T, P, ANY_HIT>(tree, leaves, ray, data, span),

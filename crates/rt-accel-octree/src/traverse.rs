@@ -105,8 +105,7 @@ impl<P: Primitive> Walk<'_, P> {
             if let Some(child) = node.child(o) {
                 let b = octant(cell, o);
                 let content = content_box(&b, step, &node.content(o));
-                let interval = (self.ray.tmin, self.ray.tmax);
-                if let Some((t0, _)) = content.clip_interval(&self.origin, &self.inv, interval) {
+                if let Some((t0, _)) = content.clip_ray_with_inv(&self.ray, &self.inv) {
                     entered[count] = (t0, child, b);
                     count += 1;
                 }

@@ -266,8 +266,14 @@ impl Aabb {
     /// beyond `ray.tmax`, never below `ray.tmin`.
     #[inline]
     pub fn clip_ray(&self, ray: &Ray) -> Option<(f32, f32)> {
-        let (o, inv) = (ray.origin().to_array(), ray.inv_dir().to_array());
-        self.clip_interval(&o, &inv, (ray.tmin, ray.tmax))
+        self.clip_ray_with_inv(ray, &ray.inv_dir().to_array())
+    }
+
+    /// [`Self::clip_ray`] with the ray's reciprocal direction already computed
+    /// ([`Ray::inv_dir`], once per query by walks that clip many boxes).
+    #[inline(always)]
+    pub fn clip_ray_with_inv(&self, ray: &Ray, inv: &[f32; 3]) -> Option<(f32, f32)> {
+        self.clip_interval(&ray.origin().to_array(), inv, (ray.tmin, ray.tmax))
     }
 
     /// [`Self::clip_ray`] of the ray from `o` with reciprocal direction `inv` over

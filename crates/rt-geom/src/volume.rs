@@ -59,9 +59,7 @@ impl BoundingVolume for Aabb {
     /// [`Aabb::hit_distance`], the same numbers.
     #[inline]
     fn entry_from(&self, ray: &Ray, inv: &[f32; 3]) -> Option<f32> {
-        let interval = (ray.tmin, ray.tmax);
-        self.clip_interval(&ray.origin().to_array(), inv, interval)
-            .map(|(t0, _)| t0)
+        self.clip_ray_with_inv(ray, inv).map(|(t0, _)| t0)
     }
 }
 
