@@ -30,14 +30,13 @@
 
 use crate::beam::Beam;
 use crate::lanes::{
-    PacketPrimitive, active_mask, block, block_width, clip_block, for_each_lane, le_mask,
-    test_block,
+    PacketPrimitive, active_mask, block, block_width, clip_block, for_each_lane, load, test_block,
 };
 use crate::{PacketTraversal, RayPacket};
-use rt_accel_kd::traverse::padded_crossing;
 use rt_accel_kd::{KdTree, MAX_DEPTH};
 use rt_geom::aabb::PAD;
 use rt_geom::{Aabb, Hit, Ray};
+use wide::{CmpEq, CmpGt, CmpLe, CmpLt, CmpNe, f32x8};
 
 /// Beams of this many rays or more may be split into quarters where they are not coherent
 /// (see [`MLRTA_MAX_CELLS`]).
@@ -73,7 +72,7 @@ fn trace_block<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT
     lanes: u32,
     start: usize,
     cell: &Aabb,
-    stack: &mut Stack<W>,
+    stack: &mut Stack,
 ) {
     // Each lane's ray clipped to the cell, over `[tmin, tmax]` with `tmax` its closest hit so
     // far: a lane whose hit lies before the cell skips it (a cell after the first).
@@ -101,16 +100,36 @@ fn trace_block<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT
     }
 }
 
+/// A block's values per lane, eight lanes per register (blocks of 8 and 4 use the first;
+/// lanes past the block hold empty intervals, which stay empty at every step).
+type Lanes = [f32x8; 2];
+
+/// Registers of a block of `W` lanes.
+const fn registers(w: usize) -> usize {
+    w.div_ceil(8)
+}
+
+/// The lanes `l` of a block of `W` where `x[l] <= y[l]` (false when either is NaN).
+#[inline(always)]
+fn le_bits<const W: usize>(x: &Lanes, y: &Lanes) -> u32 {
+    let mut mask = 0;
+    for h in 0..registers(W) {
+        mask |= (x[h].cmp_le(y[h]).move_mask() as u32) << (8 * h);
+    }
+    mask & (u32::MAX >> (32 - W))
+}
+
 /// Pending far cells with each lane's interval: one per level at most, so the depth cap
 /// bounds it (the capacity reserved). Reused from block to block.
-type Stack<const W: usize> = Vec<(u32, [f32; W], [f32; W])>;
+type Stack = Vec<(u32, Lanes, Lanes)>;
 
 /// An empty [`Stack`] with room for the deepest tree (one per query, reused by every block).
-fn new_stack<const W: usize>() -> Stack<W> {
+fn new_stack() -> Stack {
     Vec::with_capacity(MAX_DEPTH as usize + 1)
 }
 
 /// One octant group of a block (the other lanes' intervals are empty) from node `start`.
+/// The lanes' intervals stay in SIMD registers from step to step.
 #[allow(clippy::too_many_arguments)]
 fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
     tree: &KdTree<P>,
@@ -118,11 +137,22 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
     best: &mut [Option<Hit>; N],
     base: usize,
     start: usize,
-    (mut t0, mut t1): ([f32; W], [f32; W]),
+    (a, b): ([f32; W], [f32; W]),
     octant: u32,
-    stack: &mut Stack<W>,
+    stack: &mut Stack,
 ) {
     let (nodes, indices, prims) = (tree.nodes(), tree.indices(), tree.prims());
+    let lanes_of = |v: &[f32; W], empty: f32| -> Lanes {
+        let mut out = [f32x8::splat(empty); 2];
+        for (h, r) in out.iter_mut().enumerate().take(registers(W)) {
+            let mut x = [empty; 8];
+            let n = W.min(8);
+            x[..n].copy_from_slice(&v[8 * h..8 * h + n]);
+            *r = f32x8::new(x);
+        }
+        out
+    };
+    let (mut t0, mut t1) = (lanes_of(&a, f32::INFINITY), lanes_of(&b, f32::NEG_INFINITY));
     stack.clear();
     let mut i = start;
     loop {
@@ -137,44 +167,30 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
             } else {
                 (below, above)
             };
-            let o = block::<N, W>(&p.origin[axis], base);
-            let inv = block::<N, W>(&p.inv_dir[axis], base);
-            let (mut n0, mut n1) = ([0.0f32; W], [0.0f32; W]);
-            let (mut f0, mut f1) = ([0.0f32; W], [0.0f32; W]);
-            if W % 8 == 0 {
-                for h in (0..W).step_by(8) {
-                    let r = step8(
-                        split,
-                        as8(&o[h..]),
-                        as8(&inv[h..]),
-                        as8(&t0[h..]),
-                        as8(&t1[h..]),
-                    );
-                    for (out, v) in [&mut n0, &mut n1, &mut f0, &mut f1].into_iter().zip(r) {
-                        out[h..h + 8].copy_from_slice(&v);
-                    }
-                }
-            } else {
-                for l in 0..W {
-                    let [a, b, c, d] = step_lane(split, o[l], inv[l], t0[l], t1[l]);
-                    (n0[l], n1[l], f0[l], f1[l]) = (a, b, c, d);
-                }
+            let mut next = [[f32x8::ZERO; 2]; 4];
+            let (mut any_near, mut any_far) = (0, 0);
+            for h in 0..registers(W) {
+                let o = load::<N, W>(&p.origin[axis], base + 8 * h);
+                let inv = load::<N, W>(&p.inv_dir[axis], base + 8 * h);
+                let [n0, n1, f0, f1] = step8(split, o, inv, t0[h], t1[h]);
+                any_near |= n0.cmp_le(n1).move_mask();
+                any_far |= f0.cmp_le(f1).move_mask();
+                (next[0][h], next[1][h], next[2][h], next[3][h]) = (n0, n1, f0, f1);
             }
-            let any_near = le_mask(&n0, &n1) != 0;
-            let any_far = le_mask(&f0, &f1) != 0;
-            if any_near {
-                if any_far {
+            let [n0, n1, f0, f1] = next;
+            if any_near != 0 {
+                if any_far != 0 {
                     stack.push((far as u32, f0, f1));
                 }
                 (i, t0, t1) = (near, n0, n1);
                 continue;
             }
-            if any_far {
+            if any_far != 0 {
                 (i, t0, t1) = (far, f0, f1);
                 continue;
             }
         } else {
-            let lanes = le_mask(&t0, &t1) & active_mask::<N, W>(p, base);
+            let lanes = le_bits::<W>(&t0, &t1) & active_mask::<N, W>(p, base);
             let leaf = node
                 .leaf_prims(indices)
                 .iter()
@@ -183,7 +199,7 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
         }
         // The next pending cell that some lane enters before its closest hit.
         loop {
-            let Some((n, mut a, b)) = stack.pop() else {
+            let Some((n, a, b)) = stack.pop() else {
                 return;
             };
             // Per lane: active, a non-empty interval, and no hit yet or the cell starting by
@@ -193,10 +209,16 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
                 no_hit |= (hit.is_none() as u32) << l;
             }
             let tmax: &[f32; W] = block(&p.tmax, base);
-            let keep =
-                le_mask(&a, &b) & (no_hit | le_mask(&a, tmax)) & active_mask::<N, W>(p, base);
-            for_each_lane(!keep & (u32::MAX >> (32 - W)), |l| a[l] = f32::INFINITY);
+            let tmax = lanes_of(tmax, f32::NEG_INFINITY);
+            let keep = le_bits::<W>(&a, &b)
+                & (no_hit | le_bits::<W>(&a, &tmax))
+                & active_mask::<N, W>(p, base);
             if keep != 0 {
+                // The lanes not kept start past their end: an empty interval.
+                let mut a = a;
+                for (h, r) in a.iter_mut().enumerate().take(registers(W)) {
+                    *r = lane_mask(keep >> (8 * h)).blend(*r, f32x8::splat(f32::INFINITY));
+                }
                 (i, t0, t1) = (n as usize, a, b);
                 break;
             }
@@ -204,41 +226,27 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
     }
 }
 
-/// `rt_accel_kd::traverse::step` for one lane over `[t0, t1]` at the plane `split`, as the
-/// intervals of the near and the far child: `[near0, near1, far0, far1]`, an empty interval as
-/// `(inf, -inf)` (and an empty input interval gives two empty ones). The near child (by the
+/// The lanes of the low eight bits of `bits` as a SIMD mask (all bits set where on).
+#[inline(always)]
+fn lane_mask(bits: u32) -> f32x8 {
+    let lane = wide::i32x8::new([1, 2, 4, 8, 16, 32, 64, 128]);
+    let on = (wide::i32x8::splat(bits as i32) & lane).cmp_eq(lane);
+    f32x8::from_i32x8(on).cmp_ne(f32x8::ZERO)
+}
+
+/// `rt_accel_kd::traverse::step` for 8 lanes over `[t0, t1]` at the plane `split`, as the
+/// intervals of the near and the far child: `[near0, near1, far0, far1]`, an empty interval
+/// as `(inf, -inf)` (and an empty input interval gives two empty ones). The near child (by the
 /// group's direction signs) is the single-ray walk's first child
-/// (`rt_accel_kd::traverse::below_first`).
+/// (`rt_accel_kd::traverse::below_first`). `wide`: AVX where the build has it, two SSE halves
+/// or scalar code elsewhere.
 ///
 /// Without branches: after a crossing before `t0` (second child only), `lo` is below `t0`, so
 /// the second child's start `max(lo, t0)` is `t0` as it must be; `hi.min(t1)` and
 /// `lo.max(t0)` are comparisons (a NaN crossing, from a ray lying in the plane, gives the
 /// interval's ends).
 #[inline(always)]
-fn step_lane(split: f32, o: f32, inv: f32, t0: f32, t1: f32) -> [f32; 4] {
-    let (lo, hi) = padded_crossing((split - o) * inv);
-    let first_only = lo > t1;
-    let second_only = !first_only & (hi < t0);
-    let a0 = if second_only { f32::INFINITY } else { t0 };
-    let a1 = if first_only | !(hi < t1) { t1 } else { hi };
-    let a1 = if second_only { f32::NEG_INFINITY } else { a1 };
-    let b0 = if lo > t0 { lo } else { t0 };
-    let b0 = if first_only { f32::INFINITY } else { b0 };
-    let b1 = if first_only { f32::NEG_INFINITY } else { t1 };
-    [a0, a1, b0, b1]
-}
-
-/// [`step_lane`] for 8 lanes at once (`wide`: AVX where the build has it, two SSE halves or
-/// scalar code elsewhere), the same operations lane by lane.
-#[inline(always)]
-fn step8(split: f32, o: &[f32; 8], inv: &[f32; 8], t0: &[f32; 8], t1: &[f32; 8]) -> [[f32; 8]; 4] {
-    use wide::{CmpGt, CmpLt, f32x8};
-    let (o, inv, t0, t1) = (
-        f32x8::new(*o),
-        f32x8::new(*inv),
-        f32x8::new(*t0),
-        f32x8::new(*t1),
-    );
+fn step8(split: f32, o: f32x8, inv: f32x8, t0: f32x8, t1: f32x8) -> [f32x8; 4] {
     let (inf, ninf) = (f32x8::splat(f32::INFINITY), f32x8::splat(f32::NEG_INFINITY));
     let ts = (f32x8::splat(split) - o) * inv;
     // `padded_crossing` lane by lane: the smaller and larger of the two products (a NaN
@@ -253,13 +261,7 @@ fn step8(split: f32, o: &[f32; 8], inv: &[f32; 8], t0: &[f32; 8], t1: &[f32; 8])
     let b0 = lo.cmp_gt(t0).blend(lo, t0);
     let b0 = first_only.blend(inf, b0);
     let b1 = first_only.blend(ninf, t1);
-    [a0.to_array(), a1.to_array(), b0.to_array(), b1.to_array()]
-}
-
-/// The first 8 lanes of a slice (of a block of a multiple of 8 lanes).
-#[inline(always)]
-fn as8(v: &[f32]) -> &[f32; 8] {
-    v[..8].try_into().expect("8 lanes")
+    [a0, a1, b0, b1]
 }
 
 /// Every block of lanes in `range` from `entry`.
@@ -269,7 +271,7 @@ fn trace_from<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT:
     best: &mut [Option<Hit>; N],
     range: std::ops::Range<usize>,
     entry: (usize, &Aabb),
-    stack: &mut Stack<W>,
+    stack: &mut Stack,
 ) {
     for base in range.step_by(W) {
         let lanes = active_mask::<N, W>(p, base);
@@ -424,7 +426,7 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
         p: &mut RayPacket<'_, N>,
         best: &mut [Option<Hit>; N],
         range: std::ops::Range<usize>,
-        stack: &mut Stack<W>,
+        stack: &mut Stack,
     ) {
         if range.len() < MLRTA_MIN_BEAM {
             let root = (0, &self.tree.bounds());

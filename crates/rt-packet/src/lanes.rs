@@ -30,7 +30,7 @@ pub(crate) fn block<const N: usize, const W: usize>(v: &[f32; N], base: usize) -
 /// Lanes `base..base + min(W, 8)` of `v` in one SIMD register (for `W` = 4 the upper four are
 /// zero; the masks below keep only the block's own bits).
 #[inline(always)]
-fn load<const N: usize, const W: usize>(v: &[f32; N], base: usize) -> f32x8 {
+pub(crate) fn load<const N: usize, const W: usize>(v: &[f32; N], base: usize) -> f32x8 {
     let mut a = [0.0; 8];
     let n = W.min(8);
     a[..n].copy_from_slice(&v[base..base + n]);
@@ -143,18 +143,6 @@ pub(crate) fn clip_block<const N: usize, const W: usize>(
         far[half..half + n].copy_from_slice(&t1.to_array()[..n]);
     }
     (near, far, mask & active_mask::<N, W>(p, base))
-}
-
-/// The lanes `l` of a block of `W` where `x[l] <= y[l]` (a comparison per lane, as `<=` on
-/// `f32`: false when either is NaN), eight at a time.
-#[inline(always)]
-pub(crate) fn le_mask<const W: usize>(x: &[f32; W], y: &[f32; W]) -> u32 {
-    let mut mask = 0;
-    for half in (0..W).step_by(8) {
-        let (x, y) = (load::<W, W>(x, half), load::<W, W>(y, half));
-        mask |= bits::<W>(x.cmp_le(y)) << half;
-    }
-    mask
 }
 
 /// The active lanes of the block at `base`.
