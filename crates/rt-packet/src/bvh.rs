@@ -151,7 +151,7 @@ pub(crate) fn test_leaf<P: PacketPrimitive, const N: usize, const W: usize, cons
         let leaf = prims[range.clone()]
             .iter()
             .zip(ids[range.clone()].iter().copied());
-        changed |= test_block::<P, N, W, ANY_HIT>(leaf, p, best, base, lanes);
+        changed |= test_block::<P, N, W, ANY_HIT>(leaf, p, best, base, lanes) != 0;
     }
     changed
 }

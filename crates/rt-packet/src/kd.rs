@@ -30,7 +30,7 @@
 
 use crate::beam::Beam;
 use crate::lanes::{
-    PacketPrimitive, active_mask, block, block_width, clip_block, for_each_lane, load, test_block,
+    PacketPrimitive, active_mask, block_width, clip_block, for_each_lane, load, test_block,
 };
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_kd::{KdTree, MAX_DEPTH};
@@ -153,6 +153,14 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
         out
     };
     let (mut t0, mut t1) = (lanes_of(&a, f32::INFINITY), lanes_of(&b, f32::NEG_INFINITY));
+    // The lanes with a hit so far, kept up to date from the leaf tests; any-hit lanes that hit
+    // are done (inactive), other lanes keep their activity for the whole walk.
+    let mut hit = 0u32;
+    for (l, h) in best[base..base + W].iter().enumerate() {
+        hit |= (h.is_some() as u32) << l;
+    }
+    let active = active_mask::<N, W>(p, base);
+    let active = |hit: u32| if ANY_HIT { active & !hit } else { active };
     stack.clear();
     let mut i = start;
     loop {
@@ -190,12 +198,12 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
                 continue;
             }
         } else {
-            let lanes = le_bits::<W>(&t0, &t1) & active_mask::<N, W>(p, base);
+            let lanes = le_bits::<W>(&t0, &t1) & active(hit);
             let leaf = node
                 .leaf_prims(indices)
                 .iter()
                 .map(|&id| (&prims[id as usize], id));
-            test_block::<P, N, W, ANY_HIT>(leaf, p, best, base, lanes);
+            hit |= test_block::<P, N, W, ANY_HIT>(leaf, p, best, base, lanes);
         }
         // The next pending cell that some lane enters before its closest hit.
         loop {
@@ -204,15 +212,11 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
             };
             // Per lane: active, a non-empty interval, and no hit yet or the cell starting by
             // the closest hit.
-            let mut no_hit = 0u32;
-            for (l, hit) in best[base..base + W].iter().enumerate() {
-                no_hit |= (hit.is_none() as u32) << l;
+            let mut tmax = [f32x8::ZERO; 2];
+            for (h, r) in tmax.iter_mut().enumerate().take(registers(W)) {
+                *r = load::<N, W>(&p.tmax, base + 8 * h);
             }
-            let tmax: &[f32; W] = block(&p.tmax, base);
-            let tmax = lanes_of(tmax, f32::NEG_INFINITY);
-            let keep = le_bits::<W>(&a, &b)
-                & (no_hit | le_bits::<W>(&a, &tmax))
-                & active_mask::<N, W>(p, base);
+            let keep = le_bits::<W>(&a, &b) & (!hit | le_bits::<W>(&a, &tmax)) & active(hit);
             if keep != 0 {
                 // The lanes not kept start past their end: an empty interval.
                 let mut a = a;

@@ -19,14 +19,6 @@ pub(crate) const fn block_width(n: usize) -> usize {
     if n % 8 == 0 { 8 } else { 4 }
 }
 
-/// Lanes `base..base + W` as fixed-size arrays.
-#[inline(always)]
-pub(crate) fn block<const N: usize, const W: usize>(v: &[f32; N], base: usize) -> &[f32; W] {
-    v[base..base + W]
-        .try_into()
-        .expect("block inside the packet")
-}
-
 /// Lanes `base..base + min(W, 8)` of `v` in one SIMD register (for `W` = 4 the upper four are
 /// zero; the masks below keep only the block's own bits).
 #[inline(always)]
@@ -189,7 +181,8 @@ pub trait PacketPrimitive: Primitive {
 /// lanes in `lanes` of the block at `base`, each lane over `[tmin, tmax]` with `tmax` its
 /// closest hit so far. Closest hit: a hit replaces the lane's best by the tie rule
 /// ([`replaces`]) and shrinks its `tmax`. With `ANY_HIT`, a lane that hits anything is done
-/// (made inactive, its `tmax` `-inf`). Returns whether some lane's `tmax` changed.
+/// (made inactive, its `tmax` `-inf`). Returns the lanes whose `tmax` changed (that hit
+/// something).
 #[inline(always)]
 pub(crate) fn test_block<'a, P, const N: usize, const W: usize, const ANY_HIT: bool>(
     prims: impl Iterator<Item = (&'a P, u32)>,
@@ -197,11 +190,11 @@ pub(crate) fn test_block<'a, P, const N: usize, const W: usize, const ANY_HIT: b
     best: &mut [Option<Hit>; N],
     base: usize,
     mut lanes: u32,
-) -> bool
+) -> u32
 where
     P: PacketPrimitive + 'a,
 {
-    let mut changed = false;
+    let mut changed = 0;
     for (prim, id) in prims {
         if lanes == 0 {
             break;
@@ -219,7 +212,7 @@ where
                 best[lane] = Some(Hit::new(h, id));
                 p.tmax[lane] = h.t;
             }
-            changed = true;
+            changed |= 1 << l;
         });
     }
     changed
