@@ -30,13 +30,14 @@
 
 use crate::beam::Beam;
 use crate::lanes::{
-    PacketPrimitive, active_mask, block_width, clip_block, for_each_lane, load, test_block,
+    BlockRegs, PacketPrimitive, active_mask, block_width, clip_block, lane_mask, le_bits, load,
+    negative_bits, registers, select_lanes, test_block,
 };
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_kd::{KdTree, MAX_DEPTH};
 use rt_geom::aabb::PAD;
 use rt_geom::{Aabb, Hit, Ray};
-use wide::{CmpEq, CmpGt, CmpLe, CmpLt, CmpNe, f32x8};
+use wide::{CmpGt, CmpLe, CmpLt, f32x8};
 
 /// Beams of this many rays or more may be split into quarters where they are not coherent
 /// (see [`MLRTA_MAX_CELLS`]).
@@ -83,45 +84,28 @@ fn trace_block<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT
         return;
     }
     // Split by direction octant: lanes of one octant share the near child at every plane.
-    let mut octants = [0u32; W];
-    for (l, o) in octants.iter_mut().enumerate() {
-        for a in 0..3 {
-            *o |= (p.inv_dir[a][base + l].is_sign_negative() as u32) << a;
-        }
-    }
+    let negative = negative_bits::<N, W>(p, base);
     while live != 0 {
-        let oct = octants[live.trailing_zeros() as usize];
-        let mut group = 0u32;
-        for_each_lane(live, |l| group |= ((octants[l] == oct) as u32) << l);
+        let first = live.trailing_zeros();
+        let mut group = live;
+        let mut octant = 0;
+        for (a, &neg) in negative.iter().enumerate() {
+            let first_negative = neg >> first & 1;
+            octant |= first_negative << a;
+            group &= if first_negative == 1 { neg } else { !neg };
+        }
         live &= !group;
-        let (mut a, mut b) = ([f32::INFINITY; W], [f32::NEG_INFINITY; W]);
-        for_each_lane(group, |l| (a[l], b[l]) = (t0[l], t1[l]));
-        walk::<P, N, W, ANY_HIT>(tree, p, best, base, start, (a, b), oct, stack);
+        let (a, b) = (
+            select_lanes(group, &t0, f32::INFINITY),
+            select_lanes(group, &t1, f32::NEG_INFINITY),
+        );
+        walk::<P, N, W, ANY_HIT>(tree, p, best, base, start, (a, b), octant, stack);
     }
-}
-
-/// A block's values per lane, eight lanes per register (blocks of 8 and 4 use the first;
-/// lanes past the block hold empty intervals, which stay empty at every step).
-type Lanes = [f32x8; 2];
-
-/// Registers of a block of `W` lanes.
-const fn registers(w: usize) -> usize {
-    w.div_ceil(8)
-}
-
-/// The lanes `l` of a block of `W` where `x[l] <= y[l]` (false when either is NaN).
-#[inline(always)]
-fn le_bits<const W: usize>(x: &Lanes, y: &Lanes) -> u32 {
-    let mut mask = 0;
-    for h in 0..registers(W) {
-        mask |= (x[h].cmp_le(y[h]).move_mask() as u32) << (8 * h);
-    }
-    mask & (u32::MAX >> (32 - W))
 }
 
 /// Pending far cells with each lane's interval: one per level at most, so the depth cap
 /// bounds it (the capacity reserved). Reused from block to block.
-type Stack = Vec<(u32, Lanes, Lanes)>;
+type Stack = Vec<(u32, BlockRegs, BlockRegs)>;
 
 /// An empty [`Stack`] with room for the deepest tree (one per query, reused by every block).
 fn new_stack() -> Stack {
@@ -137,22 +121,11 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
     best: &mut [Option<Hit>; N],
     base: usize,
     start: usize,
-    (a, b): ([f32; W], [f32; W]),
+    (mut t0, mut t1): (BlockRegs, BlockRegs),
     octant: u32,
     stack: &mut Stack,
 ) {
     let (nodes, indices, prims) = (tree.nodes(), tree.indices(), tree.prims());
-    let lanes_of = |v: &[f32; W], empty: f32| -> Lanes {
-        let mut out = [f32x8::splat(empty); 2];
-        for (h, r) in out.iter_mut().enumerate().take(registers(W)) {
-            let mut x = [empty; 8];
-            let n = W.min(8);
-            x[..n].copy_from_slice(&v[8 * h..8 * h + n]);
-            *r = f32x8::new(x);
-        }
-        out
-    };
-    let (mut t0, mut t1) = (lanes_of(&a, f32::INFINITY), lanes_of(&b, f32::NEG_INFINITY));
     // The lanes with a hit so far, kept up to date from the leaf tests; any-hit lanes that hit
     // are done (inactive), other lanes keep their activity for the whole walk.
     let mut hit = 0u32;
@@ -228,14 +201,6 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
             }
         }
     }
-}
-
-/// The lanes of the low eight bits of `bits` as a SIMD mask (all bits set where on).
-#[inline(always)]
-fn lane_mask(bits: u32) -> f32x8 {
-    let lane = wide::i32x8::new([1, 2, 4, 8, 16, 32, 64, 128]);
-    let on = (wide::i32x8::splat(bits as i32) & lane).cmp_eq(lane);
-    f32x8::from_i32x8(on).cmp_ne(f32x8::ZERO)
 }
 
 /// `rt_accel_kd::traverse::step` for 8 lanes over `[t0, t1]` at the plane `split`, as the

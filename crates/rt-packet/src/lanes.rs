@@ -12,7 +12,7 @@ use rt_geom::aabb::PAD;
 #[cfg(doc)]
 use rt_geom::aabb::{pad_down, pad_up};
 use rt_geom::{Cone, Hit, PrimHit, Primitive, Shape, Sphere, Triangle, Vec3, replaces};
-use wide::{CmpEq, CmpGe, CmpGt, CmpLe, CmpLt, f32x8, f64x4};
+use wide::{CmpEq, CmpGe, CmpGt, CmpLe, CmpLt, CmpNe, f32x8, f64x4, i32x8};
 
 /// The block width for packets of `N` lanes.
 pub(crate) const fn block_width(n: usize) -> usize {
@@ -106,6 +106,59 @@ pub(crate) fn enter_mask<const N: usize, const W: usize>(
     mask & active_mask::<N, W>(p, base)
 }
 
+/// A block's values per lane, eight lanes per register: blocks of 16 use both, blocks of 8
+/// and 4 the first (lanes past the block hold what the function that made them says).
+pub(crate) type BlockRegs = [f32x8; 2];
+
+/// Registers of a block of `w` lanes.
+pub(crate) const fn registers(w: usize) -> usize {
+    w.div_ceil(8)
+}
+
+/// The lanes `l` of a block of `W` where `x[l] <= y[l]` (false when either is NaN).
+#[inline(always)]
+pub(crate) fn le_bits<const W: usize>(x: &BlockRegs, y: &BlockRegs) -> u32 {
+    let mut mask = 0;
+    for h in 0..registers(W) {
+        mask |= (x[h].cmp_le(y[h]).move_mask() as u32) << (8 * h);
+    }
+    mask & (u32::MAX >> (32 - W))
+}
+
+/// The lanes of the low eight bits of `bits` as a SIMD mask (all bits set where on).
+#[inline(always)]
+pub(crate) fn lane_mask(bits: u32) -> f32x8 {
+    let lane = i32x8::new([1, 2, 4, 8, 16, 32, 64, 128]);
+    let on = (i32x8::splat(bits as i32) & lane).cmp_eq(lane);
+    f32x8::from_i32x8(on).cmp_ne(f32x8::ZERO)
+}
+
+/// `v` in the lanes of `bits`, `other` elsewhere (past the block too).
+#[inline(always)]
+pub(crate) fn select_lanes(bits: u32, v: &BlockRegs, other: f32) -> BlockRegs {
+    let other = f32x8::splat(other);
+    [
+        select(lane_mask(bits), v[0], other),
+        select(lane_mask(bits >> 8), v[1], other),
+    ]
+}
+
+/// The lanes of the block at `base` whose direction is negative (sign bit set, `-0`
+/// included) along each axis, as the sign of `inv_dir`.
+#[inline(always)]
+pub(crate) fn negative_bits<const N: usize, const W: usize>(
+    p: &RayPacket<'_, N>,
+    base: usize,
+) -> [u32; 3] {
+    std::array::from_fn(|a| {
+        let mut mask = 0;
+        for h in 0..registers(W) {
+            mask |= (load::<N, W>(&p.inv_dir[a], base + 8 * h).move_mask() as u32) << (8 * h);
+        }
+        mask & (u32::MAX >> (32 - W))
+    })
+}
+
 /// [`rt_geom::aabb::SlabRay::entry`] of the block's lanes (with `pad_after`,
 /// [`rt_geom::Aabb::clip_ray`]): the padded entry and exit of each lane, and the mask of the
 /// active lanes that enter.
@@ -115,24 +168,21 @@ pub(crate) fn clip_block<const N: usize, const W: usize>(
     max: &[f32; 3],
     p: &RayPacket<'_, N>,
     base: usize,
-) -> ([f32; W], [f32; W], u32) {
-    let (mut near, mut far, mut mask) = ([0.0; W], [0.0; W], 0);
-    for half in (0..W).step_by(8) {
-        let (t0, t1) = slabs::<N, W>(min, max, p, base + half);
+) -> (BlockRegs, BlockRegs, u32) {
+    let (mut near, mut far, mut mask) = ([f32x8::ZERO; 2], [f32x8::ZERO; 2], 0);
+    for h in 0..registers(W) {
+        let (t0, t1) = slabs::<N, W>(min, max, p, base + 8 * h);
         let (t0, t1) = if p.pad_after {
             let (t0, t1) = (pad(t0, false), pad(t1, true));
             // `t0.max(tmin)` of `clip_ray` (t0 is never NaN for a lane that enters).
-            let tmin = load::<N, W>(&p.tmin, base + half);
+            let tmin = load::<N, W>(&p.tmin, base + 8 * h);
             (select(tmin.cmp_gt(t0), tmin, t0), t1)
         } else {
             // Never below `tmin`: the slabs start from it and only raise it.
             (t0, t1)
         };
-        mask |= bits::<W>(t0.cmp_le(t1)) << half;
-        let t0 = t0.to_array();
-        let n = W.min(8);
-        near[half..half + n].copy_from_slice(&t0[..n]);
-        far[half..half + n].copy_from_slice(&t1.to_array()[..n]);
+        mask |= bits::<W>(t0.cmp_le(t1)) << (8 * h);
+        (near[h], far[h]) = (t0, t1);
     }
     (near, far, mask & active_mask::<N, W>(p, base))
 }
@@ -546,6 +596,7 @@ mod tests {
             for base in [0, 8] {
                 let (min, max) = (b.min.to_array(), b.max.to_array());
                 let (t0, t1, m) = clip_block::<16, 8>(&min, &max, &p, base);
+                let (t0, t1) = (t0[0].to_array(), t1[0].to_array());
                 for l in 0..8 {
                     let r = &rays[base + l];
                     if tmin < 0.0 {
