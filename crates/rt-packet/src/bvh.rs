@@ -169,19 +169,10 @@ fn scan<const N: usize, const W: usize>(
     if lo > hi {
         return None;
     }
-    // Bits of the block at `base` that lie inside `lanes`.
+    // Bits of the block at `base` that lie inside `lanes` (`base <= hi` for every block).
     let inside = |base: usize| {
-        let below = if lo > base {
-            (1u32 << (lo - base)) - 1
-        } else {
-            0
-        };
-        let above = if hi < base + W - 1 {
-            !((2u32 << (hi - base)) - 1)
-        } else {
-            0
-        };
-        !(below | above)
+        let (from, to) = (lo.saturating_sub(base), (hi - base).min(W - 1));
+        (u32::MAX >> (31 - to)) & (u32::MAX << from)
     };
     let blocks = (lo / W..=hi / W).map(|b| b * W);
     let mask = |base| enter_mask::<N, W>(min, max, p, base) & inside(base);

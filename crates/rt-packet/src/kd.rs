@@ -2,12 +2,13 @@
 //! Rendering with Coherent Ray Tracing") and multi-level ray tracing (Reshetov, Soupikov &
 //! Hurley 2005, "Multi-Level Ray Tracing Algorithm"), [`MlrtaKdTree`].
 //!
-//! **Packets.** The lanes go through the tree a block of 8 at a time. Lanes whose directions
-//! share their signs on all three axes walk together (a block of mixed signs is split by
-//! octant, as Wald et al. split such packets): at an inner node every lane computes its own
-//! step at the plane ([`rt_accel_kd::traverse::step`], the single-ray rule, padding included),
-//! the near child (by the common signs) is visited by the lanes that reach it, and the far
-//! child is pushed with each lane's own interval. A lane leaves a pending cell as soon as its
+//! **Packets.** The lanes go through the tree a block of 16 at a time ([`KD_BLOCK`]; 8 or 4 in
+//! smaller packets), each lane's interval held in SIMD registers from step to step. Lanes
+//! whose directions share their signs on all three axes walk together (a block of mixed signs
+//! is split by octant, as Wald et al. split such packets): at an inner node every lane
+//! computes its own step at the plane ([`rt_accel_kd::traverse::step`], the single-ray rule,
+//! padding included), the near child (by the common signs) is visited by the lanes that reach
+//! it, and the far child is pushed with each lane's own interval. A lane leaves a pending cell as soon as its
 //! closest hit lies before the cell's entry, as a single ray does; a leaf tests its primitives
 //! against all lanes that reach it at once ([`PacketPrimitive`]).
 //!
