@@ -19,7 +19,8 @@
 //! (inverse frustum culling against the split planes); when both children stay, the near one
 //! is searched first and the far one is kept for later. The lanes then start at the entry
 //! point, their intervals clipped to its cell, which skips the top of the tree for the whole
-//! packet; the far sides kept follow, deepest first, each skipped by the whole beam once every
+//! packet; the far sides kept follow, nearest the entry point first, each taken down the
+//! levels where the beam reaches one child only and skipped by the whole beam once every
 //! ray's closest hit lies before it. A beam whose search keeps more than a few far sides (it
 //! straddles many planes) is subdivided into quarters, each with its own search.
 //!
@@ -326,7 +327,8 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
 
     /// The cells the beam's rays are traced from, in order: the entry point (the first
     /// non-empty leaf the beam reaches, found by descending near child first), then the far
-    /// siblings passed on the way down, deepest first. Every non-empty leaf that any ray of the
+    /// siblings passed on the way down, deepest first, each taken down to where the beam may
+    /// reach both children (see [`Self::one_sided`]). Every non-empty leaf that any ray of the
     /// beam can reach lies below one of them; children the beam cannot enter, and subtrees
     /// without primitives, are left out. Empty when the beam reaches no primitive.
     pub fn entry_points(&self, beam: &Beam) -> Vec<EntryPoint> {
@@ -380,7 +382,49 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
             };
         }
         fars.reverse();
+        // Each far side down to where the beam reaches both children: the lanes start below
+        // the levels where it reaches only one (a far side it reaches neither child of holds
+        // nothing any lane can hit).
+        if fars.len() > 1 {
+            let mut deeper = Vec::with_capacity(fars.len());
+            deeper.push(fars[0]);
+            for &far in &fars[1..] {
+                if let Some(e) = self.one_sided(beam, far) {
+                    deeper.push(e);
+                }
+            }
+            fars = deeper;
+        }
         fars
+    }
+
+    /// From `e`, the first node whose both children the beam may reach (or a leaf), through
+    /// the ones where it reaches one child only; `None` when it reaches no child.
+    fn one_sided(&self, beam: &Beam, mut e: EntryPoint) -> Option<EntryPoint> {
+        let nodes = self.tree.nodes();
+        loop {
+            let node = &nodes[e.node];
+            if node.is_leaf() {
+                return Some(e);
+            }
+            let (below, above) = split_cell(&e.cell, node.axis(), node.split());
+            let b = self.reaches(beam, e.node + 1, &below);
+            let a = self.reaches(beam, node.above(), &above);
+            e = match (b, a) {
+                (true, false) => EntryPoint {
+                    node: e.node + 1,
+                    cell: below,
+                    depth: e.depth + 1,
+                },
+                (false, true) => EntryPoint {
+                    node: node.above(),
+                    cell: above,
+                    depth: e.depth + 1,
+                },
+                (true, true) => return Some(e),
+                (false, false) => return None,
+            };
+        }
     }
 
     /// Whether the beam may reach a primitive below node `i` (cell `cell`): the subtree holds
@@ -579,13 +623,24 @@ mod tests {
                     Ray::new(o, rt_geom::Vec3::new(dx + x, dy + y, -1.0))
                 })
                 .collect();
-            let p = RayPacket::<16>::new(&rays);
-            m.entry_points(&Beam::new(&p, 0..16))
+            Beam::new(&RayPacket::<16>::new(&rays), 0..16)
         };
-        let e = aim(0.1, 0.1);
+        let beam = aim(0.1, 0.1);
+        let e = m.entry_points(&beam);
         assert!(m.tree().nodes()[e[0].node].is_leaf());
         assert!(e[0].depth >= 8, "entry point at depth {}", e[0].depth);
-        assert!(e.windows(2).all(|w| w[0].depth > w[1].depth), "{e:?}");
-        assert!(aim(5.0, 5.0).is_empty());
+        // The far sides: disjoint cells, each a leaf or a node whose both children the beam
+        // may reach.
+        assert!(e.len() >= 2, "{e:?}");
+        for (i, a) in e.iter().enumerate() {
+            for b in &e[i + 1..] {
+                let overlap = a.cell.min.max(b.cell.min).cmplt(a.cell.max.min(b.cell.max));
+                assert!(!overlap.all(), "{a:?} and {b:?} overlap");
+            }
+        }
+        for f in &e[1..] {
+            assert_eq!(m.one_sided(&beam, *f), Some(*f), "{f:?}");
+        }
+        assert!(m.entry_points(&aim(5.0, 5.0)).is_empty());
     }
 }
