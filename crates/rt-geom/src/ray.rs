@@ -157,7 +157,7 @@ impl Ray {
 /// What a primitive's kernel reports: distance and surface coordinates.
 ///
 /// For triangles `(u, v)` are barycentric: the hit point is `(1-u-v)*v0 + u*v1 + v*v2`.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PrimHit {
     pub t: f32,
     pub u: f32,

@@ -213,17 +213,24 @@ pub(crate) fn active_mask<const N: usize, const W: usize>(
 /// all lanes together.
 pub trait PacketPrimitive: Primitive {
     /// The hits of the lanes in `mask` (bits relative to `base`) of the block at `base`, each
-    /// lane over `[tmin, tmax]` of the packet: exactly `self.intersect(&p.ray(lane))`.
+    /// lane over `[tmin, tmax]` of the packet: exactly `self.intersect(&p.ray(lane))`. Returns
+    /// the lanes that hit, each one's hit in `out` (other lanes of `out` are left as they are).
     #[inline(always)]
     fn intersect_block<const N: usize, const W: usize>(
         &self,
         p: &RayPacket<'_, N>,
         base: usize,
         mask: u32,
-    ) -> [Option<PrimHit>; W] {
-        let mut out = [None; W];
-        for_each_lane(mask, |l| out[l] = self.intersect(&p.ray(base + l)));
-        out
+        out: &mut [PrimHit; W],
+    ) -> u32 {
+        let mut hits = 0;
+        for_each_lane(mask, |l| {
+            if let Some(h) = self.intersect(&p.ray(base + l)) {
+                out[l] = h;
+                hits |= 1 << l;
+            }
+        });
+        hits
     }
 }
 
@@ -245,13 +252,14 @@ where
     P: PacketPrimitive + 'a,
 {
     let mut changed = 0;
+    let mut hits = [PrimHit::default(); W];
     for (prim, id) in prims {
         if lanes == 0 {
             break;
         }
-        let hits = prim.intersect_block::<N, W>(p, base, lanes);
-        for_each_lane(lanes, |l| {
-            let Some(h) = hits[l] else { return };
+        let hit = prim.intersect_block::<N, W>(p, base, lanes, &mut hits);
+        for_each_lane(hit, |l| {
+            let h = hits[l];
             let lane = base + l;
             if ANY_HIT {
                 best[lane] = Some(Hit::new(h, id));
@@ -289,8 +297,9 @@ impl PacketPrimitive for Triangle {
         p: &RayPacket<'_, N>,
         base: usize,
         mask: u32,
-    ) -> [Option<PrimHit>; W] {
-        let mut out = [None; W];
+        out: &mut [PrimHit; W],
+    ) -> u32 {
+        let mut hits = 0;
         for half in (0..W).step_by(8) {
             let (sub, mask) = (base + half, mask >> half & 0xff);
             if mask == 0 {
@@ -330,21 +339,24 @@ impl PacketPrimitive for Triangle {
             let mixed = bits::<W>(neg & pos);
             let zero = bits::<W>(u.cmp_eq(z) | v.cmp_eq(z) | w.cmp_eq(z));
             let (eu, ev, ew) = (u.to_array(), v.to_array(), w.to_array());
-            for_each_lane(mask & zero, |l| {
-                out[half + l] = self.intersect(&p.ray(sub + l));
-            });
+            let mut keep = |l: usize, h: Option<PrimHit>| {
+                if let Some(h) = h {
+                    out[half + l] = h;
+                    hits |= 1 << (half + l);
+                }
+            };
+            for_each_lane(mask & zero, |l| keep(l, self.intersect(&p.ray(sub + l))));
             let candidates = mask & !mixed & !zero;
             if candidates.count_ones() < 4 {
                 for_each_lane(candidates, |l| {
                     let edges = (eu[l], ev[l], ew[l]);
-                    out[half + l] = self.finish_watertight(&p.ray(sub + l), edges);
+                    keep(l, self.finish_watertight(&p.ray(sub + l), edges));
                 });
             } else if !self.is_degenerate() {
-                let out = &mut out[half..];
-                refine_lanes(self, p, sub, candidates, (&eu, &ev, &ew), out);
+                refine_lanes(self, p, sub, candidates, (&eu, &ev, &ew), keep);
             }
         }
-        out
+        hits
     }
 }
 
@@ -364,13 +376,16 @@ fn refine_lanes<const N: usize>(
     base: usize,
     mut lanes: u32,
     (eu, ev, ew): (&[f32; 8], &[f32; 8], &[f32; 8]),
-    out: &mut [Option<PrimHit>],
+    mut keep: impl FnMut(usize, Option<PrimHit>),
 ) {
     while lanes != 0 {
         if lanes.count_ones() < 4 {
             // Fewer than four lanes: the scalar refinement costs less than gathering them.
             for_each_lane(lanes, |l| {
-                out[l] = tri.finish_watertight(&p.ray(base + l), (eu[l], ev[l], ew[l]));
+                keep(
+                    l,
+                    tri.finish_watertight(&p.ray(base + l), (eu[l], ev[l], ew[l])),
+                );
             });
             return;
         }
@@ -452,17 +467,20 @@ fn refine_lanes<const N: usize>(
             }
             let lane = base + l;
             if inside >> k & 1 == 0 {
-                out[l] = tri.refine(&p.ray(lane), (u, v, w));
+                keep(l, tri.refine(&p.ray(lane), (u, v, w)));
                 continue;
             }
             let t = t[k] as f32;
             if t >= p.tmin[lane] && t <= p.tmax[lane] {
                 let rcp = 1.0 / (u + v + w);
-                out[l] = Some(PrimHit {
-                    t,
-                    u: v * rcp,
-                    v: w * rcp,
-                });
+                keep(
+                    l,
+                    Some(PrimHit {
+                        t,
+                        u: v * rcp,
+                        v: w * rcp,
+                    }),
+                );
             }
         }
     }
@@ -496,9 +514,12 @@ mod tests {
         for chunk in rays.chunks(8) {
             let p = RayPacket::<8>::new(chunk);
             for t in &tris {
-                let got = t.intersect_block::<8, 8>(&p, 0, active_mask::<8, 8>(&p, 0));
+                let mut got = [PrimHit::default(); 8];
+                let mask = active_mask::<8, 8>(&p, 0);
+                let hit = t.intersect_block::<8, 8>(&p, 0, mask, &mut got);
                 for (l, r) in chunk.iter().enumerate() {
-                    assert_eq!(got[l], t.intersect(r), "{t:?} {r:?}");
+                    let got = (hit >> l & 1 == 1).then_some(got[l]);
+                    assert_eq!(got, t.intersect(r), "{t:?} {r:?}");
                 }
             }
         }
@@ -555,9 +576,12 @@ mod tests {
             }
             for chunk in rays.chunks(8) {
                 let p = RayPacket::<8>::new(chunk);
-                let got = t.intersect_block::<8, 8>(&p, 0, active_mask::<8, 8>(&p, 0));
+                let mut got = [PrimHit::default(); 8];
+                let mask = active_mask::<8, 8>(&p, 0);
+                let hit = t.intersect_block::<8, 8>(&p, 0, mask, &mut got);
                 for (l, r) in chunk.iter().enumerate() {
-                    assert_eq!(got[l], t.intersect(r), "{t:?} {r:?}");
+                    let got = (hit >> l & 1 == 1).then_some(got[l]);
+                    assert_eq!(got, t.intersect(r), "{t:?} {r:?}");
                 }
             }
         }
