@@ -8,9 +8,9 @@
 //! is split by octant, as Wald et al. split such packets): at an inner node every lane
 //! computes its own step at the plane ([`rt_accel_kd::traverse::step`], the single-ray rule,
 //! padding included), the near child (by the common signs) is visited by the lanes that reach
-//! it, and the far child is pushed with each lane's own interval. A lane leaves a pending cell as soon as its
-//! closest hit lies before the cell's entry, as a single ray does; a leaf tests its primitives
-//! against all lanes that reach it at once ([`PacketPrimitive`]).
+//! it, and the far child is pushed with each lane's own interval. A lane leaves a pending cell
+//! as soon as its closest hit lies before the cell's entry, as a single ray does; a leaf tests
+//! its primitives against all lanes that reach it at once ([`PacketPrimitive`]).
 //!
 //! **Multi-level ray tracing.** Before the walk, the packet's rays are bounded as a beam
 //! ([`Beam`]), and the tree is searched for the deepest node that is a valid *entry point*:
@@ -339,7 +339,7 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
             depth: 0,
         };
         let mut fars = Vec::new();
-        if nodes.is_empty() || !self.reaches(beam, 0, &root.cell) {
+        if nodes.is_empty() || !self.reaches(beam, &root) {
             return fars;
         }
         let mut at = Some(root);
@@ -349,17 +349,9 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
                 fars.push(e);
                 break;
             }
-            let axis = node.axis();
-            let (below, above) = split_cell(&e.cell, axis, node.split());
-            let child = |node, cell| EntryPoint {
-                node,
-                cell,
-                depth: e.depth + 1,
-            };
-            let (below, above) = (child(e.node + 1, below), child(node.above(), above));
-            let b = self.reaches(beam, below.node, &below.cell);
-            let a = self.reaches(beam, above.node, &above.cell);
-            at = match (b, a, beam.sign(axis)) {
+            let (below, above) = self.children(&e);
+            let (b, a) = (self.reaches(beam, &below), self.reaches(beam, &above));
+            at = match (b, a, beam.sign(node.axis())) {
                 (true, false, _) => Some(below),
                 (false, true, _) => Some(above),
                 // Both sides: the near one first, the far one after it.
@@ -407,30 +399,32 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
             if node.is_leaf() {
                 return Some(e);
             }
-            let (below, above) = split_cell(&e.cell, node.axis(), node.split());
-            let b = self.reaches(beam, e.node + 1, &below);
-            let a = self.reaches(beam, node.above(), &above);
-            e = match (b, a) {
-                (true, false) => EntryPoint {
-                    node: e.node + 1,
-                    cell: below,
-                    depth: e.depth + 1,
-                },
-                (false, true) => EntryPoint {
-                    node: node.above(),
-                    cell: above,
-                    depth: e.depth + 1,
-                },
+            let (below, above) = self.children(&e);
+            e = match (self.reaches(beam, &below), self.reaches(beam, &above)) {
+                (true, false) => below,
+                (false, true) => above,
                 (true, true) => return Some(e),
                 (false, false) => return None,
             };
         }
     }
 
-    /// Whether the beam may reach a primitive below node `i` (cell `cell`): the subtree holds
-    /// some, and the beam may enter the cell.
-    fn reaches(&self, beam: &Beam, i: usize, cell: &Aabb) -> bool {
-        self.occupied[i] && beam.may_enter(&cell.min.to_array(), &cell.max.to_array())
+    /// The children of inner node `e.node`, below and above its plane, with their cells.
+    fn children(&self, e: &EntryPoint) -> (EntryPoint, EntryPoint) {
+        let node = &self.tree.nodes()[e.node];
+        let (below, above) = split_cell(&e.cell, node.axis(), node.split());
+        let child = |node, cell| EntryPoint {
+            node,
+            cell,
+            depth: e.depth + 1,
+        };
+        (child(e.node + 1, below), child(node.above(), above))
+    }
+
+    /// Whether the beam may reach a primitive below `e`: the subtree holds some, and the beam
+    /// may enter its cell.
+    fn reaches(&self, beam: &Beam, e: &EntryPoint) -> bool {
+        self.occupied[e.node] && beam.may_enter(&e.cell.min.to_array(), &e.cell.max.to_array())
     }
 
     /// The lanes of `range`, from the entry points of their beam, or quarter by quarter when
