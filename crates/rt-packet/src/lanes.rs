@@ -160,8 +160,8 @@ pub(crate) fn negative_bits<const N: usize, const W: usize>(
 }
 
 /// [`rt_geom::aabb::SlabRay::entry`] of the block's lanes (with `pad_after`,
-/// [`rt_geom::Aabb::clip_ray`]): the padded entry and exit of each lane, and the mask of the
-/// active lanes that enter.
+/// [`rt_geom::Aabb::clip_ray`]): the padded entry and exit of each lane, in registers, and the
+/// mask of the active lanes that enter.
 #[inline(always)]
 pub(crate) fn clip_block<const N: usize, const W: usize>(
     min: &[f32; 3],
@@ -368,7 +368,8 @@ impl PacketPrimitive for Triangle {
 /// rounding error outside the triangle) goes through the scalar `refine` for its fallback,
 /// and the last lanes, fewer than four, through the scalar path altogether (gathering them
 /// costs more than it saves: bunny's primary rays, mostly one or two lanes per triangle, ran
-/// 9% slower with every lane gathered).
+/// 9% slower with every lane gathered). Each lane's answer goes to `keep(lane, answer)`
+/// (lanes relative to `base`); a lane whose interval excludes the hit is not handed over.
 #[inline(never)]
 fn refine_lanes<const N: usize>(
     tri: &Triangle,
