@@ -87,7 +87,11 @@ impl Culling {
 
     /// False only when no active lane of `p` can enter the box `node`.
     #[inline(always)]
-    fn may_enter<const N: usize>(&mut self, node: Bounds<'_>, p: &RayPacket<'_, N>) -> bool {
+    pub(crate) fn may_enter<const N: usize>(
+        &mut self,
+        node: Bounds<'_>,
+        p: &RayPacket<'_, N>,
+    ) -> bool {
         if N < 64 {
             return true;
         }
@@ -159,7 +163,7 @@ pub(crate) fn test_leaf<P: PacketPrimitive, const N: usize, const W: usize, cons
 /// The first (or with `backwards`, the last) lane in `lanes` that enters `node`, testing a
 /// block of lanes at a time.
 #[inline(always)]
-fn scan<const N: usize, const W: usize>(
+pub(crate) fn scan<const N: usize, const W: usize>(
     (min, max): Bounds<'_>,
     p: &RayPacket<'_, N>,
     lanes: std::ops::RangeInclusive<usize>,

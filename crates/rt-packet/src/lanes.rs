@@ -38,7 +38,7 @@ fn bits<const W: usize>(m: f32x8) -> u32 {
 
 /// `if c { a } else { b }` per lane, `c` a comparison result.
 #[inline(always)]
-fn select(c: f32x8, a: f32x8, b: f32x8) -> f32x8 {
+pub(crate) fn select(c: f32x8, a: f32x8, b: f32x8) -> f32x8 {
     c.blend(a, b)
 }
 
@@ -78,7 +78,7 @@ fn slabs<const N: usize, const W: usize>(
 
 /// `t - |t| PAD` and `t + |t| PAD` on 8 lanes ([`pad_down`], [`pad_up`]).
 #[inline(always)]
-fn pad(t: f32x8, up: bool) -> f32x8 {
+pub(crate) fn pad(t: f32x8, up: bool) -> f32x8 {
     let m = t.abs() * f32x8::splat(PAD);
     if up { t + m } else { t - m }
 }

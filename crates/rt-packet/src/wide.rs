@@ -6,8 +6,9 @@
 //! at a time, as in the binary tree, with the same tie rule: every lane's answer equals the
 //! wide BVH's single-ray answer.
 
-use crate::bvh::{Culling, entering_range, lane_entry, test_leaf};
+use crate::bvh::{Culling, lane_entry, scan, test_leaf};
 use crate::lanes::PacketPrimitive;
+use crate::lanes::{pad, select};
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_bvh::{WideBvh, WideNode};
 use rt_geom::{Accel, Hit};
@@ -25,6 +26,43 @@ fn child_box<const K: usize>(node: &WideNode<K>, c: usize) -> ([f32; 3], [f32; 3
     )
 }
 
+/// Lane `i`'s [`lane_entry`] into every child box of `node` at once (up to 8 children, one
+/// SIMD lane each): the children it enters, and the entries.
+#[inline(always)]
+fn lane_entries<const K: usize, const N: usize>(
+    node: &WideNode<K>,
+    p: &RayPacket<'_, N>,
+    i: usize,
+) -> (u32, [f32; 8]) {
+    use wide::{CmpGt, CmpLe, CmpLt, f32x8};
+    const { assert!(K <= 8, "wide nodes of at most 8 children") };
+    let row = |v: &[f32; K], empty: f32| {
+        let mut a = [empty; 8];
+        a[..K].copy_from_slice(v);
+        f32x8::new(a)
+    };
+    let mut t0 = f32x8::splat(p.tmin[i]);
+    let mut t1 = f32x8::splat(p.tmax[i]);
+    for a in 0..3 {
+        let (inv_lo, inv_hi) = (p.inv_lo[a][i], p.inv_hi[a][i]);
+        let o = f32x8::splat(p.origin[a][i]);
+        let t_lo = (row(&node.min[a], f32::INFINITY) - o) * f32x8::splat(inv_lo);
+        let t_hi = (row(&node.max[a], f32::NEG_INFINITY) - o) * f32x8::splat(inv_hi);
+        let (tn, tf) = if inv_lo.is_sign_negative() {
+            (t_hi, t_lo)
+        } else {
+            (t_lo, t_hi)
+        };
+        t0 = select(tn.cmp_gt(t0), tn, t0);
+        t1 = select(tf.cmp_lt(t1), tf, t1);
+    }
+    if p.pad_after {
+        (t0, t1) = (pad(t0, false), pad(t1, true));
+    }
+    let enters = t0.cmp_le(t1).move_mask() as u32 & ((1u32 << K) - 1);
+    (enters, t0.to_array())
+}
+
 /// Pushes the children of node `index` that some lane in `[from, to]` enters, far to near
 /// by the entry of their first lane (so the nearest is visited next).
 #[inline(always)]
@@ -39,12 +77,36 @@ fn expand<const K: usize, const N: usize, const W: usize>(
     let node = &nodes[index as usize];
     let mut entered = [(0.0f32, (0u32, 0u32, 0u32, 0u32)); K];
     let mut n = 0;
+    // The first and the last active lanes against every child at once; the other lanes only
+    // where they miss (`entering_range`'s steps, without its scalar tests of those two).
+    let Some(first) = (from..=to).find(|&i| p.active[i]) else {
+        return;
+    };
+    let last = (first..=to).rev().find(|&i| p.active[i]).unwrap_or(first);
+    let (first_in, first_entry) = lane_entries(node, p, first);
+    let last_in = lane_entries(node, p, last).0;
     for c in (0..K).filter(|&c| node.is_used(c)) {
         let (min, max) = child_box(node, c);
-        let Some((lo, hi)) = entering_range::<N, W>((&min, &max), p, culling, (from, to)) else {
-            continue;
+        let b = (&min, &max);
+        let (lo, entry) = if first_in >> c & 1 == 1 {
+            (first, first_entry[c])
+        } else {
+            if !culling.may_enter(b, p) {
+                continue;
+            }
+            let Some(lo) = scan::<N, W>(b, p, first + 1..=to, false) else {
+                continue;
+            };
+            (lo, lane_entry(b, p, lo).unwrap_or(f32::INFINITY))
         };
-        let entry = lane_entry((&min, &max), p, lo).unwrap_or(f32::INFINITY);
+        let hi = if last == lo || last_in >> c & 1 == 1 {
+            last
+        } else {
+            let Some(hi) = scan::<N, W>(b, p, lo..=last - 1, true) else {
+                continue;
+            };
+            hi
+        };
         entered[n] = (entry, (index, c as u32, lo as u32, hi as u32));
         n += 1;
     }
