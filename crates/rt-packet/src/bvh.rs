@@ -87,11 +87,7 @@ impl Culling {
 
     /// False only when no active lane of `p` can enter the box `node`.
     #[inline(always)]
-    pub(crate) fn may_enter<const N: usize>(
-        &mut self,
-        node: Bounds<'_>,
-        p: &RayPacket<'_, N>,
-    ) -> bool {
+    fn may_enter<const N: usize>(&mut self, node: Bounds<'_>, p: &RayPacket<'_, N>) -> bool {
         if N < 64 {
             return true;
         }
@@ -121,19 +117,40 @@ pub(crate) fn entering_range<const N: usize, const W: usize>(
     (from, to): (usize, usize),
 ) -> Option<(usize, usize)> {
     let first = (from..=to).find(|&i| p.active[i])?;
-    let first = if lane_enters(node, p, first) {
-        first
-    } else {
-        if !culling.may_enter(node, p) {
-            return None;
-        }
-        scan::<N, W>(node, p, first + 1..=to, false)?
-    };
     let last = (first..=to).rev().find(|&i| p.active[i])?;
-    if last == first || lane_enters(node, p, last) {
-        return Some((first, last));
+    let first_entry = lane_entry(node, p, first);
+    let range = narrow_range::<N, W>(node, p, culling, (first, last, to), first_entry, || {
+        lane_enters(node, p, last)
+    });
+    range.map(|(lo, hi, _)| (lo, hi))
+}
+
+/// [`entering_range`] from the first and the last active lanes `first`, `last` of a range
+/// ending at `to`, once the first lane's entry into `node` (`None`: it misses) is known and
+/// the last lane can be asked: the first lane that enters (with its entry when it is
+/// `first`) and the last.
+#[inline(always)]
+pub(crate) fn narrow_range<const N: usize, const W: usize>(
+    node: Bounds<'_>,
+    p: &RayPacket<'_, N>,
+    culling: &mut Culling,
+    (first, last, to): (usize, usize, usize),
+    first_entry: Option<f32>,
+    last_enters: impl FnOnce() -> bool,
+) -> Option<(usize, usize, Option<f32>)> {
+    let lo = match first_entry {
+        Some(_) => first,
+        None => {
+            if !culling.may_enter(node, p) {
+                return None;
+            }
+            scan::<N, W>(node, p, first + 1..=to, false)?
+        }
+    };
+    if last == lo || last_enters() {
+        return Some((lo, last, first_entry));
     }
-    Some((first, scan::<N, W>(node, p, first..=last - 1, true)?))
+    Some((lo, scan::<N, W>(node, p, lo..=last - 1, true)?, first_entry))
 }
 
 /// Tests the primitives `first..first + count` (leaf order, with their ids) against the lanes
@@ -163,7 +180,7 @@ pub(crate) fn test_leaf<P: PacketPrimitive, const N: usize, const W: usize, cons
 /// The first (or with `backwards`, the last) lane in `lanes` that enters `node`, testing a
 /// block of lanes at a time.
 #[inline(always)]
-pub(crate) fn scan<const N: usize, const W: usize>(
+fn scan<const N: usize, const W: usize>(
     (min, max): Bounds<'_>,
     p: &RayPacket<'_, N>,
     lanes: std::ops::RangeInclusive<usize>,

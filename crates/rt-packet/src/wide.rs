@@ -6,7 +6,7 @@
 //! at a time, as in the binary tree, with the same tie rule: every lane's answer equals the
 //! wide BVH's single-ray answer.
 
-use crate::bvh::{Culling, lane_entry, scan, test_leaf};
+use crate::bvh::{Culling, lane_entry, narrow_range, test_leaf};
 use crate::lanes::PacketPrimitive;
 use crate::lanes::{pad, select};
 use crate::{PacketTraversal, RayPacket};
@@ -78,7 +78,7 @@ fn expand<const K: usize, const N: usize, const W: usize>(
     let mut entered = [(0.0f32, (0u32, 0u32, 0u32, 0u32)); K];
     let mut n = 0;
     // The first and the last active lanes against every child at once; the other lanes only
-    // where they miss (`entering_range`'s steps, without its scalar tests of those two).
+    // where they miss (`entering_range` with those two tests done).
     let Some(first) = (from..=to).find(|&i| p.active[i]) else {
         return;
     };
@@ -88,25 +88,17 @@ fn expand<const K: usize, const N: usize, const W: usize>(
     for c in (0..K).filter(|&c| node.is_used(c)) {
         let (min, max) = child_box(node, c);
         let b = (&min, &max);
-        let (lo, entry) = if first_in >> c & 1 == 1 {
-            (first, first_entry[c])
-        } else {
-            if !culling.may_enter(b, p) {
-                continue;
-            }
-            let Some(lo) = scan::<N, W>(b, p, first + 1..=to, false) else {
-                continue;
-            };
-            (lo, lane_entry(b, p, lo).unwrap_or(f32::INFINITY))
+        let first_entry = (first_in >> c & 1 == 1).then_some(first_entry[c]);
+        let range = (first, last, to);
+        let last_enters = || last_in >> c & 1 == 1;
+        let Some((lo, hi, entry)) =
+            narrow_range::<N, W>(b, p, culling, range, first_entry, last_enters)
+        else {
+            continue;
         };
-        let hi = if last == lo || last_in >> c & 1 == 1 {
-            last
-        } else {
-            let Some(hi) = scan::<N, W>(b, p, lo..=last - 1, true) else {
-                continue;
-            };
-            hi
-        };
+        let entry = entry
+            .or_else(|| lane_entry(b, p, lo))
+            .unwrap_or(f32::INFINITY);
         entered[n] = (entry, (index, c as u32, lo as u32, hi as u32));
         n += 1;
     }
