@@ -60,7 +60,8 @@ pub fn enclosed_tiles<T: PacketTraversal + Accel>(build: impl Fn(&[Triangle]) ->
     view_tiles(&build(&tris), rt_testkit::View::interior(&bounds(&tris)));
 }
 
-fn bounds(tris: &[Triangle]) -> rt_geom::Aabb {
+/// The box around `tris`.
+pub fn bounds(tris: &[Triangle]) -> rt_geom::Aabb {
     tris.iter()
         .fold(rt_geom::Aabb::EMPTY, |b, t| b.union(t.bounds()))
 }

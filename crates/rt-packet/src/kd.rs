@@ -471,6 +471,47 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
     }
 }
 
+impl<P: PacketPrimitive> MlrtaKdTree<P> {
+    /// [`PacketTraversal::intersect_packet`] with entry points searched for every block of
+    /// lanes on its own (the [`KD_BLOCK`] lanes that walk the tree together; 8 or 4 in
+    /// smaller packets), from the root, instead of once per packet: the deepest start each
+    /// block can have. The same answers; slower in practice, since a search per block costs
+    /// more than it saves. Kept to measure what entry points could save at most: the walks
+    /// from these starts, without the searches' cost, bound multi-level ray tracing's speed-up
+    /// over plain packets (`cargo run --release -p rt-packet --example mlrta_bound`).
+    pub fn intersect_packet_per_block<const N: usize>(
+        &self,
+        packet: &mut RayPacket<'_, N>,
+    ) -> [Option<Hit>; N] {
+        let mut best = [None; N];
+        with_block_width!(N, per_block::<P, false>(self, packet, &mut best));
+        best
+    }
+}
+
+/// Every block of `p` from the entry points of its own beam.
+fn per_block<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
+    m: &MlrtaKdTree<P>,
+    p: &mut RayPacket<'_, N>,
+    best: &mut [Option<Hit>; N],
+) {
+    let stack = &mut new_stack();
+    for base in (0..N).step_by(W) {
+        if active_mask::<N, W>(p, base) == 0 {
+            continue;
+        }
+        let beam = Beam::new(p, base..base + W);
+        for e in m.entry_points(&beam) {
+            let live = active_mask::<N, W>(p, base);
+            if live != 0 {
+                trace_block::<P, N, W, ANY_HIT>(
+                    &m.tree, p, best, base, live, e.node, &e.cell, stack,
+                );
+            }
+        }
+    }
+}
+
 /// The cells below and above a plane.
 fn split_cell(cell: &Aabb, axis: usize, split: f32) -> (Aabb, Aabb) {
     let (mut below, mut above) = (*cell, *cell);
@@ -600,6 +641,47 @@ mod tests {
             bytes(pair.packets.tree()) + bytes(&pair.singles)
         );
         pair.validate().unwrap();
+    }
+
+    /// Blocks that search their own entry points give the single-ray answers too.
+    #[test]
+    fn per_block_entry_points_equal_single_rays() {
+        use rt_geom::Accel;
+        fn check<const N: usize>(m: &MlrtaKdTree<rt_geom::Triangle>, rays: &[Ray], what: &str) {
+            for (c, chunk) in rays.chunks(N).enumerate() {
+                let mut p = RayPacket::<N>::new(chunk);
+                let hits = m.intersect_packet_per_block(&mut p);
+                p.recycle();
+                for (k, r) in chunk.iter().enumerate() {
+                    assert_eq!(
+                        hits[k],
+                        m.intersect(r),
+                        "{what}, N = {N}, ray {}",
+                        c * N + k
+                    );
+                }
+            }
+        }
+        let mut sets = Vec::new();
+        for scene in scenes::conformance_triangle_scenes() {
+            let rays = conformance_rays(&scene.prims, 60, 7);
+            sets.push((scene.name, scene.prims, rays));
+        }
+        let sphere = scenes::tessellated_sphere(5000, rt_geom::Vec3::splat(0.5), 0.4);
+        let view = rt_testkit::View::front(&crate::check::bounds(&sphere));
+        let tiles: Vec<Ray> = crate::tiles(32, 32, 16, 16)
+            .concat()
+            .into_iter()
+            .map(|i| view.camera_rays(32, 32)[i])
+            .collect();
+        sets.push(("sphere camera".into(), sphere, tiles));
+        for (name, prims, rays) in &sets {
+            let m = MlrtaKdTree::new(KdTree::build(prims, KdParams::wald_havran()).unwrap());
+            check::<4>(&m, rays, name);
+            check::<16>(&m, rays, name);
+            check::<64>(&m, rays, name);
+            check::<256>(&m, rays, name);
+        }
     }
 
     #[test]
