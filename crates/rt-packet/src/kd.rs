@@ -469,9 +469,7 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
             trace_from::<P, N, W, ANY_HIT>(&self.tree, p, best, range.clone(), entry, stack);
         }
     }
-}
 
-impl<P: PacketPrimitive> MlrtaKdTree<P> {
     /// [`PacketTraversal::intersect_packet`] with entry points searched for every block of
     /// lanes on its own (the [`KD_BLOCK`] lanes that walk the tree together; 8 or 4 in
     /// smaller packets), from the root, instead of once per packet: the deepest start each
@@ -669,10 +667,11 @@ mod tests {
         }
         let sphere = scenes::tessellated_sphere(5000, rt_geom::Vec3::splat(0.5), 0.4);
         let view = rt_testkit::View::front(&crate::check::bounds(&sphere));
+        let camera = view.camera_rays(32, 32);
         let tiles: Vec<Ray> = crate::tiles(32, 32, 16, 16)
             .concat()
             .into_iter()
-            .map(|i| view.camera_rays(32, 32)[i])
+            .map(|i| camera[i])
             .collect();
         sets.push(("sphere camera".into(), sphere, tiles));
         for (name, prims, rays) in &sets {
