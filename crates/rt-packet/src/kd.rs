@@ -328,9 +328,10 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
     /// The cells the beam's rays are traced from, in order: the entry point (the first
     /// non-empty leaf the beam reaches, found by descending near child first), then the far
     /// siblings passed on the way down, deepest first, each taken down to where the beam may
-    /// reach both children (see [`Self::one_sided`]). Every non-empty leaf that any ray of the
-    /// beam can reach lies below one of them; children the beam cannot enter, and subtrees
-    /// without primitives, are left out. Empty when the beam reaches no primitive.
+    /// reach both children (the levels where it reaches one child only are skipped). Every
+    /// non-empty leaf that any ray of the beam can reach lies below one of them; children the
+    /// beam cannot enter, and subtrees without primitives, are left out. Empty when the beam
+    /// reaches no primitive.
     pub fn entry_points(&self, beam: &Beam) -> Vec<EntryPoint> {
         let nodes = self.tree.nodes();
         let root = EntryPoint {
