@@ -117,20 +117,64 @@ impl<P: Primitive> KdTree<P> {
         self.params.traversal = traversal;
         self
     }
+
+    /// The leaves (node indices) the iterative walk tests for `ray`, in order, and its answer:
+    /// the closest hit, or with `ANY_HIT` the first hit found. With [`Self::test_leaf`], this
+    /// measures what the walk costs beyond its leaves (`kd_leaf_bound` example).
+    pub fn leaves_tested<const ANY_HIT: bool>(&self, ray: &Ray) -> (Vec<u32>, Option<Hit>) {
+        let mut tested = Vec::new();
+        let leaves = (self.prims.as_slice(), &self.listed);
+        let iterative = KdTraversal::Iterative;
+        let hit =
+            traverse::query::<_, _, ANY_HIT>(self, leaves, &self.bounds, iterative, ray, |i| {
+                tested.push(i as u32)
+            });
+        (tested, hit)
+    }
+
+    /// Tests leaf `node`'s primitives against `ray` as the walk does: the closest hit is kept
+    /// in `best` (ties by [`rt_geom::replaces`]) and `ray.tmax` lowered to it; with `ANY_HIT`
+    /// the first hit ends the test (true). Tests nothing when `node` is not a leaf.
+    pub fn test_leaf<const ANY_HIT: bool>(
+        &self,
+        node: usize,
+        ray: &mut Ray,
+        best: &mut Option<Hit>,
+    ) -> bool {
+        let Some(leaf) = self.nodes.get(node).filter(|n| n.is_leaf()) else {
+            return false;
+        };
+        let leaves = (self.prims.as_slice(), &self.listed);
+        traverse::test_leaf::<P, ANY_HIT>(leaves, leaf, &self.indices, ray, best)
+    }
 }
 
 impl<P: Primitive> Accel for KdTree<P> {
     #[inline]
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let t = self.params.traversal;
-        traverse::query::<_, _, false>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
+        traverse::query::<_, _, false>(
+            self,
+            (&self.prims, &self.listed),
+            &self.bounds,
+            t,
+            ray,
+            |_| {},
+        )
     }
 
     #[inline]
     fn occluded(&self, ray: &Ray) -> bool {
         let t = self.params.traversal;
-        traverse::query::<_, _, true>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
-            .is_some()
+        traverse::query::<_, _, true>(
+            self,
+            (&self.prims, &self.listed),
+            &self.bounds,
+            t,
+            ray,
+            |_| {},
+        )
+        .is_some()
     }
 
     fn stats(&self) -> AccelStats {
@@ -146,6 +190,41 @@ impl<P: Primitive> Accel for KdTree<P> {
 mod tests {
     use super::*;
     use rt_geom::{Triangle, Vec3};
+
+    /// The leaves a walk tests, tested again alone in order, give the walk's answer; nodes
+    /// that are not leaves (or not nodes) test nothing.
+    #[test]
+    fn leaves_tested_replay_to_the_same_answers() {
+        for scene in rt_testkit::scenes::conformance_triangle_scenes() {
+            let tree = KdTree::build(&scene.prims, KdParams::sah()).unwrap();
+            let reference = rt_geom::BruteForce::build(&scene.prims).unwrap();
+            let rays = rt_testkit::rays::conformance_rays(&scene.prims, &reference, 30, 3);
+            for t in &rays {
+                let ray = &t.ray;
+                let (leaves, hit) = tree.leaves_tested::<false>(ray);
+                assert_eq!(hit, tree.intersect(ray), "{}", scene.name);
+                let (mut r, mut best) = (*ray, None);
+                for &l in &leaves {
+                    assert!(tree.nodes()[l as usize].is_leaf());
+                    tree.test_leaf::<false>(l as usize, &mut r, &mut best);
+                }
+                assert_eq!(best, hit, "{}", scene.name);
+                let (leaves, hit) = tree.leaves_tested::<true>(ray);
+                assert_eq!(hit.is_some(), tree.occluded(ray), "{}", scene.name);
+                let (mut r, mut best) = (*ray, None);
+                let found = leaves
+                    .iter()
+                    .any(|&l| tree.test_leaf::<true>(l as usize, &mut r, &mut best));
+                assert_eq!(found, hit.is_some(), "{}", scene.name);
+            }
+            let inner = tree.nodes().iter().position(|n| !n.is_leaf());
+            let (mut r, mut best) = (rays[0].ray, None);
+            for node in inner.into_iter().chain([tree.nodes().len(), usize::MAX]) {
+                assert!(!tree.test_leaf::<true>(node, &mut r, &mut best));
+                assert!(best.is_none());
+            }
+        }
+    }
 
     rt_testkit::conformance_per_params!(KdTree::build {
         sah: KdParams::sah(),

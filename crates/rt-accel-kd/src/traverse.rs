@@ -121,7 +121,7 @@ pub(crate) type LeafData<'a, P> = (&'a [P], &'a LeafPrims<P>);
 /// Tests leaf `node`'s primitives against `r`, shrinking `r.tmax` to the closest hit.
 /// Returns true when `ANY_HIT` and something was hit.
 #[inline(always)]
-fn test_leaf<P: Primitive, const ANY_HIT: bool>(
+pub(crate) fn test_leaf<P: Primitive, const ANY_HIT: bool>(
     (prims, listed): LeafData<'_, P>,
     node: &KdNode,
     indices: &[u32],
@@ -138,13 +138,15 @@ fn test_leaf<P: Primitive, const ANY_HIT: bool>(
 }
 
 /// Iterative front-to-back traversal with an explicit stack of pending far cells, from the
-/// ray's interval `[t0, t1]` inside the root cell.
+/// ray's interval `[t0, t1]` inside the root cell. `on_leaf` sees each leaf before it is
+/// tested (queries pass one that does nothing; [`crate::KdTree::leaves_tested`] records them).
 pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     tree: &T,
     leaves: LeafData<'_, P>,
     ray: &Ray,
     data: T::RayData,
     (mut t0, mut t1): (f32, f32),
+    mut on_leaf: impl FnMut(usize),
 ) -> Option<Hit> {
     let (nodes, indices) = (tree.nodes(), tree.indices());
     let mut r = *ray;
@@ -173,6 +175,7 @@ pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
                 }
                 continue;
             }
+            on_leaf(i);
             if test_leaf::<P, ANY_HIT>(leaves, &nodes[i], indices, &mut r, &mut best) {
                 return best;
             }
@@ -297,7 +300,8 @@ impl<P: Primitive> SplitPlanes for KdTree<P> {
 }
 
 /// A whole query: empty trees and invalid rays miss; otherwise the ray is clipped to the root
-/// cell `bounds` and walked the configured way.
+/// cell `bounds` and walked the configured way (the iterative walk hands its leaves to
+/// `on_leaf`).
 #[inline]
 pub(crate) fn query<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     tree: &T,
@@ -305,6 +309,7 @@ pub(crate) fn query<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     bounds: &Aabb,
     traversal: KdTraversal,
     ray: &Ray,
+    on_leaf: impl FnMut(usize),
 ) -> Option<Hit> {
     if tree.nodes().is_empty() || !ray.is_valid() {
         return None;
@@ -313,7 +318,9 @@ pub(crate) fn query<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     let span = bounds.clip_ray_with_inv(ray, &inv)?;
     let data = T::ray_data(ray, inv);
     match traversal {
-        KdTraversal::Iterative => iterative::<T, P, ANY_HIT>(tree, leaves, ray, data, span),
+        KdTraversal::Iterative => {
+            iterative::<T, P, ANY_HIT>(tree, leaves, ray, data, span, on_leaf)
+        }
         KdTraversal::Recursive => recursive::<T, P, ANY_HIT>(tree, leaves, ray, data, span),
     }
 }

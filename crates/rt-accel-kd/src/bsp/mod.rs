@@ -282,13 +282,27 @@ impl<P: Primitive> SplitPlanes for BspTree<P> {
 impl<P: Primitive> Accel for BspTree<P> {
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let t = self.params.traversal;
-        traverse::query::<_, _, false>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
+        traverse::query::<_, _, false>(
+            self,
+            (&self.prims, &self.listed),
+            &self.bounds,
+            t,
+            ray,
+            |_| {},
+        )
     }
 
     fn occluded(&self, ray: &Ray) -> bool {
         let t = self.params.traversal;
-        traverse::query::<_, _, true>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
-            .is_some()
+        traverse::query::<_, _, true>(
+            self,
+            (&self.prims, &self.listed),
+            &self.bounds,
+            t,
+            ray,
+            |_| {},
+        )
+        .is_some()
     }
 
     fn stats(&self) -> AccelStats {
