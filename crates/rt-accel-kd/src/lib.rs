@@ -125,10 +125,14 @@ impl<P: Primitive> KdTree<P> {
         let mut tested = Vec::new();
         let leaves = (self.prims.as_slice(), &self.listed);
         let iterative = KdTraversal::Iterative;
-        let hit =
-            traverse::query::<_, _, ANY_HIT>(self, leaves, &self.bounds, iterative, ray, |i| {
-                tested.push(i as u32)
-            });
+        let hit = traverse::query_with::<_, _, ANY_HIT>(
+            self,
+            leaves,
+            &self.bounds,
+            iterative,
+            ray,
+            |i| tested.push(i as u32),
+        );
         (tested, hit)
     }
 
@@ -153,28 +157,14 @@ impl<P: Primitive> Accel for KdTree<P> {
     #[inline]
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let t = self.params.traversal;
-        traverse::query::<_, _, false>(
-            self,
-            (&self.prims, &self.listed),
-            &self.bounds,
-            t,
-            ray,
-            |_| {},
-        )
+        traverse::query::<_, _, false>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
     }
 
     #[inline]
     fn occluded(&self, ray: &Ray) -> bool {
         let t = self.params.traversal;
-        traverse::query::<_, _, true>(
-            self,
-            (&self.prims, &self.listed),
-            &self.bounds,
-            t,
-            ray,
-            |_| {},
-        )
-        .is_some()
+        traverse::query::<_, _, true>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
+            .is_some()
     }
 
     fn stats(&self) -> AccelStats {

@@ -300,10 +300,21 @@ impl<P: Primitive> SplitPlanes for KdTree<P> {
 }
 
 /// A whole query: empty trees and invalid rays miss; otherwise the ray is clipped to the root
-/// cell `bounds` and walked the configured way (the iterative walk hands its leaves to
-/// `on_leaf`).
+/// cell `bounds` and walked the configured way.
 #[inline]
 pub(crate) fn query<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
+    tree: &T,
+    leaves: LeafData<'_, P>,
+    bounds: &Aabb,
+    traversal: KdTraversal,
+    ray: &Ray,
+) -> Option<Hit> {
+    query_with::<T, P, ANY_HIT>(tree, leaves, bounds, traversal, ray, |_| {})
+}
+
+/// [`query`], the iterative walk handing each leaf to `on_leaf` before testing it.
+#[inline(always)]
+pub(crate) fn query_with<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     tree: &T,
     leaves: LeafData<'_, P>,
     bounds: &Aabb,

@@ -282,27 +282,13 @@ impl<P: Primitive> SplitPlanes for BspTree<P> {
 impl<P: Primitive> Accel for BspTree<P> {
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let t = self.params.traversal;
-        traverse::query::<_, _, false>(
-            self,
-            (&self.prims, &self.listed),
-            &self.bounds,
-            t,
-            ray,
-            |_| {},
-        )
+        traverse::query::<_, _, false>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
     }
 
     fn occluded(&self, ray: &Ray) -> bool {
         let t = self.params.traversal;
-        traverse::query::<_, _, true>(
-            self,
-            (&self.prims, &self.listed),
-            &self.bounds,
-            t,
-            ray,
-            |_| {},
-        )
-        .is_some()
+        traverse::query::<_, _, true>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
+            .is_some()
     }
 
     fn stats(&self) -> AccelStats {
