@@ -5,7 +5,7 @@
 //! | [`node`] | [`KdNode`], the 8-byte flattened node (layout documented there) |
 //! | [`params`] | [`KdParams`] with presets `sah()`, `midpoint()`, `centroid()`; [`KdBuilder`], [`KdTraversal`] |
 //! | `build` | split-plane events, the O(N log N) SAH sweep (Wald & Havran 2006), naive planes, perfect splits, flattening |
-//! | [`traverse`] | front-to-back traversal, iterative and recursive, closest- and any-hit ([`traverse::step`]) |
+//! | [`traverse`] | front-to-back traversal, iterative and recursive, closest- and any-hit ([`traverse::step`]); [`KdTree::leaves_tested`] and [`KdTree::test_leaf`] split a query into its walk and its leaf tests |
 //! | `stats` | `stats()` and `validate()` |
 //! | [`bsp`] | [`BspTree`]: planes of any orientation (the primitives' own, and axis-aligned), same nodes and walk |
 //!
