@@ -239,16 +239,6 @@ pub const EMBREE_TOLERANCE: Tolerance = Tolerance {
     lowest_on_ties: false,
 };
 
-/// The build of the SoA-triangle BVHs (`bvh4-tri`, `bvh8-tri`, `bvh8c-tri` and the collapse
-/// variants): SoA leaf costs and reinsertion over the largest quarter of the nodes. Against
-/// no reinsertion, `bvh8-tri`, 3 interleaved rounds, primary / shadow / diffuse: sponza +18%
-/// / +14% / +13%, bunny +5% / +7% / +2%, dragon +3% / +6% / +9%, teapot +2% / +4% / 0%; all
-/// the nodes (1.0) is within 4% of a quarter everywhere and builds longer. The spatial-split
-/// trees keep none (sponza's SAH 35.3 -> 34.0, no speed-up measured).
-fn tri_params(base: BvhParams) -> BvhParams {
-    base.for_soa_leaves().with_reinsertion(0.25)
-}
-
 const BASE: &[AccelEntry] = &[
     AccelEntry {
         name: "brute",
@@ -282,13 +272,13 @@ const BASE: &[AccelEntry] = &[
     .with_packets(|p| packets_of(Bvh8::build(p, BvhParams::balanced()))),
     own(
         "bvh4-tri",
-        "rt BVH4 over SoA triangles, four watertight triangle tests at once (balanced build, BvhParams::for_soa_leaves, reinsertion 0.25)",
-        |p| boxed(TriBvh4::build(p, tri_params(BvhParams::balanced()))),
+        "rt BVH4 over SoA triangles, four watertight triangle tests at once (BvhParams::fastest_trace: binned SAH, leaf costs in blocks of four, reinsertion 0.25)",
+        |p| boxed(TriBvh4::build_for_tracing(p)),
     ),
     own(
         "bvh8-tri",
-        "rt BVH8 over SoA triangles, four watertight triangle tests at once (balanced build, BvhParams::for_soa_leaves, reinsertion 0.25)",
-        |p| boxed(TriBvh8::build(p, tri_params(BvhParams::balanced()))),
+        "rt BVH8 over SoA triangles, four watertight triangle tests at once (BvhParams::fastest_trace: binned SAH, leaf costs in blocks of four, reinsertion 0.25)",
+        |p| boxed(TriBvh8::build_for_tracing(p)),
     ),
     own(
         "bvh8-tri-spatial",
@@ -298,7 +288,7 @@ const BASE: &[AccelEntry] = &[
     own(
         "bvh8c-tri",
         "rt BVH8 with quantized child boxes over SoA triangles (bvh8c's nodes, bvh8-tri's leaves and build)",
-        |p| boxed(CompressedTriBvh8::build(p, tri_params(BvhParams::balanced()))),
+        |p| boxed(CompressedTriBvh8::build(p, BvhParams::fastest_trace())),
     ),
     own(
         "bvh8c-tri-spatial",
@@ -309,16 +299,16 @@ const BASE: &[AccelEntry] = &[
         "bvh8-tri-greedy",
         "bvh8-tri collapsed by the greedy rule alone (open the child of largest area; WideCollapse::LargestArea)",
         |p| {
-            let params = BvhParams::balanced().with_collapse(WideCollapse::LargestArea);
-            boxed(TriBvh8::build(p, tri_params(params)))
+            let params = BvhParams::fastest_trace().with_collapse(WideCollapse::LargestArea);
+            boxed(TriBvh8::build(p, params))
         },
     ),
     own(
         "bvh8-tri-sah",
         "bvh8-tri collapsed by the SAH-optimal plan alone (Ylitie et al. 2017; WideCollapse::Sah)",
         |p| {
-            let params = BvhParams::balanced().with_collapse(WideCollapse::Sah);
-            boxed(TriBvh8::build(p, tri_params(params)))
+            let params = BvhParams::fastest_trace().with_collapse(WideCollapse::Sah);
+            boxed(TriBvh8::build(p, params))
         },
     ),
     own(

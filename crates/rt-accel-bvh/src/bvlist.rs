@@ -16,7 +16,10 @@ use std::ops::Range;
 #[derive(Clone, Debug, PartialEq)]
 pub enum Grouping {
     /// Clusters of `size` primitives, consecutive along a Morton curve of their centroids.
-    Clusters { size: usize },
+    Clusters {
+        /// Primitives per cluster.
+        size: usize,
+    },
     /// The caller's groups (OBJ objects and groups: [`rt_geom::MeshGroup::triangles`]); they
     /// must cover every primitive exactly once.
     Ranges(Vec<Range<usize>>),
@@ -25,6 +28,7 @@ pub enum Grouping {
 /// Parameters of [`BvList::build`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct BvListParams {
+    /// How primitives are grouped under each volume.
     pub grouping: Grouping,
     /// Group this many volumes under each top-level volume (`None`: one flat list).
     pub two_level: Option<usize>,
@@ -59,6 +63,7 @@ thread_local! {
 }
 
 impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
+    /// Builds the list over `prims` (copied). Empty input gives an empty list.
     pub fn build(prims: &[P], params: BvListParams) -> Result<Self, BuildError> {
         check_primitives(prims, u32::MAX as usize - 1)?;
         let (order, groups) = match &params.grouping {

@@ -37,12 +37,19 @@ use rt_geom::{
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
 pub struct CompressedNode {
+    /// Minimum corner of the node box: the origin of the child codes.
     pub origin: [f32; 3],
+    /// Per axis, the `f32` exponent byte of the power-of-two step one code stands for.
     pub exponent: [u8; 3],
+    /// Number of child lanes in use.
     pub used: u8,
+    /// Per axis and child, the lower plane as a code (rounded down).
     pub qmin: [[u8; 8]; 3],
+    /// Per axis and child, the upper plane as a code (rounded up).
     pub qmax: [[u8; 8]; 3],
+    /// Per child, the node index (inner) or the first primitive (leaf).
     pub child: [u32; 8],
+    /// Per child, the primitive count of a leaf; 0 for an inner child.
     pub count: [u32; 8],
 }
 
@@ -182,6 +189,7 @@ impl CompressedTree {
         }
     }
 
+    /// The quantized nodes, root first.
     pub fn nodes(&self) -> &[CompressedNode] {
         &self.nodes
     }
@@ -290,6 +298,7 @@ impl<P: Primitive> CompressedBvh8<P> {
         }
     }
 
+    /// The quantized nodes, root first.
     pub fn nodes(&self) -> &[CompressedNode] {
         self.tree.nodes()
     }

@@ -28,6 +28,8 @@
 //! bvh.validate().unwrap();
 //! ```
 
+#![warn(missing_docs)]
+
 mod build;
 pub mod bvlist;
 mod collapse;
@@ -122,6 +124,7 @@ impl<P: Primitive> Bvh<P> {
         &self.ids
     }
 
+    /// The parameters the tree was built with.
     pub fn params(&self) -> &BvhParams {
         &self.params
     }

@@ -16,12 +16,17 @@
 
 use rt_geom::{Aabb, Vec3};
 
+/// A binary BVH node (layout in the module documentation).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(32))]
 pub struct BvhNode {
+    /// Minimum corner of the node box.
     pub min: [f32; 3],
+    /// Second child (inner node) or first primitive (leaf).
     pub offset: u32,
+    /// Maximum corner of the node box.
     pub max: [f32; 3],
+    /// Primitive count (0 for inner nodes) in the low 30 bits, split axis in the top 2.
     pub meta: u32,
 }
 
@@ -31,6 +36,7 @@ const _: () = assert!(std::mem::size_of::<BvhNode>() == 32);
 pub const MAX_LEAF_COUNT: u32 = (1 << 30) - 1;
 
 impl BvhNode {
+    /// A leaf over `count` primitives from `first`.
     pub fn leaf(bounds: Aabb, first: u32, count: u32) -> Self {
         debug_assert!(count > 0 && count <= MAX_LEAF_COUNT);
         Self {
@@ -41,6 +47,7 @@ impl BvhNode {
         }
     }
 
+    /// An inner node; its first child follows it, its second is `second_child`.
     pub fn inner(bounds: Aabb, second_child: u32, axis: usize) -> Self {
         Self {
             min: bounds.min.to_array(),
@@ -50,6 +57,7 @@ impl BvhNode {
         }
     }
 
+    /// Whether the node is a leaf.
     #[inline]
     pub fn is_leaf(&self) -> bool {
         self.count() > 0
@@ -67,6 +75,7 @@ impl BvhNode {
         (self.meta >> 30) as usize
     }
 
+    /// The node box.
     #[inline]
     pub fn bounds(&self) -> Aabb {
         Aabb::new(Vec3::from_array(self.min), Vec3::from_array(self.max))

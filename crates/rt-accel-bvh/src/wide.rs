@@ -28,9 +28,13 @@ use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray,
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(32))]
 pub struct WideNode<const N: usize> {
+    /// Per axis and child, the minimum corner of the child box.
     pub min: [[f32; N]; 3],
+    /// Per axis and child, the maximum corner of the child box.
     pub max: [[f32; N]; 3],
+    /// Per child, the node index (inner) or the first primitive (leaf).
     pub child: [u32; N],
+    /// Per child, the primitive count of a leaf; 0 for an inner child or an unused lane.
     pub count: [u32; N],
 }
 
@@ -52,6 +56,7 @@ impl<const N: usize> WideNode<N> {
         }
     }
 
+    /// Child `lane`'s box.
     pub fn bounds(&self, lane: usize) -> Aabb {
         Aabb::new(
             rt_geom::Vec3::new(self.min[0][lane], self.min[1][lane], self.min[2][lane]),
@@ -117,7 +122,9 @@ pub struct WideBvh<P, const N: usize> {
     params: BvhParams,
 }
 
+/// A 4-wide BVH over primitives `P`.
 pub type Bvh4<P> = WideBvh<P, 4>;
+/// An 8-wide BVH over primitives `P`.
 pub type Bvh8<P> = WideBvh<P, 8>;
 
 impl<P: Primitive, const N: usize> WideBvh<P, N> {
@@ -145,14 +152,17 @@ impl<P: Primitive, const N: usize> WideBvh<P, N> {
         }
     }
 
+    /// The wide topology.
     pub fn tree(&self) -> &WideTree<N> {
         &self.tree
     }
 
+    /// Primitives in leaf order.
     pub fn prims(&self) -> &[P] {
         &self.prims
     }
 
+    /// The caller's index of each primitive in leaf order.
     pub fn ids(&self) -> &[u32] {
         &self.ids
     }
@@ -240,6 +250,7 @@ impl<const N: usize> WideTree<N> {
         tree
     }
 
+    /// The wide nodes, root first.
     pub fn nodes(&self) -> &[WideNode<N>] {
         &self.nodes
     }
@@ -254,6 +265,7 @@ impl<const N: usize> WideTree<N> {
         self.root_leaf
     }
 
+    /// The depth of the deepest leaf (the root is 0).
     pub fn depth(&self) -> usize {
         self.depth
     }

@@ -25,11 +25,16 @@ pub const NO_CHILD: u32 = u32::MAX;
 /// Largest resolution along one axis.
 pub const MAX_RES: u32 = 1 << 20;
 
+/// One grid: its box, resolution and cell size.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Level {
+    /// The box the cells tile.
     pub bounds: Aabb,
+    /// Cells per axis.
     pub res: [u32; 3],
+    /// Cell size per axis.
     pub cell: [f32; 3],
+    /// Reciprocal cell size per axis.
     pub inv_cell: [f32; 3],
     /// Index in `Grid.offsets` of this level's first cell.
     pub first: u32,
@@ -79,6 +84,7 @@ impl Level {
         }
     }
 
+    /// Number of cells.
     pub fn cell_count(&self) -> usize {
         self.res.iter().map(|&r| r as usize).product()
     }
@@ -120,6 +126,7 @@ impl Level {
         i
     }
 
+    /// The linear index of the cell at `idx` (x fastest).
     #[inline(always)]
     pub fn linear(&self, idx: [u32; 3]) -> usize {
         idx[0] as usize

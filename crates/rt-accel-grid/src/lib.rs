@@ -22,6 +22,8 @@
 //! grid.validate().unwrap();
 //! ```
 
+#![warn(missing_docs)]
+
 mod build;
 pub mod level;
 pub mod params;
@@ -94,10 +96,12 @@ impl<P: Primitive> Grid<P> {
         &self.levels
     }
 
+    /// Per cell of all levels, the start of its references in [`Self::refs`] (one more entry per level closes the last cell).
     pub fn offsets(&self) -> &[u32] {
         &self.offsets
     }
 
+    /// Primitive indices, cell by cell.
     pub fn refs(&self) -> &[u32] {
         &self.refs
     }
@@ -108,6 +112,7 @@ impl<P: Primitive> Grid<P> {
         &self.skip
     }
 
+    /// The parameters the grid was built with.
     pub fn params(&self) -> &GridParams {
         &self.params
     }

@@ -10,12 +10,17 @@ pub enum GridKind {
     /// Two levels (Kalojanov, Billeter & Slusallek 2011): a coarse top grid of
     /// `top_density * N` cells; every non-empty top cell gets its own grid of
     /// `density * n_cell` cells over the box of its content.
-    TwoLevel { top_density: f32 },
+    TwoLevel {
+        /// Top-level cells per primitive.
+        top_density: f32,
+    },
     /// Adaptive (Jevans & Wyvill 1989, Klimaszewski & Sederberg 1997): a cell holding more
     /// than `max_cell_prims` primitives is subdivided into a grid of `density * n_cell`
     /// cells over the box of its content, recursively, to at most `max_levels` levels.
     Adaptive {
+        /// Cells holding more primitives are refined.
         max_cell_prims: u32,
+        /// Levels at most, the top one included.
         max_levels: u32,
     },
 }
@@ -23,6 +28,7 @@ pub enum GridKind {
 /// Parameters of [`Grid::build`](crate::Grid::build).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GridParams {
+    /// Uniform, two-level or adaptive.
     pub kind: GridKind,
     /// Cells per primitive (λ): a grid over `n` primitives gets about `density * n` cells,
     /// shaped like the box it covers. Cleary & Wyvill's and Wald's rule of thumb is 1 to 5.
@@ -95,11 +101,13 @@ impl GridParams {
         }
     }
 
+    /// The same parameters with per-ray mailboxes on or off.
     pub const fn with_mailbox(mut self, mailbox: bool) -> Self {
         self.mailbox = mailbox;
         self
     }
 
+    /// The same parameters with empty-space skipping on or off.
     pub const fn with_skip_empty(mut self, skip_empty: bool) -> Self {
         self.skip_empty = skip_empty;
         self

@@ -5,7 +5,7 @@
 //! | [`node`] | [`KdNode`], the 8-byte flattened node (layout documented there) |
 //! | [`params`] | [`KdParams`] with presets `sah()`, `midpoint()`, `centroid()`; [`KdBuilder`], [`KdTraversal`] |
 //! | `build` | split-plane events, the O(N log N) SAH sweep (Wald & Havran 2006), naive planes, perfect splits, flattening |
-//! | [`traverse`] | front-to-back traversal, iterative and recursive, closest- and any-hit ([`traverse::step`]); [`KdTree::leaves_tested`] and [`KdTree::test_leaf`] split a query into its walk and its leaf tests |
+//! | [`traverse`] | front-to-back traversal, iterative and recursive, closest- and any-hit ([`traverse::step`]) |
 //! | `stats` | `stats()` and `validate()` |
 //! | [`bsp`] | [`BspTree`]: planes of any orientation (the primitives' own, and axis-aligned), same nodes and walk |
 //!
@@ -22,6 +22,8 @@
 //! assert_eq!((hit.t, hit.prim), (1.0, 0));
 //! kd.validate().unwrap();
 //! ```
+
+#![warn(missing_docs)]
 
 pub mod bsp;
 mod build;
@@ -108,6 +110,7 @@ impl<P: Primitive> KdTree<P> {
         self.bounds
     }
 
+    /// The parameters the tree was built with.
     pub fn params(&self) -> &KdParams {
         &self.params
     }
@@ -120,7 +123,9 @@ impl<P: Primitive> KdTree<P> {
 
     /// The leaves (node indices) the iterative walk tests for `ray`, in order, and its answer:
     /// the closest hit, or with `ANY_HIT` the first hit found. With [`Self::test_leaf`], this
-    /// measures what the walk costs beyond its leaves (`kd_leaf_bound` example).
+    /// measures what the walk costs beyond its leaves (the `kd_leaf_bound` example). Behind
+    /// the `research` feature.
+    #[cfg(feature = "research")]
     pub fn leaves_tested<const ANY_HIT: bool>(&self, ray: &Ray) -> (Vec<u32>, Option<Hit>) {
         let mut tested = Vec::new();
         let leaves = (self.prims.as_slice(), &self.listed);
@@ -138,7 +143,9 @@ impl<P: Primitive> KdTree<P> {
 
     /// Tests leaf `node`'s primitives against `ray` as the walk does: the closest hit is kept
     /// in `best` (ties by [`rt_geom::replaces`]) and `ray.tmax` lowered to it; with `ANY_HIT`
-    /// the first hit ends the test (true). Tests nothing when `node` is not a leaf.
+    /// the first hit ends the test (true). Tests nothing when `node` is not a leaf. Behind the
+    /// `research` feature.
+    #[cfg(feature = "research")]
     pub fn test_leaf<const ANY_HIT: bool>(
         &self,
         node: usize,
@@ -183,6 +190,7 @@ mod tests {
 
     /// The leaves a walk tests, tested again alone in order, give the walk's answer; nodes
     /// that are not leaves (or not nodes) test nothing.
+    #[cfg(feature = "research")]
     #[test]
     fn leaves_tested_replay_to_the_same_answers() {
         for scene in rt_testkit::scenes::conformance_triangle_scenes() {

@@ -60,6 +60,7 @@ impl KdNode {
         }
     }
 
+    /// Whether the node is a leaf.
     #[inline]
     pub fn is_leaf(&self) -> bool {
         self.meta & 3 == LEAF

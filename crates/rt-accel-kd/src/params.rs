@@ -27,6 +27,7 @@ pub enum KdTraversal {
 /// Parameters of [`KdTree::build`](crate::KdTree::build).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct KdParams {
+    /// How split planes are chosen.
     pub builder: KdBuilder,
     /// SAH cost of traversing an inner node (Wald & Havran use 15 against 20 for a test).
     pub traversal_cost: f32,
@@ -47,6 +48,7 @@ pub struct KdParams {
     pub reference_budget: f32,
     /// Subtrees with more primitives than this are built in parallel (rayon).
     pub parallel_threshold: usize,
+    /// Iterative or recursive walk.
     pub traversal: KdTraversal,
 }
 
@@ -110,6 +112,7 @@ impl KdParams {
         }
     }
 
+    /// The same parameters with another walk.
     pub const fn with_traversal(mut self, traversal: KdTraversal) -> Self {
         self.traversal = traversal;
         self

@@ -22,7 +22,12 @@ pub enum Step {
     /// Only the other child (the ray crosses the plane before `t0`).
     Second,
     /// Both: the first over `[t0, first_end]`, then the second over `[second_start, t1]`.
-    Both { first_end: f32, second_start: f32 },
+    Both {
+        /// Where the ray leaves the first child.
+        first_end: f32,
+        /// Where it enters the second.
+        second_start: f32,
+    },
 }
 
 /// True when the child below the plane is the first one the ray visits: the one it is in

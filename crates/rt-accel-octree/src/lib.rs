@@ -21,6 +21,8 @@
 //! tree.validate().unwrap();
 //! ```
 
+#![warn(missing_docs)]
+
 mod build;
 pub mod node;
 pub mod params;
@@ -89,10 +91,12 @@ impl<P: Primitive> Octree<P> {
         })
     }
 
+    /// The inner nodes, root first.
     pub fn nodes(&self) -> &[OctNode] {
         &self.nodes
     }
 
+    /// The leaves.
     pub fn leaves(&self) -> &[OctLeaf] {
         &self.leaves
     }
@@ -102,6 +106,7 @@ impl<P: Primitive> Octree<P> {
         self.root
     }
 
+    /// Primitive indices, leaf by leaf.
     pub fn indices(&self) -> &[u32] {
         &self.indices
     }
@@ -111,6 +116,7 @@ impl<P: Primitive> Octree<P> {
         self.bounds
     }
 
+    /// The parameters the octree was built with.
     pub fn params(&self) -> &OctreeParams {
         &self.params
     }

@@ -32,6 +32,7 @@
 
 use rt_geom::{Aabb, Vec3};
 
+/// An inner node: one cache line (layout in the module documentation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(C, align(64))]
 pub struct OctNode {
@@ -42,6 +43,7 @@ pub struct OctNode {
     _pad: [u8; 6],
     /// Content box codes of octant `i`, axis `a`: `lo[a][i]..=hi[a][i]`.
     pub lo: [[u8; 8]; 3],
+    /// Upper content box codes of octant `i`, axis `a`.
     pub hi: [[u8; 8]; 3],
 }
 
@@ -50,7 +52,9 @@ const _: () = assert!(std::mem::size_of::<OctNode>() == 64);
 /// A leaf: the primitives `indices[first..first + count]`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct OctLeaf {
+    /// First index of the leaf's primitives.
     pub first: u32,
+    /// Number of primitives.
     pub count: u32,
 }
 
@@ -70,16 +74,20 @@ impl OctLeaf {
 pub struct ChildRef(pub u32);
 
 impl ChildRef {
+    /// The tag bit of a leaf reference.
     pub const LEAF: u32 = 1 << 31;
 
+    /// A reference to inner node `i`.
     pub fn inner(i: usize) -> Self {
         Self(i as u32)
     }
 
+    /// A reference to leaf `i`.
     pub fn leaf(i: usize) -> Self {
         Self(i as u32 | Self::LEAF)
     }
 
+    /// Whether this names a leaf.
     #[inline]
     pub fn is_leaf(self) -> bool {
         self.0 & Self::LEAF != 0

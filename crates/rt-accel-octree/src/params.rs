@@ -28,6 +28,7 @@ pub struct OctreeParams {
     pub reference_budget: f32,
     /// Nodes with more primitives than this build their octants in parallel.
     pub parallel_threshold: usize,
+    /// Parametric or recursive walk.
     pub traversal: OctreeTraversal,
     /// Each ray remembers the last 8 primitives it tested and skips them in later leaves (a
     /// primitive is listed in every leaf it overlaps). Off by default: with triangles tested
@@ -58,11 +59,13 @@ impl OctreeParams {
         }
     }
 
+    /// The same parameters with another walk.
     pub const fn with_traversal(mut self, traversal: OctreeTraversal) -> Self {
         self.traversal = traversal;
         self
     }
 
+    /// The same parameters with per-ray mailboxes on or off.
     pub const fn with_mailbox(mut self, mailbox: bool) -> Self {
         self.mailbox = mailbox;
         self

@@ -45,8 +45,11 @@ pub fn pad_up(t: f32) -> f32 {
 /// (`pad_after`), as `clip_ray` does.
 #[derive(Clone, Copy, Debug)]
 pub struct SlabRay {
+    /// The ray origin.
     pub origin: [f32; 3],
+    /// Reciprocal direction scaled for the plane the ray enters by (padding folded in).
     pub inv_near: [f32; 3],
+    /// Reciprocal direction scaled for the plane the ray leaves by (padding folded in).
     pub inv_far: [f32; 3],
     /// Per axis: the direction is negative (`-0.0` included): the near plane is the box's max.
     pub neg: [bool; 3],
@@ -66,6 +69,7 @@ impl SlabRay {
         }
     }
 
+    /// The slab data of `ray`, computed once for all the boxes it meets.
     #[inline(always)]
     pub fn new(ray: &Ray) -> Self {
         Self::with_inv_dir(ray, ray.inv_dir().to_array())
@@ -139,7 +143,9 @@ pub fn pad_interval(t0: f32, t1: f32, tmin: f32) -> (f32, f32) {
 /// the identity. A box may be flat (zero extent along an axis): planar geometry has flat boxes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
+    /// Minimum corner.
     pub min: Vec3,
+    /// Maximum corner.
     pub max: Vec3,
 }
 
@@ -150,11 +156,13 @@ impl Default for Aabb {
 }
 
 impl Aabb {
+    /// The empty box (min +inf, max -inf): the identity of [`Aabb::union`].
     pub const EMPTY: Aabb = Aabb {
         min: Vec3::splat(f32::INFINITY),
         max: Vec3::splat(f32::NEG_INFINITY),
     };
 
+    /// The box from `min` to `max`.
     #[inline]
     pub fn new(min: Vec3, max: Vec3) -> Self {
         Self { min, max }
@@ -171,11 +179,13 @@ impl Aabb {
         !(self.min.x <= self.max.x && self.min.y <= self.max.y && self.min.z <= self.max.z)
     }
 
+    /// Whether every coordinate is finite.
     #[inline]
     pub fn is_finite(&self) -> bool {
         self.min.is_finite() && self.max.is_finite()
     }
 
+    /// The box grown to hold `p`.
     #[inline]
     pub fn grow(self, p: Vec3) -> Self {
         Self {
@@ -184,6 +194,7 @@ impl Aabb {
         }
     }
 
+    /// The box around both boxes.
     #[inline]
     pub fn union(self, o: Aabb) -> Self {
         Self {
@@ -201,6 +212,7 @@ impl Aabb {
         }
     }
 
+    /// Size per axis (`max - min`).
     #[inline]
     pub fn extent(&self) -> Vec3 {
         if self.is_empty() {
@@ -210,6 +222,7 @@ impl Aabb {
         }
     }
 
+    /// Centre point.
     #[inline]
     pub fn center(&self) -> Vec3 {
         (self.min + self.max) * 0.5
@@ -241,6 +254,7 @@ impl Aabb {
         }
     }
 
+    /// Whether `p` lies in the box, faces included.
     #[inline]
     pub fn contains_point(&self, p: Vec3) -> bool {
         p.cmpge(self.min).all() && p.cmple(self.max).all()

@@ -120,13 +120,24 @@ impl fmt::Display for AccelStats {
 #[derive(Clone, Debug, PartialEq)]
 pub enum BuildError {
     /// A primitive has a NaN or infinite coordinate.
-    NonFinite { prim: usize },
+    NonFinite {
+        /// Index of the first such primitive.
+        prim: usize,
+    },
     /// More primitives than the structure's index type holds.
-    TooManyPrimitives { count: usize, max: usize },
+    TooManyPrimitives {
+        /// Primitives given.
+        count: usize,
+        /// Primitives the structure can index.
+        max: usize,
+    },
     /// A build parameter is out of its range.
     InvalidParameter {
+        /// The parameter.
         name: &'static str,
+        /// Its value.
         value: String,
+        /// The range it must lie in.
         expected: &'static str,
     },
 }
@@ -197,6 +208,7 @@ pub struct StatsSum {
 }
 
 impl StatsSum {
+    /// Starts the sums for a structure whose root cell is `root`.
     pub fn new(stats: AccelStats, root: &Aabb) -> Self {
         Self {
             stats,
@@ -221,6 +233,7 @@ impl StatsSum {
         }
     }
 
+    /// The stats with the SAH cost normalised by the root's area.
     pub fn finish(mut self) -> AccelStats {
         self.stats.sah_cost = Some(if self.root_area > 0.0 {
             (self.sah / self.root_area) as f32

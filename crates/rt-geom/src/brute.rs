@@ -19,6 +19,7 @@ impl<P: Primitive> BruteForce<P> {
         })
     }
 
+    /// The primitives, in the caller's order.
     pub fn primitives(&self) -> &[P] {
         &self.prims
     }

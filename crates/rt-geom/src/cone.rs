@@ -12,9 +12,13 @@ use std::f64::consts::TAU;
 /// (NFF's negative radii, "inside only", are not supported; the SPD files do not use them).
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct Cone {
+    /// Centre of the base circle.
     pub base: Vec3,
+    /// Radius at the base.
     pub base_radius: f32,
+    /// Centre of the apex circle.
     pub apex: Vec3,
+    /// Radius at the apex (equal to `base_radius` for a cylinder).
     pub apex_radius: f32,
 }
 
@@ -30,6 +34,7 @@ struct Frame {
 }
 
 impl Cone {
+    /// An open cone from `base` to `apex` with the given radii.
     #[inline]
     pub const fn new(base: Vec3, base_radius: f32, apex: Vec3, apex_radius: f32) -> Self {
         Self {
@@ -126,6 +131,7 @@ impl Cone {
         (far as f32).next_up()
     }
 
+    /// Whether every number is finite.
     pub fn is_finite(&self) -> bool {
         self.base.is_finite()
             && self.apex.is_finite()

@@ -54,6 +54,7 @@ impl TriangleSoa {
         self.len
     }
 
+    /// Whether no triangle is stored.
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }

@@ -30,6 +30,8 @@
 //! assert!(scene.occluded(&ray));
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod aabb;
 pub mod accel;
 pub mod brute;

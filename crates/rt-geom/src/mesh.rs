@@ -13,7 +13,9 @@ use std::path::{Path, PathBuf};
 /// An indexed triangle mesh with its OBJ objects/groups as ranges of triangles.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
+    /// Vertex positions.
     pub positions: Vec<Vec3>,
+    /// Triangles as vertex indices, in file order.
     pub indices: Vec<[u32; 3]>,
     /// Objects and groups of the file, in file order, as ranges of triangle ids.
     pub groups: Vec<MeshGroup>,
@@ -22,7 +24,9 @@ pub struct Mesh {
 /// A named range of triangles (an OBJ `o` or `g`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct MeshGroup {
+    /// The object or group name from the file.
     pub name: String,
+    /// Its triangles in [`Mesh::indices`].
     pub triangles: Range<usize>,
 }
 
@@ -41,6 +45,7 @@ impl Mesh {
             .collect()
     }
 
+    /// The box around every vertex.
     pub fn bounds(&self) -> Aabb {
         Aabb::from_points(self.positions.iter().copied())
     }
@@ -59,21 +64,39 @@ impl Mesh {
 pub enum MeshError {
     /// The file could not be read.
     Io {
+        /// The file.
         path: PathBuf,
+        /// The I/O error.
         source: std::io::Error,
     },
     /// A line that is not valid OBJ (bad number, bad face, ...).
     Malformed {
+        /// The file.
         path: PathBuf,
+        /// The line, where known.
         line: Option<usize>,
+        /// What is wrong.
         what: String,
     },
     /// A vertex with a NaN or infinite coordinate.
-    NonFinite { path: PathBuf, line: Option<usize> },
+    NonFinite {
+        /// The file.
+        path: PathBuf,
+        /// The line, where known.
+        line: Option<usize>,
+    },
     /// A face refers to a vertex that does not exist.
-    IndexOutOfRange { path: PathBuf, line: Option<usize> },
+    IndexOutOfRange {
+        /// The file.
+        path: PathBuf,
+        /// The line, where known.
+        line: Option<usize>,
+    },
     /// The file holds no face.
-    NoTriangles { path: PathBuf },
+    NoTriangles {
+        /// The file.
+        path: PathBuf,
+    },
 }
 
 impl fmt::Display for MeshError {
@@ -116,6 +139,7 @@ impl std::error::Error for MeshError {
 }
 
 impl MeshError {
+    /// The file the error is about.
     pub fn path(&self) -> &Path {
         match self {
             MeshError::Io { path, .. }

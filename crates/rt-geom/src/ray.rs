@@ -94,11 +94,13 @@ impl Ray {
         self
     }
 
+    /// The origin.
     #[inline]
     pub fn origin(&self) -> Vec3 {
         self.origin
     }
 
+    /// The direction (not normalised).
     #[inline]
     pub fn dir(&self) -> Vec3 {
         self.dir
@@ -159,8 +161,11 @@ impl Ray {
 /// For triangles `(u, v)` are barycentric: the hit point is `(1-u-v)*v0 + u*v1 + v*v2`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PrimHit {
+    /// Distance along the ray, in units of its direction.
     pub t: f32,
+    /// First barycentric coordinate (or surface parameter).
     pub u: f32,
+    /// Second barycentric coordinate (or surface parameter).
     pub v: f32,
 }
 
@@ -168,9 +173,13 @@ pub struct PrimHit {
 /// the structure was built from.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
+    /// Distance along the ray, in units of its direction.
     pub t: f32,
+    /// First barycentric coordinate (or surface parameter).
     pub u: f32,
+    /// Second barycentric coordinate (or surface parameter).
     pub v: f32,
+    /// The primitive hit, as the caller's index.
     pub prim: u32,
 }
 
@@ -231,6 +240,7 @@ impl Hit {
         (self.t, self.prim)
     }
 
+    /// The hit of primitive `prim`.
     #[inline]
     pub fn new(h: PrimHit, prim: u32) -> Self {
         Self {

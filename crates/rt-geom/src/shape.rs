@@ -7,8 +7,11 @@ use glam::Vec3;
 /// A triangle, a sphere or an open cone/cylinder.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Shape {
+    /// A triangle.
     Triangle(Triangle),
+    /// A sphere.
     Sphere(Sphere),
+    /// An open cone or cylinder.
     Cone(Cone),
 }
 

@@ -7,16 +7,20 @@ use std::f32::consts::PI;
 /// A sphere primitive. A radius of zero or less gives a sphere that is never hit.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct Sphere {
+    /// Centre.
     pub center: Vec3,
+    /// Radius.
     pub radius: f32,
 }
 
 impl Sphere {
+    /// The sphere around `center`.
     #[inline]
     pub const fn new(center: Vec3, radius: f32) -> Self {
         Self { center, radius }
     }
 
+    /// The box around the sphere.
     #[inline]
     pub fn bounds(&self) -> Aabb {
         if self.radius > 0.0 {

@@ -8,6 +8,7 @@ use wide::f32x4;
 /// A triangle given by its three vertices.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct Triangle {
+    /// The three vertices; their order gives the geometric normal.
     pub v: [Vec3; 3],
 }
 
@@ -23,6 +24,7 @@ pub enum TriangleKernel {
 }
 
 impl Triangle {
+    /// The triangle `v0, v1, v2`.
     #[inline]
     pub const fn new(v0: Vec3, v1: Vec3, v2: Vec3) -> Self {
         Self { v: [v0, v1, v2] }
@@ -40,6 +42,7 @@ impl Triangle {
         self.cross().normalize_or_zero()
     }
 
+    /// Area.
     #[inline]
     pub fn area(&self) -> f32 {
         0.5 * self.cross().length()
@@ -51,6 +54,7 @@ impl Triangle {
         self.cross() == Vec3::ZERO
     }
 
+    /// The box around the three vertices.
     #[inline]
     pub fn bounds(&self) -> Aabb {
         Aabb::new(
@@ -59,16 +63,19 @@ impl Triangle {
         )
     }
 
+    /// The mean of the vertices.
     #[inline]
     pub fn centroid(&self) -> Vec3 {
         (self.v[0] + self.v[1] + self.v[2]) * (1.0 / 3.0)
     }
 
+    /// The point at barycentric `(u, v)`.
     #[inline]
     pub fn point(&self, u: f32, v: f32) -> Vec3 {
         self.v[0] * (1.0 - u - v) + self.v[1] * u + self.v[2] * v
     }
 
+    /// The hit of `ray` by the chosen kernel.
     #[inline]
     pub fn intersect_with(&self, ray: &Ray, kernel: TriangleKernel) -> Option<PrimHit> {
         match kernel {
@@ -348,12 +355,15 @@ pub trait SimdLanes:
     const WIDTH: usize;
     /// The lanes as an array.
     type Array: Copy + std::ops::Index<usize, Output = f32>;
+    /// Every lane `x`.
     fn splat(x: f32) -> Self;
     /// Lanes from `WIDTH` consecutive floats.
     fn load(src: &[f32]) -> Self;
+    /// The lanes as an array.
     fn to_lanes(self) -> Self::Array;
     /// Bits of the lanes where some of `a`, `b`, `c` is below zero, above zero, zero.
     fn sign_bits(a: Self, b: Self, c: Self) -> (u32, u32, u32);
+    /// Lane-wise absolute value.
     fn abs(self) -> Self;
     /// Lane-wise maximum (either lane when one is NaN).
     fn max(self, other: Self) -> Self;
@@ -424,12 +434,19 @@ pub type TriangleLanes<L = f32x4> = [L; 9];
 /// `num / den` from them (`num = |U| za + |V| zb + |W| zc`, `den = |U| + |V| + |W|`), all as
 /// computed in `f32`.
 pub struct ShearedLanes<L> {
+    /// Sheared `x` per vertex.
     pub x: [L; 3],
+    /// Sheared `y` per vertex.
     pub y: [L; 3],
+    /// Depth `v[kz] - o[kz]` per vertex, before scaling.
     pub dz: [L; 3],
+    /// Depth per vertex scaled by the shear's `sz`.
     pub z: [L; 3],
+    /// Absolute edge functions `|U|`, `|V|`, `|W|`.
     pub edges: [L; 3],
+    /// Numerator of Woop's depth estimate.
     pub num: L,
+    /// Denominator of Woop's depth estimate.
     pub den: L,
 }
 

@@ -24,6 +24,7 @@ pub trait BoundingVolume: Clone + Send + Sync + std::fmt::Debug + 'static {
     /// direction for boxes), made once per ray by [`Self::ray_data`] for all the volumes it
     /// meets.
     type RayData;
+    /// The per-ray data for all the volumes the ray meets.
     fn ray_data(ray: &Ray) -> Self::RayData;
 
     /// [`Self::entry_distance`] with the ray's [`Self::RayData`].
@@ -67,6 +68,7 @@ impl BoundingVolume for Aabb {
 /// distance to any of them, enlarged by a few ulps to absorb rounding.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BoundingSphere {
+    /// Centre.
     pub center: Vec3,
     /// Negative for the empty volume.
     pub radius: f32,
@@ -164,11 +166,14 @@ pub const KDOP7_NORMALS: [Vec3; 7] = [
 /// A discrete oriented polytope of seven slabs: `near[i] <= n_i . p <= far[i]` for every point.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Kdop7 {
+    /// Per slab normal, the lowest projection.
     pub near: [f32; 7],
+    /// Per slab normal, the highest projection.
     pub far: [f32; 7],
 }
 
 impl Kdop7 {
+    /// The empty polytope: the identity of merging.
     pub const EMPTY: Kdop7 = Kdop7 {
         near: [f32::INFINITY; 7],
         far: [f32::NEG_INFINITY; 7],

@@ -89,7 +89,9 @@ pub trait PacketAccel: Accel + Send + Sync {
 /// (`stats().bytes` counts both).
 #[derive(Clone, Debug)]
 pub struct WithSingleRays<Pk, S> {
+    /// The structure packets go through.
     pub packets: Pk,
+    /// The structure single rays and incoherent groups go through.
     pub singles: S,
 }
 

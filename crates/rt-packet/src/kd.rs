@@ -57,7 +57,9 @@ pub const MLRTA_MAX_CELLS: usize = 12;
 /// A node to start from and its cell.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EntryPoint {
+    /// The node.
     pub node: usize,
+    /// The node's cell.
     pub cell: Aabb,
     /// Depth of `node` (the root is 0).
     pub depth: u32,
@@ -306,6 +308,7 @@ pub struct MlrtaKdTree<P> {
 }
 
 impl<P: PacketPrimitive> MlrtaKdTree<P> {
+    /// Multi-level ray tracing over `tree`.
     pub fn new(tree: KdTree<P>) -> Self {
         let nodes = tree.nodes();
         let mut occupied = vec![false; nodes.len()];
@@ -321,6 +324,7 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
         Self { tree, occupied }
     }
 
+    /// The kd-tree.
     pub fn tree(&self) -> &KdTree<P> {
         &self.tree
     }
@@ -477,7 +481,8 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
     /// block can have. The same answers; slower in practice, since a search per block costs
     /// more than it saves. Kept to measure what entry points could save at most: the walks
     /// from these starts, without the searches' cost, bound multi-level ray tracing's speed-up
-    /// over plain packets (`cargo run --release -p rt-packet --example mlrta_bound`).
+    /// over plain packets (the `mlrta_bound` example). Behind the `research` feature.
+    #[cfg(feature = "research")]
     pub fn intersect_packet_per_block<const N: usize>(
         &self,
         packet: &mut RayPacket<'_, N>,
@@ -489,6 +494,7 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
 }
 
 /// Every block of `p` from the entry points of its own beam.
+#[cfg(feature = "research")]
 fn per_block<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
     m: &MlrtaKdTree<P>,
     p: &mut RayPacket<'_, N>,
@@ -643,6 +649,7 @@ mod tests {
     }
 
     /// Blocks that search their own entry points give the single-ray answers too.
+    #[cfg(feature = "research")]
     #[test]
     fn per_block_entry_points_equal_single_rays() {
         use rt_geom::Accel;

@@ -29,6 +29,8 @@
 //! }
 //! ```
 
+#![warn(missing_docs)]
+
 /// Runs `$body` with `$w` a `const` of the block width for packets of `$n` lanes (8, or 4 for
 /// packets that are not a multiple of 8), so that one generic traversal serves both.
 macro_rules! by_block_width {

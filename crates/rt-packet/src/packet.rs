@@ -26,7 +26,9 @@ pub struct RayPacket<'a, const N: usize> {
 /// The lanes of a [`RayPacket`] (which dereferences to them).
 #[derive(Clone, Debug)]
 pub struct Lanes<const N: usize> {
+    /// Origins per axis.
     pub origin: [[f32; N]; 3],
+    /// Directions per axis.
     pub dir: [[f32; N]; 3],
     /// `1 / dir` per axis (`+-inf` for zero components, as `Ray::inv_dir`).
     pub inv_dir: [[f32; N]; 3],
@@ -35,6 +37,7 @@ pub struct Lanes<const N: usize> {
     /// the lane enters by and `1 + PAD` for the one it leaves by; plain `inv_dir` for the
     /// lanes with `tmin < 0`, which set `pad_after`.
     pub inv_lo: [[f32; N]; 3],
+    /// See `inv_lo`.
     pub inv_hi: [[f32; N]; 3],
     /// Some active lane has `tmin < 0`: box tests pad their intervals afterwards (lanes with
     /// folded reciprocals are then padded twice, which stays conservative).
@@ -42,11 +45,13 @@ pub struct Lanes<const N: usize> {
     /// The watertight triangle test's shear rows per lane ([`Ray::watertight_rows`]): `x`, `y`,
     /// `z` of row 0, then of row 1.
     pub shear: [[f32; N]; 6],
+    /// Start of each lane's interval.
     pub tmin: [f32; N],
     /// Shrinks to each lane's closest hit during traversal; `-inf` in inactive lanes (from
     /// the fill, and once an any-hit query is done with a lane), so that the largest `tmax`
     /// bounds how far the packet may still find hits.
     pub tmax: [f32; N],
+    /// Lanes that carry a ray still being traced.
     pub active: [bool; N],
 }
 

@@ -8,16 +8,24 @@ use rt_geom::Ray;
 pub enum Projection {
     /// Rays from the eye; `vfov_deg` is the full vertical field of view, from the top edge of
     /// the image to the bottom edge.
-    Perspective { vfov_deg: f32 },
+    Perspective {
+        /// Vertical field of view in degrees.
+        vfov_deg: f32,
+    },
     /// Parallel rays along the view direction; `height` is the height of the view in world units.
-    Orthographic { height: f32 },
+    Orthographic {
+        /// Height of the view in scene units.
+        height: f32,
+    },
 }
 
 /// Depth of field: rays start on a disc of radius `aperture` around the eye and meet on the
 /// plane at `focus_distance` along the view direction.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ThinLens {
+    /// Lens diameter (0: a pinhole).
     pub aperture: f32,
+    /// Distance of the plane in focus.
     pub focus_distance: f32,
 }
 
@@ -25,10 +33,15 @@ pub struct ThinLens {
 /// image up is perpendicular to the view direction in the plane of `up`; pixels are square.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
+    /// Eye point.
     pub eye: Vec3,
+    /// The point the camera looks at.
     pub look_at: Vec3,
+    /// Up direction.
     pub up: Vec3,
+    /// Perspective or orthographic.
     pub projection: Projection,
+    /// Depth of field, if any.
     pub lens: Option<ThinLens>,
 }
 
@@ -51,6 +64,7 @@ pub struct CameraFrame {
 }
 
 impl Camera {
+    /// A pinhole perspective camera with a vertical field of view in degrees.
     pub fn perspective(eye: Vec3, look_at: Vec3, up: Vec3, vfov_deg: f32) -> Self {
         Self {
             eye,
@@ -61,6 +75,7 @@ impl Camera {
         }
     }
 
+    /// An orthographic camera whose view is `height` tall.
     pub fn orthographic(eye: Vec3, look_at: Vec3, up: Vec3, height: f32) -> Self {
         Self {
             eye,

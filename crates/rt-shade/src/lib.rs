@@ -29,6 +29,8 @@
 //! assert_eq!(out.image.pixels.len(), 48);
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod camera;
 pub mod chess;
 pub mod material;

@@ -14,15 +14,19 @@ pub const TILE: u32 = 16;
 
 /// Largest image rendered (pixels), and largest supersampling grid side.
 pub const MAX_PIXELS: u64 = 1 << 28;
+/// Upper limit of supersamples per pixel axis.
 pub const MAX_SAMPLES_PER_AXIS: u32 = 16;
 
 /// What to render.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderOptions {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// Supersampling: `n x n` eye rays per pixel on a regular grid, averaged. Default 1.
     pub samples_per_axis: u32,
+    /// Shading options.
     pub shade: ShadeOptions,
 }
 
@@ -38,6 +42,7 @@ impl Default for RenderOptions {
 }
 
 impl RenderOptions {
+    /// Checks every field; the error names the first one out of range.
     pub fn check(&self) -> Result<(), String> {
         if self.width == 0 || self.height == 0 {
             return Err(format!(
@@ -69,8 +74,11 @@ impl RenderOptions {
 /// A linear RGB image, row-major from the top-left pixel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
+    /// Linear RGB per pixel, row by row from the top.
     pub pixels: Vec<Vec3>,
 }
 
@@ -85,6 +93,7 @@ impl Image {
         out
     }
 
+    /// Writes the image as an 8-bit sRGB PNG.
     pub fn save_png(&self, path: &Path) -> Result<(), String> {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
@@ -98,7 +107,9 @@ impl Image {
 /// A finished render.
 #[derive(Clone, Debug)]
 pub struct Rendered {
+    /// The picture.
     pub image: Image,
+    /// Rays traced, by kind.
     pub stats: RayStats,
     /// Wall-clock seconds of tracing (the structure's build not included).
     pub seconds: f64,

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 /// A point light.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PointLight {
+    /// Position.
     pub position: Vec3,
     /// Intensity per channel.
     pub colour: Vec3,
@@ -21,7 +22,9 @@ pub struct PointLight {
 /// the same ids.
 #[derive(Clone, Debug)]
 pub struct Scene {
+    /// Name, for messages.
     pub name: String,
+    /// The camera.
     pub camera: Camera,
     /// The image size the scene asks for (NFF's `resolution`), if any.
     pub resolution: Option<(u32, u32)>,
@@ -29,8 +32,11 @@ pub struct Scene {
     pub background: Vec3,
     /// Ambient light, multiplied by each material's ambient coefficient.
     pub ambient: Vec3,
+    /// Point lights.
     pub lights: Vec<PointLight>,
+    /// Materials, indexed per primitive.
     pub materials: Vec<Material>,
+    /// The primitives.
     pub shapes: Vec<Shape>,
     /// Material index of each shape.
     pub material_of: Vec<u32>,
@@ -43,12 +49,16 @@ pub struct Scene {
 /// Why a scene could not be loaded or used. Names the file and the 1-based line when there is one.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SceneError {
+    /// The file, where there is one.
     pub path: Option<PathBuf>,
+    /// The line, where known.
     pub line: Option<usize>,
+    /// What is wrong.
     pub what: String,
 }
 
 impl SceneError {
+    /// An error with no file.
     pub fn new(what: impl Into<String>) -> Self {
         Self {
             path: None,
@@ -57,6 +67,7 @@ impl SceneError {
         }
     }
 
+    /// An error at a line of a file.
     pub fn at(path: &Path, line: usize, what: impl Into<String>) -> Self {
         Self {
             path: Some(path.to_owned()),
@@ -65,6 +76,7 @@ impl SceneError {
         }
     }
 
+    /// An error about a whole file.
     pub fn in_file(path: &Path, what: impl Into<String>) -> Self {
         Self {
             path: Some(path.to_owned()),
@@ -174,6 +186,7 @@ impl Scene {
             .collect()
     }
 
+    /// The box around every primitive.
     pub fn bounds(&self) -> Aabb {
         self.shapes
             .iter()

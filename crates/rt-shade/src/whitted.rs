@@ -16,11 +16,15 @@ use std::ops::AddAssign;
 /// Counts of the rays a render cast.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct RayStats {
+    /// Eye (primary) rays.
     pub eye_rays: u64,
     /// Eye rays that hit a surface.
     pub eye_hits: u64,
+    /// Reflection rays.
     pub reflected: u64,
+    /// Refraction rays.
     pub refracted: u64,
+    /// Shadow rays.
     pub shadow: u64,
 }
 
@@ -65,6 +69,7 @@ impl Default for ShadeOptions {
 }
 
 impl ShadeOptions {
+    /// Checks every field; the error names the first one out of range.
     pub fn check(&self) -> Result<(), String> {
         if self.max_depth == 0 {
             return Err("maximum depth must be at least 1 (the eye ray)".into());
@@ -100,6 +105,7 @@ struct Surface<'a> {
 }
 
 impl<'a> Whitted<'a> {
+    /// An integrator over `scene`, tracing through `accel`.
     pub fn new(scene: &'a Scene, accel: &'a dyn Accel, options: ShadeOptions) -> Self {
         Self {
             scene,

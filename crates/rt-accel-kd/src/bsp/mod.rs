@@ -24,8 +24,11 @@ use rt_geom::{
 /// margin` inside which rounding cannot tell the sides apart.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SplitPlane {
+    /// Unit normal of the plane.
     pub normal: Vec3,
+    /// Offset: the plane is `normal . p = d`.
     pub d: f32,
+    /// Primitives within this distance of the plane count as lying in it.
     pub margin: f32,
 }
 
@@ -48,6 +51,7 @@ pub struct BspParams {
     pub reference_budget: f32,
     /// Subtrees with more primitives than this are built in parallel.
     pub parallel_threshold: usize,
+    /// Iterative or recursive walk.
     pub traversal: KdTraversal,
 }
 
@@ -169,14 +173,17 @@ impl<P: Primitive> BspTree<P> {
         &self.nodes
     }
 
+    /// The split planes, indexed by the inner nodes.
     pub fn planes(&self) -> &[SplitPlane] {
         &self.planes
     }
 
+    /// Primitive indices, leaf by leaf.
     pub fn indices(&self) -> &[u32] {
         &self.indices
     }
 
+    /// The parameters the tree was built with.
     pub fn params(&self) -> &BspParams {
         &self.params
     }
