@@ -225,6 +225,12 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
     });
     print_table(&records);
     print_packet_table(&records);
+    if opts.quick {
+        eprintln!(
+            "--quick is a smoke test (128x128 rays): its figures are not comparable with a full \
+             run's; run without --quick to compare structures"
+        );
+    }
     if let Some(path) = &opts.json {
         let text = serde_json::to_string_pretty(&records).map_err(|e| e.to_string())?;
         std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -234,7 +240,7 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
 }
 
 /// Median Mrays/s over `reps` timed runs after one warm-up; sets too slow for the time budget
-/// are subsampled evenly. Returns `(mrays_s, hits in the last run, rays per run)`.
+/// are subsampled evenly. Returns `(mrays_s, hits, rays per run)`.
 fn measure(
     accel: &dyn Accel,
     rays: &[Ray],
@@ -257,20 +263,25 @@ fn measure(
     } else {
         rays
     };
-    run::trace_count(accel, rays, occluded, pool); // warm-up
-    let mut hits = 0;
+    let (time, hits) = median_pass(reps, || run::trace_count(accel, rays, occluded, pool));
+    (run::mrays_per_s(rays.len(), time), hits, rays.len())
+}
+
+/// Shortest timed repetition: a small ray set (`--quick`) is traced several times per
+/// repetition, so that thread wake-up and timer resolution do not dominate its figure.
+const MIN_REP: Duration = Duration::from_millis(200);
+
+/// Runs `pass` once to warm up, then `reps` timed repetitions of as many passes as fill
+/// [`MIN_REP`]; returns the median time of one pass and the warm-up's hit count.
+fn median_pass(reps: usize, mut pass: impl FnMut() -> (usize, Duration)) -> (Duration, usize) {
+    let (hits, warm) = pass();
+    let passes = (MIN_REP.as_secs_f64() / warm.as_secs_f64().max(1e-9))
+        .ceil()
+        .clamp(1.0, 10_000.0) as u32;
     let times = (0..reps)
-        .map(|_| {
-            let (h, t) = run::trace_count(accel, rays, occluded, pool);
-            hits = h;
-            t
-        })
+        .map(|_| (0..passes).map(|_| pass().1).sum::<Duration>() / passes)
         .collect();
-    (
-        run::mrays_per_s(rays.len(), run::median(times)),
-        hits,
-        rays.len(),
-    )
+    (run::median(times), hits)
 }
 
 /// Median Mrays/s of rays traced as packets (one per group of ray indices, gathered into
@@ -285,14 +296,10 @@ fn measure_packets(
     reps: usize,
 ) -> (f64, usize) {
     let grouped = run::GroupedRays::new(rays, groups);
-    let (hits, _) = run::trace_packets_count(accel, &grouped, occluded, pool); // warm-up
-    let times = (0..reps)
-        .map(|_| run::trace_packets_count(accel, &grouped, occluded, pool).1)
-        .collect();
-    (
-        run::mrays_per_s(grouped.ray_count(), run::median(times)),
-        hits,
-    )
+    let (time, hits) = median_pass(reps, || {
+        run::trace_packets_count(accel, &grouped, occluded, pool)
+    });
+    (run::mrays_per_s(grouped.ray_count(), time), hits)
 }
 
 fn fill_ratios(records: &mut [Record]) {
@@ -376,37 +383,7 @@ pub fn print_packet_table(records: &[Record]) {
     }
 }
 
+/// The single-ray and packet records as aligned text on stdout.
 pub fn print_table(records: &[Record]) {
-    let embree = records.iter().any(|r| r.ratio_vs_embree.is_some());
-    println!(
-        "{:<18} {:<12} {:<13} {:>3} {:>10} {:>9} {:>8} {:>8} {:>8} {:>7}{}",
-        "accel",
-        "scene",
-        "rays",
-        "thr",
-        "build_ms",
-        "Mrays/s",
-        "vs obvhs",
-        "B/prim",
-        "MiB",
-        "sah",
-        if embree { "  vs embree" } else { "" }
-    );
-    for r in records {
-        println!(
-            "{:<18} {:<12} {:<13} {:>3} {:>10.1} {:>9.2} {:>8} {:>8} {:>8.1} {:>7}{}",
-            r.accel,
-            r.scene,
-            r.rays,
-            r.threads,
-            r.build_ms,
-            r.mrays_s,
-            r.ratio_vs_obvhs.map_or("-".into(), |x| format!("{x:.2}x")),
-            format!("{:.1}", r.bytes as f64 / r.prims.max(1) as f64),
-            r.bytes as f64 / (1 << 20) as f64,
-            r.sah_cost.map_or("-".into(), |x| format!("{x:.1}")),
-            r.ratio_vs_embree
-                .map_or(String::new(), |x| format!(" {x:>10.2}x")),
-        );
-    }
+    print!("{}", crate::table::text(records));
 }

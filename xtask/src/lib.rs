@@ -9,7 +9,8 @@
 //! | [`obvhs_accel`] | obvhs's BVH2 and CWBVH behind the `Accel` trait (the references) |
 //! | [`verify`] | every structure against brute force and obvhs |
 //! | [`bench`](mod@bench) | throughput, build time, memory, beside obvhs in the same run |
-//! | [`report`] | `bench --report DIR`: bench + sweep written as index.md with verdicts and PNG plots |
+//! | [`report`] | `bench --report DIR`: bench, sweep and SPD renders written as index.md with verdicts and PNG plots |
+//! | [`table`] | one record as one table row, for `bench`'s text and the report's Markdown |
 //! | [`sweep`] | the scaling sweep: build time and time per ray against N (`bench --sweep`) |
 //! | [`render`] | Whitted renders of the chess, OBJ and NFF scenes with any structure (rt-shade) |
 //! | [`trace`] | ray files in, hit files out; standard ray sets out |
@@ -29,5 +30,6 @@ pub mod render;
 pub mod report;
 pub mod run;
 pub mod sweep;
+pub mod table;
 pub mod trace;
 pub mod verify;

@@ -10,7 +10,7 @@
 use obvhs::bvh2::Bvh2;
 use obvhs::cwbvh::CwBvh;
 use obvhs::ray::{Ray as ORay, RayHit};
-use rt_geom::{Accel, AccelStats, BuildError, Hit, PrimHit, Ray, Triangle, check_primitives};
+use rt_geom::{Accel, AccelStats, BuildError, Hit, Ray, Triangle, check_primitives};
 use std::time::Duration;
 
 /// The preset both adapters build with: obvhs's highest quality.
@@ -65,7 +65,7 @@ struct Closest<'a> {
     tris: &'a [Triangle],
     ray: Ray,
     scale: f32,
-    best: Option<(PrimHit, u32)>,
+    best: Option<Hit>,
 }
 
 impl Closest<'_> {
@@ -75,8 +75,8 @@ impl Closest<'_> {
         let r = self.ray.with_range(self.ray.tmin, tmax);
         match self.tris[prim as usize].intersect_watertight(&r) {
             Some(h) => {
-                if self.best.is_none_or(|(b, _)| h.t < b.t) {
-                    self.best = Some((h, prim));
+                if self.best.is_none_or(|b| h.t < b.t) {
+                    self.best = Some(Hit::new(h, prim));
                 }
                 slack(h.t * self.scale)
             }
@@ -85,7 +85,7 @@ impl Closest<'_> {
     }
 
     fn hit(&self) -> Option<Hit> {
-        self.best.map(|(h, p)| Hit::new(h, p))
+        self.best
     }
 }
 

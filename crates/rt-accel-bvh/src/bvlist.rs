@@ -6,8 +6,8 @@
 
 use rt_geom::aabb::pad_up;
 use rt_geom::{
-    Aabb, Accel, AccelStats, BoundingVolume, BuildError, Hit, PrimHit, Primitive, Ray,
-    check_primitives, replaces,
+    Aabb, Accel, AccelStats, BoundingVolume, BuildError, Hit, Primitive, Ray, check_primitives,
+    keep_hit,
 };
 use std::cell::RefCell;
 use std::ops::Range;
@@ -185,7 +185,7 @@ impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
         &self,
         volumes: &[(f32, u32)],
         r: &mut Ray,
-        best: &mut Option<(PrimHit, u32)>,
+        best: &mut Option<Hit>,
     ) -> bool {
         for &(t, v) in volumes {
             // Padded like the box tests: a volume entered a few ulps past the closest hit may
@@ -196,13 +196,8 @@ impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
             for i in self.ranges[v as usize].clone() {
                 if let Some(h) = self.prims[i as usize].intersect(r) {
                     let id = self.ids[i as usize];
-                    if ANY_HIT {
-                        *best = Some((h, id));
+                    if keep_hit::<ANY_HIT>(h, id, &mut r.tmax, best) {
                         return true;
-                    }
-                    if replaces(h.t, id, best.map(|(b, id)| (b.t, id))) {
-                        *best = Some((h, id));
-                        r.tmax = h.t;
                     }
                 }
             }
@@ -237,7 +232,7 @@ impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
                 }
             }
         });
-        best.map(|(h, id)| Hit::new(h, id))
+        best
     }
 }
 

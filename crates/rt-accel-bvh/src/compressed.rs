@@ -29,9 +29,7 @@ use crate::wide::{
 };
 use crate::{Bvh8, BvhParams};
 use rt_geom::aabb::SlabRay;
-use rt_geom::{
-    Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray, Vec3, all_referenced,
-};
+use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, Primitive, Ray, Vec3, all_referenced};
 
 /// A node of [`CompressedBvh8`] (layout in the module documentation).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -215,7 +213,7 @@ impl WideTopology for CompressedTree {
     fn traverse<const ANY_HIT: bool>(
         &self,
         ray: &Ray,
-        leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<(PrimHit, u32)>) -> bool,
+        leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<Hit>) -> bool,
     ) -> Option<Hit> {
         traverse_nodes::<_, 8, ANY_HIT>(
             &self.nodes,

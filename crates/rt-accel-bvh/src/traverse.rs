@@ -4,7 +4,7 @@ use crate::Bvh;
 use crate::node::BvhNode;
 use crate::params::MAX_DEPTH;
 use rt_geom::aabb::SlabRay;
-use rt_geom::{Hit, PrimHit, Primitive, Ray, replaces};
+use rt_geom::{Hit, Primitive, Ray, keep_hit};
 
 /// Entry distance into the node's box within `[tmin, tmax]` ([`SlabRay::entry`]).
 #[inline(always)]
@@ -24,7 +24,7 @@ impl<P: Primitive> Bvh<P> {
         let boxes = SlabRay::new(ray);
         let mut r = *ray;
         entry(&boxes, &self.nodes[0], r.tmin, r.tmax)?;
-        let mut best: Option<(PrimHit, u32)> = None;
+        let mut best: Option<Hit> = None;
         // The build caps depth at MAX_DEPTH, so the far children pending never exceed it.
         let mut stack = [(0u32, 0.0f32); MAX_DEPTH + 1];
         let mut sp = 0;
@@ -35,16 +35,8 @@ impl<P: Primitive> Bvh<P> {
                 let first = node.offset as usize;
                 for i in first..first + node.count() as usize {
                     if let Some(h) = self.prims[i].intersect(&r) {
-                        if ANY_HIT {
-                            return Some(Hit::new(h, self.ids[i]));
-                        }
-                        if replaces(
-                            h.t,
-                            self.ids[i],
-                            best.map(|(b, id): (PrimHit, u32)| (b.t, id)),
-                        ) {
-                            r.tmax = h.t;
-                            best = Some((h, self.ids[i]));
+                        if keep_hit::<ANY_HIT>(h, self.ids[i], &mut r.tmax, &mut best) {
+                            return best;
                         }
                     }
                 }
@@ -74,7 +66,7 @@ impl<P: Primitive> Bvh<P> {
             // Pop the next pending subtree; it may have been passed by the closest hit.
             loop {
                 if sp == 0 {
-                    return best.map(|(h, id)| Hit::new(h, id));
+                    return best;
                 }
                 sp -= 1;
                 let (next, entry) = stack[sp];

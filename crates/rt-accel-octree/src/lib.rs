@@ -6,6 +6,7 @@
 //! | [`params`] | [`OctreeParams`], [`OctreeTraversal`] |
 //! | `build` | split at the centre while a node holds more than `max_prims`; primitives clipped to each octant |
 //! | `traverse` | the seeds' recursive nearest-first walk, and the parametric walk of Revelles et al. |
+//! | `stats` | `stats()` and `validate()` |
 //!
 //! ```
 //! use rt_accel_octree::{Octree, OctreeParams};
@@ -26,6 +27,7 @@
 mod build;
 pub mod node;
 pub mod params;
+mod stats;
 mod traverse;
 
 pub use node::{ChildRef, OctLeaf, OctNode};
@@ -161,114 +163,12 @@ impl<P: Primitive> Accel for Octree<P> {
     }
 
     fn stats(&self) -> AccelStats {
-        let s = AccelStats {
-            primitives: self.prims.len(),
-            nodes: self.nodes.len() + self.leaves.len(),
-            bytes: std::mem::size_of_val(self.nodes.as_slice())
-                + std::mem::size_of_val(self.leaves.as_slice())
-                + std::mem::size_of_val(self.indices.as_slice())
-                + std::mem::size_of_val(self.prims.as_slice())
-                + self.leaf_prims.bytes(),
-            ..AccelStats::default()
-        };
-        if self.leaves.is_empty() {
-            return s;
-        }
-        let mut acc = rt_geom::StatsSum::new(s, &self.bounds);
-        self.walk(&mut |r, b, d, _| {
-            let count = match r.is_leaf() {
-                true => self.leaves[r.index()].count as usize,
-                false => 0,
-            };
-            acc.add(b, d, r.is_leaf(), count)
-        });
-        acc.finish()
+        self.compute_stats()
     }
 
-    /// Inner children after their parent and every child in range; every leaf within the
-    /// index array; every referenced primitive overlapping its leaf's cell, and inside the
-    /// leaf's content box where it is inside the cell; every node and every primitive
-    /// reached.
     fn validate(&self) -> Result<(), String> {
-        if self.leaves.is_empty() {
-            return if self.prims.is_empty() && self.nodes.is_empty() {
-                Ok(())
-            } else {
-                Err("no leaves for a non-empty scene".into())
-            };
-        }
-        let mut seen = vec![false; self.prims.len()];
-        let mut err = None;
-        let (mut inner_reached, mut leaves_reached) = (0, 0);
-        self.walk(&mut |r, b, d, content| {
-            let i = r.index();
-            if d > self.params.max_depth as usize {
-                err.get_or_insert(format!("node {r:?} at depth {d}"));
-            }
-            if !r.is_leaf() {
-                inner_reached += 1;
-                let Some(n) = self.nodes.get(i) else {
-                    err.get_or_insert(format!("inner node {i} out of range"));
-                    return;
-                };
-                let inner = (n.mask() & !n.leaf_mask()).count_ones() as usize;
-                let leaves = n.leaf_mask().count_ones() as usize;
-                if n.mask() == 0
-                    || n.leaf_mask() & !n.mask() != 0
-                    || (inner > 0 && n.inner_base() <= i)
-                    || n.inner_base() + inner > self.nodes.len()
-                    || n.leaf_base() + leaves > self.leaves.len()
-                {
-                    err.get_or_insert(format!("inner node {i} has children out of range"));
-                }
-                return;
-            }
-            leaves_reached += 1;
-            let Some(leaf) = self.leaves.get(i) else {
-                err.get_or_insert(format!("leaf {i} out of range"));
-                return;
-            };
-            let list = (leaf.first, leaf.count);
-            if let Err(e) = self.leaf_prims.check_list(&self.prims, &self.indices, list) {
-                err.get_or_insert(format!("leaf {i}: {e}"));
-                return;
-            }
-            for &p in &self.indices[leaf.prims()] {
-                match self.prims.get(p as usize) {
-                    None => {
-                        err.get_or_insert(format!("leaf {i} holds primitive {p}, out of range"));
-                    }
-                    Some(prim) if !rt_geom::touches_cell(prim, b) => {
-                        err.get_or_insert(format!(
-                            "primitive {p} is in leaf {i} but not in its box"
-                        ));
-                    }
-                    Some(prim) if !holds(content, &prim.clipped_bounds(b).intersection(*b)) => {
-                        err.get_or_insert(format!(
-                            "primitive {p} reaches outside the content box of leaf {i}"
-                        ));
-                    }
-                    Some(_) => seen[p as usize] = true,
-                }
-            }
-        });
-        if let Some(e) = err {
-            return Err(e);
-        }
-        if inner_reached != self.nodes.len() || leaves_reached != self.leaves.len() {
-            return Err(format!(
-                "{} inner nodes and {} leaves, {inner_reached} and {leaves_reached} reachable",
-                self.nodes.len(),
-                self.leaves.len()
-            ));
-        }
-        rt_geom::all_referenced(&seen)
+        self.check()
     }
-}
-
-/// `outer` holds `inner` (an empty `inner` is held by anything).
-fn holds(outer: &Aabb, inner: &Aabb) -> bool {
-    inner.is_empty() || (outer.min.cmple(inner.min).all() && outer.max.cmpge(inner.max).all())
 }
 
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! The O(n) baseline: test every primitive. The reference every structure is checked against.
 
 use crate::accel::check_primitives;
-use crate::{Accel, AccelStats, BuildError, Hit, Primitive, Ray, replaces};
+use crate::{Accel, AccelStats, BuildError, Hit, Primitive, Ray, keep_hit};
 
 /// Tests every primitive against every ray.
 #[derive(Clone, Debug)]
@@ -35,10 +35,7 @@ impl<P: Primitive> Accel for BruteForce<P> {
         for (i, p) in self.prims.iter().enumerate() {
             if let Some(h) = p.intersect(&r) {
                 // In index order, `replaces` keeps the first of equal-t hits.
-                if replaces(h.t, i as u32, best.as_ref().map(Hit::key)) {
-                    r.tmax = h.t;
-                    best = Some(Hit::new(h, i as u32));
-                }
+                keep_hit::<false>(h, i as u32, &mut r.tmax, &mut best);
             }
         }
         best

@@ -14,9 +14,8 @@
 //! the [`LANES`] floats of padding at the end) and are masked off. Eight-lane windows are
 //! taken only while more than four triangles remain, so they stay inside the same bounds.
 
-use crate::triangle::keep;
 use crate::{
-    Hit, PrimHit, Primitive, Ray, SimdLanes, Triangle, Vec3, lane_edges, replaces, watertight_rows,
+    Hit, PrimHit, Primitive, Ray, SimdLanes, Triangle, Vec3, keep_hit, lane_edges, watertight_rows,
 };
 use wide::{f32x4, f32x8};
 
@@ -155,24 +154,14 @@ impl TriangleSoa {
         count: usize,
         r: &mut Ray,
         ids: &[u32],
-        best: &mut Option<(PrimHit, u32)>,
+        best: &mut Option<Hit>,
     ) -> bool {
         self.test_range(
             (first, count),
             ids,
             r,
             |_| false,
-            |h, id, r| {
-                if ANY_HIT {
-                    *best = Some((h, id));
-                    return true;
-                }
-                if replaces(h.t, id, best.map(|(b, id)| (b.t, id))) {
-                    *best = Some((h, id));
-                    r.tmax = h.t;
-                }
-                false
-            },
+            |h, id, r| keep_hit::<ANY_HIT>(h, id, &mut r.tmax, best),
         )
     }
 }
@@ -220,7 +209,7 @@ impl<P: Primitive> LeafPrims<P> {
         best: &mut Option<Hit>,
         mut skip: impl FnMut(u32) -> bool,
     ) -> bool {
-        let keep = |h, id, r: &mut Ray| keep::<ANY_HIT>(h, id, r, best);
+        let keep = |h, id, r: &mut Ray| keep_hit::<ANY_HIT>(h, id, &mut r.tmax, best);
         if let Some(soa) = &self.soa {
             return soa.test_range((first, count), indices, ray, skip, keep);
         }

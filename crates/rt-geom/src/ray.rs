@@ -195,6 +195,27 @@ pub fn replaces(t: f32, prim: u32, best: Option<(f32, u32)>) -> bool {
     }
 }
 
+/// Records hit `h` of primitive `prim` in `best`, the one way every rt structure keeps its
+/// closest hit: with `ANY_HIT` the hit is kept and the search is over (true); otherwise it
+/// replaces `best` when [`replaces`] says so, and `tmax` (the ray's or a lane's) shrinks to it.
+#[inline(always)]
+pub fn keep_hit<const ANY_HIT: bool>(
+    h: PrimHit,
+    prim: u32,
+    tmax: &mut f32,
+    best: &mut Option<Hit>,
+) -> bool {
+    if ANY_HIT {
+        *best = Some(Hit::new(h, prim));
+        return true;
+    }
+    if replaces(h.t, prim, best.as_ref().map(Hit::key)) {
+        *best = Some(Hit::new(h, prim));
+        *tmax = h.t;
+    }
+    false
+}
+
 /// Tests primitives `ids` of `prims` against `ray` in order, skipping ids for which `skip`
 /// says so (mailboxes), updating `best` by [`replaces`] and shrinking `ray.tmax` to it. With
 /// `ANY_HIT`, stops at the first hit and returns true. The leaf test of every structure that
@@ -225,7 +246,7 @@ pub fn test_each<P: crate::Primitive, const ANY_HIT: bool>(
             continue;
         }
         if let Some(h) = prims[p as usize].intersect(ray) {
-            if crate::triangle::keep::<ANY_HIT>(h, p, ray, best) {
+            if keep_hit::<ANY_HIT>(h, p, &mut ray.tmax, best) {
                 return true;
             }
         }

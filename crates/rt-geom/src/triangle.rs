@@ -1,7 +1,7 @@
 //! Triangles: the watertight ray/triangle test (reference kernel), Möller–Trumbore (option),
 //! and clipping to a box (for perfect kd-tree splits).
 
-use crate::{Aabb, Hit, PrimHit, Ray, replaces};
+use crate::{Aabb, Hit, PrimHit, Ray, keep_hit};
 use glam::{DVec3, Vec3};
 use wide::f32x4;
 
@@ -640,7 +640,7 @@ fn test_in_batches<const ANY_HIT: bool>(
                 may_hit &= may_hit - 1;
                 let edges = lane_edges(&sheared, l);
                 if let Some(h) = lanes[l].finish_watertight(ray, edges) {
-                    if keep::<ANY_HIT>(h, batch[l], ray, best) {
+                    if keep_hit::<ANY_HIT>(h, batch[l], &mut ray.tmax, best) {
                         return true;
                     }
                 }
@@ -649,30 +649,10 @@ fn test_in_batches<const ANY_HIT: bool>(
     }
     for &p in &batch[..n] {
         if let Some(h) = tris[p as usize].intersect_watertight(ray) {
-            if keep::<ANY_HIT>(h, p, ray, best) {
+            if keep_hit::<ANY_HIT>(h, p, &mut ray.tmax, best) {
                 return true;
             }
         }
-    }
-    false
-}
-
-/// Records hit `h` of primitive `p` as [`crate::test_primitives`] does; true when `ANY_HIT`
-/// (the search is over).
-#[inline(always)]
-pub(crate) fn keep<const ANY_HIT: bool>(
-    h: PrimHit,
-    p: u32,
-    ray: &mut Ray,
-    best: &mut Option<Hit>,
-) -> bool {
-    if ANY_HIT {
-        *best = Some(Hit::new(h, p));
-        return true;
-    }
-    if replaces(h.t, p, best.as_ref().map(Hit::key)) {
-        *best = Some(Hit::new(h, p));
-        ray.tmax = h.t;
     }
     false
 }

@@ -11,7 +11,7 @@ use crate::RayPacket;
 use rt_geom::aabb::PAD;
 #[cfg(doc)]
 use rt_geom::aabb::{pad_down, pad_up};
-use rt_geom::{Cone, Hit, PrimHit, Primitive, Shape, Sphere, Triangle, Vec3, replaces};
+use rt_geom::{Cone, Hit, PrimHit, Primitive, Shape, Sphere, Triangle, Vec3, keep_hit};
 use wide::{CmpEq, CmpGe, CmpGt, CmpLe, CmpLt, CmpNe, f32x8, f64x4, i32x8};
 
 /// The block width for packets of `N` lanes.
@@ -266,9 +266,8 @@ where
                 p.active[lane] = false;
                 p.tmax[lane] = f32::NEG_INFINITY;
                 lanes &= !(1 << l);
-            } else if replaces(h.t, id, best[lane].as_ref().map(Hit::key)) {
-                best[lane] = Some(Hit::new(h, id));
-                p.tmax[lane] = h.t;
+            } else {
+                keep_hit::<false>(h, id, &mut p.tmax[lane], &mut best[lane]);
             }
             changed |= 1 << l;
         });

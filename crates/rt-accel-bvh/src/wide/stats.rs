@@ -1,0 +1,91 @@
+//! Statistics and invariants of a wide topology.
+
+use super::WideTree;
+use crate::BvhParams;
+use crate::params::MAX_DEPTH;
+use rt_geom::{Aabb, AccelStats};
+
+impl<const N: usize> WideTree<N> {
+    /// Statistics of the topology; `bytes` counts the nodes only.
+    pub fn stats(&self, prims: usize, params: &BvhParams) -> AccelStats {
+        let mut s = AccelStats {
+            primitives: prims,
+            nodes: self.nodes.len(),
+            max_depth: self.depth,
+            bytes: std::mem::size_of_val(self.nodes.as_slice()),
+            ..AccelStats::default()
+        };
+        let root_area = self.root_bounds.half_area();
+        let mut sah = 0.0f64;
+        if let Some((_, count)) = self.root_leaf {
+            s.leaves = 1;
+            s.nodes = 1;
+            s.references = count as usize;
+            sah = root_area as f64
+                * params.tests(count as usize) as f64
+                * params.intersection_cost as f64;
+        }
+        for (i, n) in self.nodes.iter().enumerate() {
+            if i == 0 {
+                sah += root_area as f64 * params.traversal_cost as f64;
+            }
+            for lane in (0..N).filter(|&l| n.is_used(l)) {
+                let area = n.bounds(lane).half_area() as f64;
+                if n.count[lane] > 0 {
+                    s.leaves += 1;
+                    s.references += n.count[lane] as usize;
+                    sah += area
+                        * params.tests(n.count[lane] as usize) as f64
+                        * params.intersection_cost as f64;
+                } else {
+                    sah += area * params.traversal_cost as f64;
+                }
+            }
+        }
+        s.nodes += s.leaves;
+        s.sah_cost = Some(if root_area > 0.0 {
+            (sah / root_area as f64) as f32
+        } else {
+            0.0
+        });
+        s
+    }
+
+    /// Checks the topology; `leaf(first, count, bounds)` checks each leaf's primitives.
+    pub fn check(
+        &self,
+        mut leaf: impl FnMut(u32, u32, &Aabb) -> Result<(), String>,
+    ) -> Result<(), String> {
+        if let Some((first, count)) = self.root_leaf {
+            return leaf(first, count, &self.root_bounds);
+        }
+        if self.nodes.is_empty() {
+            return Ok(());
+        }
+        let mut stack = vec![(0usize, self.root_bounds, 0usize)];
+        while let Some((i, parent, depth)) = stack.pop() {
+            if depth > MAX_DEPTH {
+                return Err(format!("node {i} deeper than {MAX_DEPTH}"));
+            }
+            let n = self
+                .nodes
+                .get(i)
+                .ok_or(format!("child index {i} out of range"))?;
+            for lane in (0..N).filter(|&l| n.is_used(l)) {
+                let b = n.bounds(lane);
+                if !parent.contains(&b) {
+                    return Err(format!("node {i} lane {lane} pokes out of its parent"));
+                }
+                if n.count[lane] > 0 {
+                    leaf(n.child[lane], n.count[lane], &b)?;
+                } else {
+                    if n.child[lane] as usize <= i {
+                        return Err(format!("node {i} lane {lane} points backwards"));
+                    }
+                    stack.push((n.child[lane] as usize, b, depth + 1));
+                }
+            }
+        }
+        Ok(())
+    }
+}

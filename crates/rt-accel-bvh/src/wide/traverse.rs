@@ -1,0 +1,236 @@
+//! The walk: one stack loop over any wide node layout ([`WideLanes`]), all of a node's children
+//! tested at once, the hit lanes taken as one bit mask; the leaf test of primitives kept in
+//! leaf order.
+
+use super::WideNode;
+use rt_geom::aabb::{SlabRay, pad_interval};
+use rt_geom::{Aabb, Hit, Primitive, Ray, keep_hit};
+
+/// Tests the leaf-ordered primitives `first..first + count` (closest hit, or any hit),
+/// keeping the hit with the caller's id.
+#[inline(always)]
+pub(crate) fn test_leaf<P: Primitive, const ANY_HIT: bool>(
+    prims: &[P],
+    ids: &[u32],
+    first: u32,
+    count: u32,
+    r: &mut Ray,
+    best: &mut Option<Hit>,
+) -> bool {
+    let first = first as usize;
+    for i in first..first + count as usize {
+        if let Some(h) = prims[i].intersect(r) {
+            if keep_hit::<ANY_HIT>(h, ids[i], &mut r.tmax, best) {
+                return true;
+            }
+        }
+    }
+    false
+}
+
+/// A wide node as the traversal sees it: one entry distance per lane, and each lane's child.
+pub(crate) trait WideLanes<const N: usize> {
+    /// The lanes the ray enters within `[tmin, tmax]` (bit `lane`), and the entry distance
+    /// per lane (meaningful for those).
+    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; N]);
+    /// Inner child: node index; leaf: first primitive; `u32::MAX` for an empty lane.
+    fn child(&self, lane: usize) -> u32;
+    /// 0 for an inner child, else the leaf's primitive count.
+    fn count(&self, lane: usize) -> u32;
+    /// Bit `lane` set for the lanes that hold a child.
+    fn used_mask(&self) -> u32;
+    /// Bit `lane` set for the lanes that hold a leaf (a count above 0): one compare of all
+    /// lanes where the counts are an array.
+    #[inline(always)]
+    fn leaf_mask(&self) -> u32 {
+        (0..N).fold(0, |m, l| m | ((self.count(l) > 0) as u32) << l)
+    }
+}
+
+/// Bit `lane` set where `t0 <= t1` (false for NaN): one SIMD compare and mask extraction for
+/// 4 and 8 lanes.
+#[inline(always)]
+fn le_lanes<const N: usize>(t0: &[f32; N], t1: &[f32; N]) -> u32 {
+    use wide::{CmpLe, f32x4, f32x8};
+    let (a, b) = (&t0[..], &t1[..]);
+    if let (Ok(a), Ok(b)) = (<[f32; 8]>::try_from(a), <[f32; 8]>::try_from(b)) {
+        return f32x8::from(a).cmp_le(f32x8::from(b)).move_mask() as u32;
+    }
+    if let (Ok(a), Ok(b)) = (<[f32; 4]>::try_from(a), <[f32; 4]>::try_from(b)) {
+        return f32x4::from(a).cmp_le(f32x4::from(b)).move_mask() as u32;
+    }
+    (0..N).fold(0, |m, l| m | ((t0[l] <= t1[l]) as u32) << l)
+}
+
+impl<const N: usize> WideLanes<N> for WideNode<N> {
+    #[inline(always)]
+    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; N]) {
+        lane_entries(&self.min, &self.max, ray, tmin, tmax)
+    }
+
+    #[inline(always)]
+    fn child(&self, lane: usize) -> u32 {
+        self.child[lane]
+    }
+
+    #[inline(always)]
+    fn count(&self, lane: usize) -> u32 {
+        self.count[lane]
+    }
+
+    /// Every lane: an empty lane's box (min = +inf, max = -inf) gives NaN for every valid ray
+    /// (a near plane at +-inf puts the entry at +inf, the far one puts the exit at -inf).
+    #[inline(always)]
+    fn used_mask(&self) -> u32 {
+        u32::MAX
+    }
+}
+
+/// The stack traversal of every wide layout (see [`WideTree::traverse`]).
+///
+/// Per inner node: one SIMD slab test of all lanes, a bit mask of the lanes hit, and then
+/// - no lane: the next entry is popped from the stack;
+/// - one lane (the common case deep in the tree): that child is visited next, no stack traffic;
+/// - several: all are pushed far to near and the nearest is popped (closest-hit queries);
+///   any-hit queries push the inner children, then the leaves, and pop a leaf first.
+///
+/// Popped entries whose entry distance lies beyond the closest hit found since are skipped.
+#[inline(always)]
+pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: bool>(
+    nodes: &[Node],
+    root_bounds: &Aabb,
+    root_leaf: Option<(u32, u32)>,
+    depth: usize,
+    ray: &Ray,
+    mut leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<Hit>) -> bool,
+) -> Option<Hit> {
+    if !ray.is_valid() {
+        return None;
+    }
+    let mut r = *ray;
+    let mut best = None;
+    if let Some((first, count)) = root_leaf {
+        root_bounds.clip_ray(&r)?;
+        leaf(first, count, &mut r, &mut best);
+        return best;
+    }
+    if nodes.is_empty() {
+        return None;
+    }
+    let slab = SlabRay::new(ray);
+    STACK.with(|cell| {
+        let mut stack = cell.borrow_mut();
+        // At most N - 1 pending siblings per level.
+        let need = (N - 1) * (depth + 1) + N;
+        if stack.len() < need {
+            stack.resize(need, (0, 0, 0.0));
+        }
+        let stack = &mut stack[..need];
+        let mut sp = 0usize;
+        let mut next = (0u32, 0u32, r.tmin);
+        loop {
+            let (child, count, entry) = next;
+            if entry <= r.tmax {
+                if count > 0 {
+                    if leaf(child, count, &mut r, &mut best) {
+                        return;
+                    }
+                } else {
+                    let node = &nodes[child as usize];
+                    let (entered, t) = node.entries(&slab, r.tmin, r.tmax);
+                    let mut mask = entered & node.used_mask();
+                    if mask != 0 {
+                        let lane = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        let item = (node.child(lane), node.count(lane), t[lane]);
+                        if mask == 0 {
+                            next = item;
+                            continue;
+                        }
+                        if ANY_HIT {
+                            // Any hit ends the query: leaves go on top of the stack (tested
+                            // first), inner children under them, each group in lane order.
+                            mask |= 1 << lane;
+                            let leaves = node.leaf_mask();
+                            for mut group in [mask & !leaves, mask & leaves] {
+                                while group != 0 {
+                                    let l = group.trailing_zeros() as usize;
+                                    group &= group - 1;
+                                    stack[sp] = (node.child(l), node.count(l), t[l]);
+                                    sp += 1;
+                                }
+                            }
+                        } else {
+                            stack[sp] = item;
+                            sp += 1;
+                            let base = sp - 1;
+                            while mask != 0 {
+                                let lane = mask.trailing_zeros() as usize;
+                                mask &= mask - 1;
+                                let te = t[lane];
+                                let item = (node.child(lane), node.count(lane), te);
+                                let mut k = sp;
+                                while k > base && stack[k - 1].2 < te {
+                                    stack[k] = stack[k - 1];
+                                    k -= 1;
+                                }
+                                stack[k] = item;
+                                sp += 1;
+                            }
+                        }
+                    }
+                }
+            }
+            if sp == 0 {
+                return;
+            }
+            sp -= 1;
+            next = stack[sp];
+        }
+    });
+    best
+}
+
+thread_local! {
+    /// Traversal stacks are reused per thread: no allocation and no zeroing per ray.
+    static STACK: std::cell::RefCell<Vec<(u32, u32, f32)>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// The lanes whose boxes `min..max` (per axis, per lane) the ray enters within `[tmin, tmax]`
+/// (bit `lane`) and the entry distance per lane (meaningful for those; written as plain lane
+/// loops: one SIMD operation each after vectorisation). The mask comes from the interval
+/// compare itself (a lane's entry no later than its exit): no NaN written for the misses and
+/// tested again. Conservative like [`SlabRay::entry`]: the entry returned is never later
+/// than the true one and never before `tmin`.
+#[inline(always)]
+pub(crate) fn lane_entries<const N: usize>(
+    min: &[[f32; N]; 3],
+    max: &[[f32; N]; 3],
+    ray: &SlabRay,
+    tmin: f32,
+    tmax: f32,
+) -> (u32, [f32; N]) {
+    let mut t0 = [tmin; N];
+    let mut t1 = [tmax; N];
+    for a in 0..3 {
+        let (near, far) = if ray.neg[a] {
+            (&max[a], &min[a])
+        } else {
+            (&min[a], &max[a])
+        };
+        let (o, inv_near, inv_far) = (ray.origin[a], ray.inv_near[a], ray.inv_far[a]);
+        for l in 0..N {
+            let tn = (near[l] - o) * inv_near;
+            let tf = (far[l] - o) * inv_far;
+            // NaN (origin on the plane, zero direction) leaves the interval unchanged.
+            t0[l] = if tn > t0[l] { tn } else { t0[l] };
+            t1[l] = if tf < t1[l] { tf } else { t1[l] };
+        }
+    }
+    if ray.pad_after {
+        for l in 0..N {
+            (t0[l], t1[l]) = pad_interval(t0[l], t1[l], tmin);
+        }
+    }
+    (le_lanes(&t0, &t1), t0)
+}

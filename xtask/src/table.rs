@@ -1,0 +1,97 @@
+//! One benchmark record, one table row: the columns `bench` prints and `bench --report` writes
+//! in `index.md`, formatted in one place.
+
+use crate::bench::Record;
+
+/// Column titles; with `embree`, a last column: the ratio to Embree.
+pub fn headers(embree: bool) -> Vec<&'static str> {
+    let mut h = vec![
+        "structure",
+        "scene",
+        "rays",
+        "threads",
+        "build ms",
+        "Mrays/s",
+        "vs obvhs",
+        "B/prim",
+        "MiB",
+        "SAH",
+    ];
+    if embree {
+        h.push("vs embree");
+    }
+    h
+}
+
+/// The cells of `r`'s row, in [`headers`] order.
+pub fn cells(r: &Record, embree: bool) -> Vec<String> {
+    let ratio = |x: Option<f64>| x.map_or("-".into(), |x| format!("{x:.2}x"));
+    let mut c = vec![
+        r.accel.clone(),
+        r.scene.clone(),
+        r.rays.clone(),
+        r.threads.to_string(),
+        format!("{:.1}", r.build_ms),
+        format!("{:.2}", r.mrays_s),
+        ratio(r.ratio_vs_obvhs),
+        format!("{:.1}", r.bytes as f64 / r.prims.max(1) as f64),
+        format!("{:.1}", r.bytes as f64 / (1 << 20) as f64),
+        r.sah_cost.map_or("-".into(), |x| format!("{x:.1}")),
+    ];
+    if embree {
+        c.push(ratio(r.ratio_vs_embree));
+    }
+    c
+}
+
+/// Whether any record has an Embree ratio (then every table gets the column).
+fn with_embree(records: &[Record]) -> bool {
+    records.iter().any(|r| r.ratio_vs_embree.is_some())
+}
+
+/// Columns that hold names (left-aligned); the others are numbers.
+const NAME_COLUMNS: usize = 3;
+
+/// The records as aligned text, one line each under a title line.
+pub fn text(records: &[Record]) -> String {
+    let embree = with_embree(records);
+    let rows: Vec<Vec<String>> =
+        std::iter::once(headers(embree).iter().map(|h| h.to_string()).collect())
+            .chain(records.iter().map(|r| cells(r, embree)))
+            .collect();
+    let widths: Vec<usize> = (0..rows[0].len())
+        .map(|c| rows.iter().map(|r| r[c].len()).max().unwrap_or(0))
+        .collect();
+    let mut out = String::new();
+    for row in rows {
+        let line: Vec<String> = row
+            .iter()
+            .zip(&widths)
+            .enumerate()
+            .map(|(c, (cell, &w))| {
+                if c < NAME_COLUMNS {
+                    format!("{cell:<w$}")
+                } else {
+                    format!("{cell:>w$}")
+                }
+            })
+            .collect();
+        out.push_str(line.join("  ").trim_end());
+        out.push('\n');
+    }
+    out
+}
+
+/// The records as a Markdown table.
+pub fn markdown(records: &[Record]) -> String {
+    let embree = with_embree(records);
+    let h = headers(embree);
+    let align: Vec<&str> = (0..h.len())
+        .map(|c| if c < NAME_COLUMNS { "---" } else { "---:" })
+        .collect();
+    let mut out = format!("| {} |\n|{}|\n", h.join(" | "), align.join("|"));
+    for r in records {
+        out.push_str(&format!("| {} |\n", cells(r, embree).join(" | ")));
+    }
+    out
+}
