@@ -21,6 +21,9 @@ enum Command {
         /// Only the structures that have a packet path (`trace --packet`).
         #[arg(long)]
         packet: bool,
+        /// Every structure as a Markdown table (the README's list).
+        #[arg(long)]
+        markdown: bool,
     },
     /// Every structure against brute force (conformance scenes) and obvhs (shared meshes).
     Verify {
@@ -121,7 +124,10 @@ fn main() -> ExitCode {
 
 fn run(command: Command) -> Result<ExitCode, String> {
     match command {
-        Command::Accels { long, packet } => {
+        Command::Accels {
+            markdown: true, ..
+        } => print!("{}", registry::markdown_table()),
+        Command::Accels { long, packet, .. } => {
             for e in registry::REGISTRY
                 .iter()
                 .filter(|e| !packet || e.packets.is_some())

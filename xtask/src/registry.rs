@@ -427,7 +427,7 @@ const BASE: &[AccelEntry] = &[
     .packet_only("kd"),
     generic!(
         "kd-recursive",
-        "the same SAH kd-tree, traversed by the seeds' recursive front-to-back descent",
+        "the same SAH kd-tree, traversed by the classic recursive front-to-back descent",
         |p| {
             boxed(KdTree::build(
                 p,
@@ -492,7 +492,7 @@ const BASE: &[AccelEntry] = &[
     ),
     generic!(
         "octree-recursive",
-        "the same octree, walked by the seeds' recursive nearest-first descent",
+        "the same octree, walked by the classic recursive nearest-first descent",
         |p| {
             boxed(Octree::build(
                 p,
@@ -552,4 +552,21 @@ pub fn select(names: Option<&str>) -> Result<Vec<&'static AccelEntry>, String> {
 pub fn unknown(name: &str) -> String {
     let names: Vec<_> = REGISTRY.iter().map(|e| e.name).collect();
     format!("unknown accel '{name}'; known: {}", names.join(", "))
+}
+
+/// The registry as a Markdown table, one row per structure (`cargo xtask accels --markdown`):
+/// the README's list of structures is this output, checked by a test so it cannot drift.
+pub fn markdown_table() -> String {
+    let mut out = String::from("| name | packets | spheres, cones | what it is |\n|---|---|---|---|\n");
+    for e in REGISTRY {
+        let yes = |b: bool| if b { "yes" } else { "" };
+        out.push_str(&format!(
+            "| `{}` | {} | {} | {} |\n",
+            e.name,
+            yes(e.packets.is_some()),
+            yes(e.build_shapes.is_some()),
+            e.about.replace('|', "\\|")
+        ));
+    }
+    out
 }

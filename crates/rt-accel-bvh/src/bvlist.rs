@@ -1,7 +1,7 @@
-//! Flat bounding-volume lists, the seeds' first technique: one volume (sphere, box or k-DOP)
+//! Flat bounding-volume lists, the oldest technique: one volume (sphere, box or k-DOP)
 //! per object or per cluster of primitives; a ray tests every volume, then visits the ones it
 //! enters front to back by entry distance, skipping each one that starts beyond the closest hit
-//! so far. With `two_level`, volumes are grouped under volumes of volumes (the seeds'
+//! so far. With `two_level`, volumes are grouped under volumes of volumes (the classic
 //! "hierarchy of bounding boxes" baseline, two levels deep).
 
 use rt_geom::aabb::pad_up;

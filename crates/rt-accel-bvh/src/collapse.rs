@@ -14,28 +14,9 @@
 //! Without leaf merges the SAH plan minimises the summed area of the binary nodes that head
 //! wide nodes (the leaves are fixed), so the node and leaf cost constants do not change it;
 //! merges, which the SAH costs of the `for_soa_leaves` preset rarely choose, are where they
-//! count. The plan makes fewer, fuller nodes: sponza's `bvh8-tri` 2,371 nodes using 5.6
-//! lanes each instead of 3,283 using 4.3; dragon 48.6 bytes per triangle instead of 52.1
-//! (`bvh8-tri-spatial` 65.4 instead of 75.9). Alone it lost 10% on sponza's primary rays
-//! (the camera stands inside the atrium, and the boxes near the root, which nearly every ray
-//! starts inside, are where the SAH's rays from outside are the poorest model; its rays
-//! visit as many nodes but 6% more triangle blocks); the greedy rule at the top keeps the
-//! plan's memory and gains everywhere. Medians of three interleaved rounds of `cargo xtask
-//! bench --accels bvh8-tri,bvh8-tri-spatial,obvhs --scenes bunny,sponza,dragon --threads 2`,
-//! primary / shadow / diffuse, against the greedy rule:
-//!
-//! | | bunny | sponza | dragon |
-//! |---|---|---|---|
-//! | `bvh8-tri`, SAH plan only | +7% / +6% / +4% | -10% / +6% / +1% | +4% / +7% / +1% |
-//! | `bvh8-tri`, default | +6% / +4% / +4% | +2% / +3% / +3% | +6% / +5% / +7% |
-//! | `bvh8-tri-spatial`, default | +1% / +4% / +4% | +3% / +2% / +4% | +3% / +5% / +10% |
-//!
-//! On the teapot and the teapot in a stadium (five rounds), `bvh8-tri` and `bvh8`: -3% to +6%.
-//! The threshold (a tenth of the root's area) against 0.03 and 0.3, three rounds on bunny,
-//! sponza, dragon and the teapot: every cell within 5%, none better everywhere.
-//! (A first set of four rounds had the SAH plan alone at +7% / +4% / +8% on bunny, +9% / +10%
-//! / +11% on dragon, -11% / +8% / -1% on sponza, and 0 to +10% on the teapot, the teapot in
-//! a stadium and a 100k soup for `bvh4-tri`, `bvh8` and `bvh4` too.)
+//! count. The plan makes fewer, fuller nodes; alone it loses where rays start inside the
+//! boxes near the root (which the SAH's rays from outside model poorly), so the default keeps
+//! the greedy rule at the top (measurements: `docs/notes/wide-collapse.md`).
 
 use crate::BvhParams;
 use crate::node::BvhNode;

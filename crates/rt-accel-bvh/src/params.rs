@@ -71,13 +71,9 @@ pub struct BvhParams {
     /// Reinsertion after the build (Bittner, Hapala & Havran 2013; Meister & Bittner 2018):
     /// subtrees move to wherever they lower the SAH cost. The fraction of nodes, largest
     /// first, reconsidered in the first of 16 passes (later passes take fewer); 0 turns it
-    /// off (every preset), 1 reconsiders every node. Top-down builders place sponza's large
-    /// overlapping triangles poorly: binned SAH 69.2, full sweep 67.9, binned then
-    /// reinsertion at 1.0 56.4 (normalised SAH, leaves of up to 4), for 35 ms more build
-    /// time; dragon 48.9 -> 47.6 for 0.5-0.7 s more. rt's fastest single-ray path, the
-    /// registry's `bvh8-tri`, is `TriBvh8` built with
-    /// `BvhParams::balanced().for_soa_leaves().with_reinsertion(0.25)`: against no
-    /// reinsertion +13-18% on sponza, +2-9% on bunny and dragon.
+    /// off (every preset but [`BvhParams::fastest_trace`], which takes 0.25), 1 reconsiders
+    /// every node. Top-down builders place large overlapping triangles poorly; reinsertion
+    /// repairs that at a fraction of the build time.
     pub reinsertion: f32,
 }
 
@@ -145,19 +141,13 @@ impl BvhParams {
     ///
     /// Object splits: the SAH counts leaf tests in blocks of four ([`Self::leaf_block`] = 4,
     /// as Embree does for its four-triangle leaves), a traversal step weighs two such tests,
-    /// and leaves hold up to 8 triangles (two tests). Against per-triangle costs with leaves of
-    /// up to 4, `bvh8-tri` in two sets of interleaved A/B runs (`cargo xtask bench --threads
-    /// 2`, 5 and 4 rounds, medians), primary / shadow / diffuse: bunny +13% / +16% / +12% and
-    /// +4% / +7% / +4%, sponza +9% / +11% / +9% and +3% / -4% / +2%, dragon -2% / -5% / +3%
-    /// and -1% / -3% / +2%, teapot +9% / +13% / +8% (3 rounds); 52-54 bytes per triangle
-    /// instead of 66-69. Where one leaf's box spans a scene that rays start inside, the
-    /// blocks cost more than the SAH says: the teapot in a stadium groups the stadium's 8
-    /// wall triangles into one leaf that every shadow ray enters (-48% shadow, -31% diffuse
-    /// there, still 1.26x obvhs), and random triangle soups lose 1-9%.
+    /// and leaves hold up to 8 triangles (two tests): a leaf of four costs what a leaf of one
+    /// does, so trees get fewer, fuller leaves. Where one leaf's box spans a scene that rays
+    /// start inside, the blocks cost more than the SAH says.
     ///
     /// Spatial splits keep per-triangle costs (a step weighs 1.5 tests, leaves of up to 4):
-    /// with blocks, the spatial-split builder splits far fewer triangles and sponza, the scene
-    /// it is for, loses 25% on primary rays.
+    /// with blocks, the spatial-split builder would split far fewer triangles.
+    /// Measurements: `docs/notes/leaf-costs.md`.
     ///
     /// [`TriBvh4`]: crate::TriBvh4
     /// [`TriBvh8`]: crate::TriBvh8

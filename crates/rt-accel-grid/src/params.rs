@@ -43,9 +43,7 @@ pub struct GridParams {
     pub max_refs_per_prim: f32,
     /// Skip a primitive already tested by this ray (a small per-ray cache of the last ids),
     /// instead of testing it again in every cell it spans. Off in every preset: with
-    /// triangles tested four at a time a repeat costs less than the lookup (two-level grid,
-    /// one thread, `grid_params -- MESH two-level:0.01:0.5 two-level:0.01:0.5+mailbox`: 10-24%
-    /// slower with mailboxes on bunny, dragon and sponza).
+    /// triangles tested four at a time a repeat costs less than the lookup.
     pub mailbox: bool,
     /// Cross empty space a whole empty cube at a time ([`crate::skip`]); off, the walk steps
     /// through every cell (the classic 3D-DDA, whose cost per ray grows as the cube root of
@@ -56,14 +54,8 @@ pub struct GridParams {
 impl GridParams {
     /// A uniform grid of one cell per two primitives, no mailboxes. Cells test their
     /// triangles four or eight at a time from copies laid out for it
-    /// ([`rt_geom::LeafPrims`]), so coarser cells than the classic 2-5 per primitive pay. All
-    /// presets were measured on one thread, 512x512 rays, primary / shadow / diffuse, against
-    /// the earlier values, one run per mesh (`cargo run --release -p rt-accel-grid --example
-    /// grid_params -- MESH uniform:1 uniform:0.5 two-level:0.125:2 two-level:0.01:0.5
-    /// adaptive:8:1 adaptive:24:0.125`); 0.5 against 1 (itself measured against 2 before the
-    /// cell copies) also in `cargo xtask bench --accels grid --threads 2`, two builds
-    /// interleaved: bunny +13-22% / +9-16% / +11-14%, sponza +9-15% / +6-10% / 0-2%, dragon
-    /// +17% / +8-9% / +1-5%; 0.35 and 0.25 were no better in the example.
+    /// ([`rt_geom::LeafPrims`]), so coarser cells than the classic 2-5 per primitive pay
+    /// (measured with the `grid_params` example: `docs/notes/grid-presets.md`).
     pub const fn uniform() -> Self {
         Self {
             kind: GridKind::Uniform,
@@ -76,8 +68,7 @@ impl GridParams {
     }
 
     /// Two levels: a top grid of one cell per 100 primitives, each non-empty cell's content
-    /// refined at one cell per 2 primitives. Against 1/8 and 2 (see [`GridParams::uniform`]):
-    /// bunny +37% / +24% / +17%, sponza +28% / +16% / +7%, dragon +44% / +28% / +18%.
+    /// refined at one cell per 2 primitives.
     pub const fn two_level() -> Self {
         Self {
             kind: GridKind::TwoLevel { top_density: 0.01 },
@@ -87,9 +78,7 @@ impl GridParams {
     }
 
     /// Adaptive: a uniform grid of one cell per 8 primitives; cells of more than 24
-    /// primitives refined the same way over their content, to at most 4 levels. Against one
-    /// cell per primitive and 8 (see [`GridParams::uniform`]): bunny +51% / +35% / +26%,
-    /// sponza +30% / +31% / +18%, dragon +65% / +48% / +44%.
+    /// primitives refined the same way over their content, to at most 4 levels.
     pub const fn adaptive() -> Self {
         Self {
             kind: GridKind::Adaptive {

@@ -20,7 +20,7 @@ pub enum KdBuilder {
 pub enum KdTraversal {
     /// Explicit stack, near child first (pbrt, Havran's TA_B^rec made iterative).
     Iterative,
-    /// The seeds' recursive front-to-back descent.
+    /// The classic recursive front-to-back descent.
     Recursive,
 }
 
@@ -59,14 +59,8 @@ impl KdParams {
     /// The SAH kd-tree with constants measured for rt's traversal: a traversal step costs
     /// about five primitive tests (15 against 3), since leaves test their triangles four at a
     /// time from a copy laid out for it ([`rt_geom::LeafPrims`]), and empty space is cut off
-    /// at 90% of the cost. One thread, 512x512 rays, `cargo run --release -p rt-accel-kd
-    /// --example kd_costs -- MESH 15/7/0.1 15/3/0.1` (primary / shadow / diffuse rays, against
-    /// the 15/7/0.1 of the leaf test that gathered triangles by id): bunny +9% / +19% / +2%,
-    /// dragon +8% / +7% / +7%, sponza -13% / 0% / -1%; leaves of 9 triangles instead of 4,
-    /// dragon built in 0.63 s instead of 0.76 s. Against Wald & Havran's 15/20/0.2
-    /// ([`KdParams::wald_havran`]) the earlier 15/7/0.1 had already gained 14% / 26% / 15% on
-    /// bunny. Lower costs (15/2) or another empty bonus (0, 0.05, 0.3) lost on two models of
-    /// three.
+    /// at 90% of the cost: leaves of about 9 triangles (measured with the `kd_costs` example:
+    /// `docs/notes/kd-constants.md`).
     pub const fn sah() -> Self {
         Self {
             traversal_cost: 15.0,
@@ -79,9 +73,7 @@ impl KdParams {
     /// The SAH kd-tree with Wald & Havran's constants (traversal 15, test 20, empty bonus
     /// 0.2): leaves of 2-3 triangles. The packet paths of `rt-packet` build with these: a
     /// packet tests a leaf one triangle per block of 8 lanes, so larger leaves cost it more
-    /// than they save (`cargo xtask bench --accels kd,kd-mlrta`, 2 threads, against
-    /// [`KdParams::sah`]: 2x2 primary packets 1.35x / 1.22x / 1.35x as fast on teapot /
-    /// bunny / sponza, 16x16 1.12x / 0.99x / 1.20x).
+    /// than they save.
     pub const fn wald_havran() -> Self {
         Self {
             builder: KdBuilder::Sah,

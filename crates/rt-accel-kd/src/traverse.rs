@@ -7,7 +7,7 @@
 //! one whose `t` rounds across it, is then found in either cell. Rays parallel to the plane
 //! visit only the side they lie on, rays lying *in* the plane visit both, and a ray starting on
 //! the plane crosses it at `t = 0`. Pending cells are skipped once the closest hit lies before
-//! their entry, which is the seeds' "stop when the hit lies inside the current cell".
+//! their entry, which is the classic "stop when the hit lies inside the current cell".
 
 use crate::params::{KdTraversal, MAX_DEPTH};
 use crate::{KdNode, KdTree};
@@ -206,7 +206,7 @@ thread_local! {
         std::cell::RefCell::new(Box::new([(0, 0.0, 0.0); MAX_DEPTH as usize + 1]));
 }
 
-/// The seeds' recursive traversal: the near child, then, unless a hit already lies before
+/// The classic recursive traversal: the near child, then, unless a hit already lies before
 /// the far child, the far child.
 pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     tree: &T,

@@ -5,7 +5,7 @@
 //! | [`node`] | [`OctNode`], 64 bytes: child and leaf masks, first inner child and first leaf, the octants' quantized content boxes; [`OctLeaf`], 8 bytes (layout there) |
 //! | [`params`] | [`OctreeParams`], [`OctreeTraversal`] |
 //! | `build` | split at the centre while a node holds more than `max_prims`; primitives clipped to each octant |
-//! | `traverse` | the seeds' recursive nearest-first walk, and the parametric walk of Revelles et al. |
+//! | `traverse` | the classic recursive nearest-first walk, and the parametric walk of Revelles et al. |
 //! | `stats` | `stats()` and `validate()` |
 //!
 //! ```

@@ -23,7 +23,7 @@
 //!
 //! The content box of an octant is the union of its primitives clipped to its cell: a ray
 //! that enters the cell but misses the content box cannot hit anything there, and the walks
-//! skip it (the "min/max information" of the seeds). The parent holds its eight octants'
+//! skip it (the "min/max information" of the classic octree). The parent holds its eight octants'
 //! boxes, quantized to 1/254 of the octant's side (one step for all eight) and rounded
 //! outward (6 bytes each, stored by axis so that one SIMD pass reads all eight), so that a
 //! walk decides which octants to enter from the one cache line of the parent and loads a

@@ -5,7 +5,7 @@ use rt_geom::BuildError;
 /// Which walk [`Octree::intersect`](rt_geom::Accel::intersect) runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OctreeTraversal {
-    /// The seeds' recursive walk: the octants the ray's box test enters, nearest first.
+    /// The classic recursive walk: the octants the ray's box test enters, nearest first.
     Recursive,
     /// Revelles, Ureña & Lastra (WSCG 2000): entry and exit parameters per axis, the first
     /// octant from the entry plane, the next from the exit plane, negative directions by an
@@ -16,7 +16,7 @@ pub enum OctreeTraversal {
 /// Parameters of [`Octree::build`](crate::Octree::build).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OctreeParams {
-    /// A node holding more primitives than this is split into eight (the seeds: about 10;
+    /// A node holding more primitives than this is split into eight (the classic figure is about 10;
     /// [`OctreeParams::standard`]: 24).
     pub max_prims: u32,
     /// No leaf deeper than this (at most [`MAX_DEPTH`]).
@@ -32,8 +32,7 @@ pub struct OctreeParams {
     pub traversal: OctreeTraversal,
     /// Each ray remembers the last 8 primitives it tested and skips them in later leaves (a
     /// primitive is listed in every leaf it overlaps). Off by default: with triangles tested
-    /// four at a time, testing a repeat again costs less than looking it up (bunny, one
-    /// thread, two A/B runs: primary rays 7% and shadow rays 7-22% faster without).
+    /// four at a time, testing a repeat again costs less than looking it up.
     pub mailbox: bool,
 }
 
@@ -41,13 +40,10 @@ pub struct OctreeParams {
 pub const MAX_DEPTH: u32 = 24;
 
 impl OctreeParams {
-    /// Leaves of up to 24 primitives, depth up to 16, parametric traversal. The seeds' 10
+    /// Leaves of up to 24 primitives, depth up to 16, parametric traversal. The classic 10
     /// suits one triangle test at a time; leaves test four at once, and with 24 the walk
-    /// takes fewer steps and each triangle is listed in fewer leaves (bunny 2.5 references
-    /// per triangle instead of 4.3). One thread, 512x512 rays, primary / shadow / diffuse
-    /// against 10 (`OCT_MAX_PRIMS=N cargo run --release -p rt-accel-octree --example
-    /// oct_stats -- MESH --trace`, two interleaved runs each): bunny +5% / +6% / +3%, dragon
-    /// +7-13% / +8-10% / +7-20%, sponza -1-4% / +2-7% / -2-3%; builds half as long.
+    /// takes fewer steps and each triangle is listed in fewer leaves (measured with the
+    /// `oct_stats` example: `docs/notes/octree-walk.md`).
     pub const fn standard() -> Self {
         Self {
             max_prims: 24,

@@ -2,7 +2,7 @@
 //! and both skip an octant whose content box (the min/max information its parent stores,
 //! see [`crate::node`]) the ray does not enter, or enters beyond the closest hit.
 //!
-//! - `recursive`: the seeds' walk. At an inner node, every non-empty octant whose content box
+//! - `recursive`: the classic walk. At an inner node, every non-empty octant whose content box
 //!   the ray enters (the padded box test, one octant at a time) is collected with its entry
 //!   distance, the list is sorted, and the octants are visited nearest first; octants
 //!   entered beyond the closest hit are skipped.
@@ -20,8 +20,7 @@
 //!   inside its octant (up to 1/254 of the side), so it narrows Revelles' interval to its
 //!   own, and an octant holding its whole cell has Revelles' planes exactly (code 0 is the
 //!   low plane, 254 the high one, see [`crate::node`]); computing the octant's slab too
-//!   would narrow nothing further (dropping it: bunny shadow rays +5%, dragon +3%, one
-//!   thread). The parameters are computed afresh at each node from the cell's coordinates
+//!   would narrow nothing further. The parameters are computed afresh at each node from the cell's coordinates
 //!   (not averaged from the parent's, so they are exactly the build's planes); NaN (a ray
 //!   lying in a plane) leaves an interval unchanged, as in the box test, and each interval
 //!   is padded like the box test. No sorting: one octant entered is walked next with no

@@ -469,9 +469,8 @@ pub struct ShearedLanes<L> {
 ///
 /// NaN or infinite inputs fail the comparisons: such lanes are never culled. Out of line:
 /// [`watertight_lanes`] asks only for rays with `tmin > 0` and lanes whose `f32` estimate
-/// lies before `tmin`; inlined, it weighed on every caller's loop (octree primary rays -2.5%),
-/// and asked for every lane that passed the sign test it cost sponza's shadow rays (three in
-/// four occluded, every hit paying for it) 9% in `bvh8-tri`.
+/// lies before `tmin`: inlined, or asked for every lane that passed the sign test, it cost
+/// more than it saved.
 #[inline(never)]
 pub fn hits_before_tmin<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32) -> u32 {
     use crate::aabb::gamma;

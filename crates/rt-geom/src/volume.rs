@@ -1,4 +1,4 @@
-//! Bounding volumes of the seeds (Kay & Kajiya 1986): sphere, axis-aligned box and a k-DOP of
+//! Bounding volumes (Kay & Kajiya 1986): sphere, axis-aligned box and a k-DOP of
 //! seven slabs, each with a conservative ray test that returns the entry distance.
 
 use crate::aabb::{gamma, pad_down, pad_up};

@@ -45,8 +45,7 @@ use wide::{CmpGt, CmpLe, CmpLt, f32x8};
 /// (see [`MLRTA_MAX_CELLS`]).
 pub const MLRTA_MIN_SPLIT: usize = 32;
 
-/// Beams of fewer rays start at the root: the search would cost more than it saves (beams of
-/// 16 rays, 4x4 tiles, ran at 0.66-0.79x plain kd-tree packets on teapot, bunny and sponza).
+/// Beams of fewer rays start at the root: the search would cost more than it saves.
 pub const MLRTA_MIN_BEAM: usize = 64;
 
 /// Beams whose search keeps more far sides than this (the beam straddles many planes: it is

@@ -366,8 +366,7 @@ impl PacketPrimitive for Triangle {
 /// scalar one, bit for bit. A lane whose `f64` edge functions disagree (the ray passes a
 /// rounding error outside the triangle) goes through the scalar `refine` for its fallback,
 /// and the last lanes, fewer than four, through the scalar path altogether (gathering them
-/// costs more than it saves: bunny's primary rays, mostly one or two lanes per triangle, ran
-/// 9% slower with every lane gathered). Each lane's answer goes to `keep(lane, answer)`
+/// costs more than it saves where a triangle meets one or two lanes). Each lane's answer goes to `keep(lane, answer)`
 /// (lanes relative to `base`); a lane whose interval excludes the hit is not handed over.
 #[inline(never)]
 fn refine_lanes<const N: usize>(

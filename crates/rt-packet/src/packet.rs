@@ -6,7 +6,7 @@ use rt_geom::aabb::PAD;
 #[cfg(doc)]
 use rt_geom::aabb::SlabRay;
 
-/// The packet sizes of the seeds: square tiles of 2x2 to 16x16 pixels.
+/// The packet sizes: square tiles of 2x2 to 16x16 pixels.
 pub const TILE_SIDES: [usize; 4] = [2, 4, 8, 16];
 
 /// `N` rays, structure of arrays. Lanes past the rays given, and lanes with invalid rays, are
@@ -127,9 +127,7 @@ impl<'a, const N: usize> RayPacket<'a, N> {
 
     /// Writes every lane, in place: the rays' lanes and the lanes past them (inactive, an
     /// empty interval). The fields are written lane block by lane block: building them as
-    /// arrays of their own and moving them into the packet copied every byte once more (64
-    /// `memcpy` calls per 16x16 packet, an eighth of the packet walk's instructions,
-    /// callgrind).
+    /// arrays of their own and moving them into the packet would copy every byte once more.
     fn fill(&mut self) {
         // A block of lanes at a time: the rays' own numbers (origin, direction, interval; one
         // row of 8 per ray, transposed into lanes), then everything derived from them

@@ -156,9 +156,7 @@ fn traverse<
 
 /// Packets of at most this many lanes go through a wide BVH ray by ray: a wide node's single-ray
 /// test already fills the SIMD lanes with its children, and four lanes do not share enough
-/// of the packet's per-node work (`bvh8`, 2x2 tiles on teapot, bunny and sponza, 2 threads:
-/// 0.54-0.69x the single rays as packets, 0.88-0.96x ray by ray, the rest being the per-group
-/// work of the bench).
+/// of the packet's per-node work.
 pub const WIDE_RAY_BY_RAY: usize = 4;
 
 impl<P: PacketPrimitive, const K: usize> PacketTraversal for WideBvh<P, K> {

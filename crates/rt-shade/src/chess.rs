@@ -1,4 +1,4 @@
-//! The built-in scene: the seeds' chess board. An 8x8 reflective board in a wooden frame on a
+//! The built-in scene: the classic chess board. An 8x8 reflective board in a wooden frame on a
 //! table, 32 lathed pieces of about 100 triangles each (smooth normals from the lathe), the
 //! white king, queen and bishops in glass, lit by two lights. Needs no files.
 
@@ -308,7 +308,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn chess_has_the_seeds_shape() {
+    fn chess_has_the_classic_shape() {
         let s = chess();
         s.check().unwrap();
         assert_eq!(s.lights.len(), 2);

@@ -78,7 +78,7 @@ impl Material {
         self.transmit.max_element() > 0.0
     }
 
-    /// The seeds' rule: a surface with specular or transmitted light spawns a reflection ray.
+    /// The classic rule: a surface with specular or transmitted light spawns a reflection ray.
     pub fn spawns_reflection(&self) -> bool {
         self.reflect.max_element() > 0.0 || self.is_transmissive()
     }

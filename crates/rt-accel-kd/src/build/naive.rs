@@ -1,4 +1,4 @@
-//! The naive planes the seeds start from: the middle of the node's largest extent, or the
+//! The naive planes the classic builders start from: the middle of the node's largest extent, or the
 //! centre of gravity of its geometry along that axis.
 
 use super::events::{END, PLANAR, START};
