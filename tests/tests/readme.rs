@@ -5,8 +5,14 @@
 fn readme_structures_table_is_the_registry() {
     let readme = include_str!("../../README.md");
     let (begin, end) = ("<!-- accels:begin -->\n", "<!-- accels:end -->");
-    let start = readme.find(begin).expect("README has the accels:begin marker") + begin.len();
-    let stop = readme[start..].find(end).expect("README has the accels:end marker") + start;
+    let start = readme
+        .find(begin)
+        .expect("README has the accels:begin marker")
+        + begin.len();
+    let stop = readme[start..]
+        .find(end)
+        .expect("README has the accels:end marker")
+        + start;
     assert_eq!(
         &readme[start..stop],
         xtask::registry::markdown_table(),

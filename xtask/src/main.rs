@@ -124,9 +124,7 @@ fn main() -> ExitCode {
 
 fn run(command: Command) -> Result<ExitCode, String> {
     match command {
-        Command::Accels {
-            markdown: true, ..
-        } => print!("{}", registry::markdown_table()),
+        Command::Accels { markdown: true, .. } => print!("{}", registry::markdown_table()),
         Command::Accels { long, packet, .. } => {
             for e in registry::REGISTRY
                 .iter()

@@ -557,7 +557,8 @@ pub fn unknown(name: &str) -> String {
 /// The registry as a Markdown table, one row per structure (`cargo xtask accels --markdown`):
 /// the README's list of structures is this output, checked by a test so it cannot drift.
 pub fn markdown_table() -> String {
-    let mut out = String::from("| name | packets | spheres, cones | what it is |\n|---|---|---|---|\n");
+    let mut out =
+        String::from("| name | packets | spheres, cones | what it is |\n|---|---|---|---|\n");
     for e in REGISTRY {
         let yes = |b: bool| if b { "yes" } else { "" };
         out.push_str(&format!(

@@ -62,7 +62,7 @@ impl<P: Primitive> Bvh<P> {
         })
     }
 
-    /// The flattened nodes (read-only; layout in [`node`]).
+    /// The flattened nodes (read-only; layout in [`node`](crate::node)).
     pub fn nodes(&self) -> &[BvhNode] {
         &self.nodes
     }

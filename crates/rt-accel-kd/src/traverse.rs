@@ -156,54 +156,47 @@ pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     let (nodes, indices) = (tree.nodes(), tree.indices());
     let mut r = *ray;
     let mut best = None;
-    STACK.with(|cell| {
-        let mut stack = cell.borrow_mut();
-        // One pending cell per level at most: the depth cap bounds the stack.
-        let stack = &mut stack[..];
-        let mut sp = 0;
-        let mut i = 0usize;
-        loop {
-            if !nodes[i].is_leaf() {
-                let (first, second, step) = tree.at(&data, i, t0, t1);
-                match step {
-                    Step::First => i = first,
-                    Step::Second => i = second,
-                    Step::Both {
-                        first_end,
-                        second_start,
-                    } => {
-                        stack[sp] = (second as u32, second_start, t1);
-                        sp += 1;
-                        i = first;
-                        t1 = first_end;
-                    }
+    // One pending cell per level at most: the depth cap bounds the stack. On the call's own
+    // stack, so the walk's state stays in registers (a thread-local stack, reached through
+    // `LocalKey::with`, left it in memory where `with` was not inlined).
+    let mut stack = [(0u32, 0.0f32, 0.0f32); MAX_DEPTH as usize + 1];
+    let mut sp = 0;
+    let mut i = 0usize;
+    loop {
+        if !nodes[i].is_leaf() {
+            let (first, second, step) = tree.at(&data, i, t0, t1);
+            match step {
+                Step::First => i = first,
+                Step::Second => i = second,
+                Step::Both {
+                    first_end,
+                    second_start,
+                } => {
+                    stack[sp] = (second as u32, second_start, t1);
+                    sp += 1;
+                    i = first;
+                    t1 = first_end;
                 }
-                continue;
             }
-            on_leaf(i);
-            if test_leaf::<P, ANY_HIT>(leaves, &nodes[i], indices, &mut r, &mut best) {
+            continue;
+        }
+        on_leaf(i);
+        if test_leaf::<P, ANY_HIT>(leaves, &nodes[i], indices, &mut r, &mut best) {
+            return best;
+        }
+        // The next pending cell that starts before the closest hit.
+        loop {
+            if sp == 0 {
                 return best;
             }
-            // The next pending cell that starts before the closest hit.
-            loop {
-                if sp == 0 {
-                    return best;
-                }
-                sp -= 1;
-                let (n, a, b) = stack[sp];
-                if best.is_none() || a <= r.tmax {
-                    (i, t0, t1) = (n as usize, a, b);
-                    break;
-                }
+            sp -= 1;
+            let (n, a, b) = stack[sp];
+            if best.is_none() || a <= r.tmax {
+                (i, t0, t1) = (n as usize, a, b);
+                break;
             }
         }
-    })
-}
-
-thread_local! {
-    /// The iterative walk's stack, one per thread: no zeroing per ray.
-    static STACK: std::cell::RefCell<Box<[(u32, f32, f32); MAX_DEPTH as usize + 1]>> =
-        std::cell::RefCell::new(Box::new([(0, 0.0, 0.0); MAX_DEPTH as usize + 1]));
+    }
 }
 
 /// The classic recursive traversal: the near child, then, unless a hit already lies before

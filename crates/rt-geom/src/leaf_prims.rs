@@ -145,7 +145,7 @@ impl TriangleSoa {
         false
     }
 
-    /// [`Self::test_range`] keeping the closest hit in `best` (ties by [`replaces`]) and
+    /// [`Self::test_range`] keeping the closest hit in `best` (ties by [`crate::replaces`]) and
     /// lowering `r.tmax` to it; with `ANY_HIT`, the first hit ends the search (true).
     #[inline(always)]
     pub fn intersect_range<const ANY_HIT: bool>(
@@ -198,7 +198,7 @@ impl<P: Primitive> LeafPrims<P> {
 
     /// Tests the primitives at places `first .. first + count` (ids `indices[first..]`),
     /// skipping the ids `skip` names, keeping the closest hit in `best` (ties by
-    /// [`replaces`]) and lowering `ray.tmax` to it: what [`crate::test_primitives`] does with
+    /// [`crate::replaces`]) and lowering `ray.tmax` to it: what [`crate::test_primitives`] does with
     /// the ids `indices[first..first + count]`. With `ANY_HIT`, stops at the first hit (true).
     #[inline(always)]
     pub fn test<const ANY_HIT: bool>(

@@ -1,4 +1,4 @@
-//! Wide BVHs (4 and 8 children per node), collapsed from a [`Bvh`]: one data-parallel slab
+//! Wide BVHs (4 and 8 children per node), collapsed from a [`Bvh`](crate::Bvh): one data-parallel slab
 //! test for all children of a node, children visited nearest first.
 //!
 //!
