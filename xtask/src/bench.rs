@@ -35,6 +35,9 @@ pub struct Record {
     /// `mrays_s` over Embree's on the same scene, rays, threads (with the `embree` feature).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ratio_vs_embree: Option<f64>,
+    /// `mrays_s` over Embree's in its default (not robust) mode, `embree-fast`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ratio_vs_embree_fast: Option<f64>,
     pub ray_count: usize,
     pub hits: usize,
     /// Primitives in the scene.
@@ -101,8 +104,8 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
         .collect::<Result<_, _>>()?;
     // obvhs is always measured: every ratio is against it, in the same run.
     let mut measured: Vec<&AccelEntry> = entries.clone();
-    // So is Embree when it is registered (the `embree` feature).
-    for name in ["obvhs", "obvhs-cwbvh", "embree"] {
+    // So is Embree, in both modes, when it is registered (the `embree` feature).
+    for name in ["obvhs", "obvhs-cwbvh", "embree", "embree-fast"] {
         if let Some(e) = registry::find(name) {
             if !measured.iter().any(|m| m.name == name) {
                 measured.push(e);
@@ -154,6 +157,7 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
                         bytes: stats.bytes,
                         ratio_vs_obvhs: None,
                         ratio_vs_embree: None,
+                        ratio_vs_embree_fast: None,
                         ray_count,
                         hits,
                         prims: tris.len(),
@@ -222,6 +226,7 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
         entries.iter().any(|e| e.name == r.accel)
             || r.accel.starts_with("obvhs")
             || r.accel == "embree"
+            || r.accel == "embree-fast"
     });
     print_table(&records);
     print_packet_table(&records);
@@ -327,9 +332,11 @@ fn fill_ratios(records: &mut [Record]) {
     };
     let obvhs = best(records, |a| a.starts_with("obvhs"));
     let embree = best(records, |a| a == "embree");
-    for ((r, o), e) in records.iter_mut().zip(obvhs).zip(embree) {
+    let embree_fast = best(records, |a| a == "embree-fast");
+    for (((r, o), e), f) in records.iter_mut().zip(obvhs).zip(embree).zip(embree_fast) {
         r.ratio_vs_obvhs = o;
         r.ratio_vs_embree = e;
+        r.ratio_vs_embree_fast = f;
     }
 }
 

@@ -212,6 +212,13 @@ const EMBREE: AccelEntry = AccelEntry {
 #[cfg(feature = "embree")]
 const OPTIONAL: &[AccelEntry] = &[
     EMBREE,
+    // Embree as most of its users run it: default scene flags, not robust.
+    AccelEntry {
+        name: "embree-fast",
+        about: "Intel Embree 3 (system library), high-quality build, default scene flags (not robust), rtcIntersect1/rtcOccluded1",
+        build: |p| boxed(crate::embree::EmbreeScene::build_default_flags(p, 0)),
+        ..EMBREE
+    },
     // Embree's packet path for the packet comparisons; its single rays are `embree`'s, so bench
     // and verify do not run them twice.
     AccelEntry {

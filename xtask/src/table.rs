@@ -3,7 +3,8 @@
 
 use crate::bench::Record;
 
-/// Column titles; with `embree`, a last column: the ratio to Embree.
+/// Column titles; with `embree`, two last columns: the ratios to Embree's robust and default
+/// modes.
 pub fn headers(embree: bool) -> Vec<&'static str> {
     let mut h = vec![
         "structure",
@@ -18,7 +19,7 @@ pub fn headers(embree: bool) -> Vec<&'static str> {
         "SAH",
     ];
     if embree {
-        h.push("vs embree");
+        h.extend(["vs embree", "vs embree-fast"]);
     }
     h
 }
@@ -39,14 +40,16 @@ pub fn cells(r: &Record, embree: bool) -> Vec<String> {
         r.sah_cost.map_or("-".into(), |x| format!("{x:.1}")),
     ];
     if embree {
-        c.push(ratio(r.ratio_vs_embree));
+        c.extend([ratio(r.ratio_vs_embree), ratio(r.ratio_vs_embree_fast)]);
     }
     c
 }
 
-/// Whether any record has an Embree ratio (then every table gets the column).
+/// Whether any record has an Embree ratio (then every table gets the columns).
 fn with_embree(records: &[Record]) -> bool {
-    records.iter().any(|r| r.ratio_vs_embree.is_some())
+    records
+        .iter()
+        .any(|r| r.ratio_vs_embree.is_some() || r.ratio_vs_embree_fast.is_some())
 }
 
 /// Columns that hold names (left-aligned); the others are numbers.

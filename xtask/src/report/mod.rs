@@ -128,6 +128,7 @@ mod tests {
             bytes: 1 << 20,
             ratio_vs_obvhs: Some(mrays_s / 2.0),
             ratio_vs_embree: None,
+            ratio_vs_embree_fast: None,
             ray_count: 1000,
             hits: 500,
             prims: if scene == "big" { 100_000 } else { 1000 },
