@@ -84,6 +84,10 @@ fn default_scenes(quick: bool) -> Vec<&'static str> {
     }
 }
 
+/// The peers every bench measures in the same run (those registered: Embree's two modes only
+/// with the `embree` feature), so that every ratio has its reference.
+const PEERS: [&str; 4] = ["obvhs", "obvhs-cwbvh", "embree", "embree-fast"];
+
 /// Time budget of one timed repetition; larger ray sets are subsampled to fit it.
 const REP_BUDGET: Duration = Duration::from_millis(1500);
 
@@ -105,7 +109,7 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
     // obvhs is always measured: every ratio is against it, in the same run.
     let mut measured: Vec<&AccelEntry> = entries.clone();
     // So is Embree, in both modes, when it is registered (the `embree` feature).
-    for name in ["obvhs", "obvhs-cwbvh", "embree", "embree-fast"] {
+    for name in PEERS {
         if let Some(e) = registry::find(name) {
             if !measured.iter().any(|m| m.name == name) {
                 measured.push(e);
@@ -222,12 +226,8 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
         pb.finish_and_clear();
     }
     fill_ratios(&mut records);
-    records.retain(|r| {
-        entries.iter().any(|e| e.name == r.accel)
-            || r.accel.starts_with("obvhs")
-            || r.accel == "embree"
-            || r.accel == "embree-fast"
-    });
+    records
+        .retain(|r| entries.iter().any(|e| e.name == r.accel) || PEERS.contains(&r.accel.as_str()));
     print_table(&records);
     print_packet_table(&records);
     if opts.quick {

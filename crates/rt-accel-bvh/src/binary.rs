@@ -291,7 +291,7 @@ mod tests {
         bvh.validate().unwrap();
         assert!(bvh.stats().max_depth <= MAX_DEPTH);
         let r = Ray::new(Vec3::new(-1.0, 0.25, 0.25), Vec3::X);
-        // x = 2^-i/2 below 6e-8 rounds t = 1 + x to 1.0: many ties, all at t = 1.
+        // x = 2^-i/2 below 6e-8 is lost in t = 1 + x (t = 1.0 in f32): many ties, all at t = 1.
         let hit = bvh.intersect(&r).unwrap();
         assert_eq!(hit.t, 1.0);
         assert!(tris[hit.prim as usize].v[0].x < 6e-8);

@@ -93,7 +93,7 @@ pub(super) fn family_colour(name: &str) -> RGBColor {
     )
 }
 
-/// One panel per scene: primary-ray Mrays/s per structure, fastest on top, bars coloured by
+/// One panel per scene: primary-ray throughput per structure, fastest on top, bars coloured by
 /// family and labelled with the structure's name.
 pub(super) fn plot_throughput(
     path: &Path,

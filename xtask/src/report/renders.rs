@@ -15,8 +15,8 @@ pub(super) struct SpdRow {
 
 /// Renders every SPD scene present with each of [`SPD_ACCELS`] (on all cores).
 pub(super) fn spd_renders(quick: bool) -> Result<Vec<SpdRow>, String> {
-    // The full report adds the larger sizes of balls, tetra and mount: the same scenes at 9x,
-    // 16x-64x and 16x the primitives, a scaling series on real scenes.
+    // The full report adds the larger sizes of balls, tetra and mount (the same scenes with 9,
+    // 16 to 64 and 16 times the primitives): a scaling series on real scenes.
     let names: Vec<&str> = if quick {
         vec!["balls", "gears", "tree"]
     } else {
