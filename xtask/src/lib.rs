@@ -17,11 +17,13 @@
 //! | [`rayfile`] | the `.rays` / `.hits` formats |
 //! | [`run`] | timed parallel tracing, medians, progress bars |
 //! | `embree` | Intel Embree 3 behind `Accel` (feature `embree`, system `libembree-dev`) |
+//! | [`fuzz`] | the fuzz targets' properties ([`fuzz::checks`]) and `cargo xtask fuzz`, which runs them |
 //! | [`native`] | re-running `bench`/`trace` built with `-C target-cpu=native` |
 
 pub mod bench;
 #[cfg(feature = "embree")]
 pub mod embree;
+pub mod fuzz;
 pub mod native;
 pub mod obvhs_accel;
 pub mod rayfile;

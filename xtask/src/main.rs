@@ -25,6 +25,16 @@ enum Command {
         #[arg(long)]
         markdown: bool,
     },
+    /// Runs the fuzz targets of fuzz/ (cargo-fuzz, nightly toolchain) for a given time each and
+    /// prints executions and failing inputs per target.
+    Fuzz {
+        /// Seconds per target.
+        #[arg(long, default_value_t = 60)]
+        seconds: u64,
+        /// Comma-separated targets (default: all): obj, obj_scene, nff, rays, build_trace.
+        #[arg(long)]
+        targets: Option<String>,
+    },
     /// Every structure against brute force (conformance scenes) and obvhs (shared meshes).
     Verify {
         /// Fewer rays, small meshes only (CI).
@@ -136,6 +146,9 @@ fn run(command: Command) -> Result<ExitCode, String> {
                     println!("{}", e.name);
                 }
             }
+        }
+        Command::Fuzz { seconds, targets } => {
+            xtask::fuzz::run(seconds, targets.as_deref())?;
         }
         Command::Verify { quick, accels } => {
             let ok = verify::verify(&verify::VerifyOptions { quick, accels })?;

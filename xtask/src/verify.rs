@@ -146,7 +146,7 @@ const PACKET_GROUPS: [usize; 7] = [256, 64, 16, 4, 1, 37, 200];
 
 /// An entry's packet path against its own single rays, exactly (every field of every hit, and
 /// every occluded answer), with `rays` traced as groups of [`PACKET_GROUPS`] sizes.
-fn packet_report(
+pub(crate) fn packet_report(
     scene: &str,
     tris: &[Triangle],
     rays: &[TestRay],

@@ -61,12 +61,12 @@ impl<P: Primitive> Bvh<P> {
         if self.nodes.is_empty() {
             return s;
         }
-        let root_area = self.nodes[0].bounds().half_area();
+        let root_area = self.nodes[0].bounds().half_area_f64();
         let mut sah = 0.0f64;
         self.walk(|i, d| {
             let n = &self.nodes[i];
             s.max_depth = s.max_depth.max(d);
-            let area = n.bounds().half_area() as f64;
+            let area = n.bounds().half_area_f64();
             if n.is_leaf() {
                 s.leaves += 1;
                 s.references += n.count() as usize;
@@ -78,7 +78,7 @@ impl<P: Primitive> Bvh<P> {
             }
         });
         s.sah_cost = Some(if root_area > 0.0 {
-            (sah / root_area as f64) as f32
+            (sah / root_area) as f32
         } else {
             0.0
         });

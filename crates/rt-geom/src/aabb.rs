@@ -241,6 +241,17 @@ impl Aabb {
         e.x * e.y + e.y * e.z + e.z * e.x
     }
 
+    /// [`Self::half_area`] computed in `f64`: finite for every finite box (the `f32` area
+    /// overflows for boxes wider than about 1e19), for statistics that sum and divide areas.
+    #[inline]
+    pub fn half_area_f64(&self) -> f64 {
+        if self.is_empty() {
+            return 0.0;
+        }
+        let e = self.max.as_dvec3() - self.min.as_dvec3();
+        e.x * e.y + e.y * e.z + e.z * e.x
+    }
+
     /// Index of the axis with the largest extent (0 = x).
     #[inline]
     pub fn largest_axis(&self) -> usize {

@@ -124,6 +124,11 @@ pub enum BuildError {
         /// Index of the first such primitive.
         prim: usize,
     },
+    /// A primitive reaches beyond [`MAX_COORDINATE`] on some axis.
+    OutOfRange {
+        /// Index of the first such primitive.
+        prim: usize,
+    },
     /// More primitives than the structure's index type holds.
     TooManyPrimitives {
         /// Primitives given.
@@ -148,6 +153,11 @@ impl fmt::Display for BuildError {
             BuildError::NonFinite { prim } => {
                 write!(f, "primitive {prim} has a NaN or infinite coordinate")
             }
+            BuildError::OutOfRange { prim } => write!(
+                f,
+                "primitive {prim} reaches beyond +-{MAX_COORDINATE:e} (2^60), the coordinate \
+                 range in which rt's kernels are exact; scale the scene down"
+            ),
             BuildError::TooManyPrimitives { count, max } => {
                 write!(
                     f,
@@ -212,7 +222,7 @@ impl StatsSum {
     pub fn new(stats: AccelStats, root: &Aabb) -> Self {
         Self {
             stats,
-            root_area: root.half_area() as f64,
+            root_area: root.half_area_f64(),
             sah: 0.0,
         }
     }
@@ -221,7 +231,7 @@ impl StatsSum {
     pub fn add(&mut self, cell: &Aabb, depth: usize, leaf: bool, count: usize) {
         let s = &mut self.stats;
         s.max_depth = s.max_depth.max(depth);
-        let area = cell.half_area() as f64;
+        let area = cell.half_area_f64();
         if leaf {
             if count > 0 {
                 s.leaves += 1;
@@ -302,7 +312,14 @@ pub fn all_referenced(seen: &[bool]) -> Result<(), String> {
     }
 }
 
-/// The input checks every builder starts with: all primitives finite and at most `max_count`.
+/// The largest coordinate magnitude of primitives and ray origins, `2^60` (about 1.15e18):
+/// within it the `f32` edge functions of the watertight test (products of vertex-minus-origin
+/// differences) cannot overflow, so every kernel stays exact. Builders reject primitives
+/// beyond it ([`BuildError::OutOfRange`]); rays from beyond it are invalid and miss.
+pub const MAX_COORDINATE: f32 = (1u64 << 60) as f32;
+
+/// The input checks every builder starts with: all primitives finite, within
+/// [`MAX_COORDINATE`], and at most `max_count`.
 pub fn check_primitives<P: Primitive>(prims: &[P], max_count: usize) -> Result<(), BuildError> {
     if prims.len() > max_count {
         return Err(BuildError::TooManyPrimitives {
@@ -310,8 +327,15 @@ pub fn check_primitives<P: Primitive>(prims: &[P], max_count: usize) -> Result<(
             max: max_count,
         });
     }
-    match prims.iter().position(|p| !p.is_finite()) {
-        Some(prim) => Err(BuildError::NonFinite { prim }),
+    if let Some(prim) = prims.iter().position(|p| !p.is_finite()) {
+        return Err(BuildError::NonFinite { prim });
+    }
+    let within = |p: &P| {
+        let b = p.bounds();
+        b.min.abs().max_element() <= MAX_COORDINATE && b.max.abs().max_element() <= MAX_COORDINATE
+    };
+    match prims.iter().position(|p| !within(p)) {
+        Some(prim) => Err(BuildError::OutOfRange { prim }),
         None => Ok(()),
     }
 }

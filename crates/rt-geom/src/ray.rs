@@ -48,7 +48,13 @@ impl Ray {
 
     /// A ray over `[tmin, tmax]`.
     pub fn segment(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Self {
-        let valid = origin.is_finite() && dir.is_finite() && dir != Vec3::ZERO;
+        // A direction whose largest component is zero or subnormal has no finite reciprocal
+        // shear: such rays are invalid (and miss), as zero directions are.
+        // Origins beyond the coordinate range are invalid too (`MAX_COORDINATE`).
+        let valid = origin.is_finite()
+            && origin.abs().max_element() <= crate::MAX_COORDINATE
+            && dir.is_finite()
+            && dir.abs().max_element() >= f32::MIN_POSITIVE;
         let abs = dir.abs();
         let kz = if abs.x >= abs.y && abs.x >= abs.z {
             0
@@ -113,7 +119,8 @@ impl Ray {
         Vec3::ONE / self.dir
     }
 
-    /// Finite origin, finite non-zero direction and an interval that is not NaN.
+    /// Finite origin within [`crate::MAX_COORDINATE`], finite direction whose largest
+    /// component is a normal float (not zero nor subnormal), and an interval that is not NaN.
     #[inline]
     pub fn is_valid(&self) -> bool {
         self.valid && !self.tmin.is_nan() && !self.tmax.is_nan()

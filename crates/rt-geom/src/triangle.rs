@@ -48,10 +48,12 @@ impl Triangle {
         0.5 * self.cross().length()
     }
 
-    /// Zero area as computed in `f32`: such triangles are kept but never hit.
+    /// Zero area (collinear vertices, computed in `f64` so that tiny triangles, whose `f32`
+    /// cross product underflows, keep their area): such triangles are kept but never hit.
     #[inline]
     pub fn is_degenerate(&self) -> bool {
-        self.cross() == Vec3::ZERO
+        let [a, b, c] = self.v.map(|p| p.as_dvec3());
+        (b - a).cross(c - a) == DVec3::ZERO
     }
 
     /// The box around the three vertices.
@@ -137,11 +139,17 @@ impl Triangle {
         self.finish_accepted(ray, (u, v, w))
     }
 
-    /// [`Self::finish_watertight`] once the edge functions agree in sign.
+    /// [`Self::finish_watertight`] once the edge functions agree in sign. Where the `f32` edge
+    /// functions decide nothing (they all underflow to zero, for tiny triangles, or overflow,
+    /// for vertices near the largest floats), the `f64` ones decide alone.
     #[inline(never)]
     fn finish_accepted(&self, ray: &Ray, (u, v, w): (f32, f32, f32)) -> Option<PrimHit> {
-        if u + v + w == 0.0 || self.is_degenerate() {
+        if self.is_degenerate() {
             return None;
+        }
+        let sum = u + v + w;
+        if sum == 0.0 || !sum.is_finite() {
+            return self.refine_in_f64(ray);
         }
         self.refine(ray, (u, v, w))
     }
@@ -165,29 +173,11 @@ impl Triangle {
     ///   point of the ray closest to the triangle's boundary.
     #[inline]
     pub fn refine(&self, ray: &Ray, (u, v, w): (f32, f32, f32)) -> Option<PrimHit> {
-        // Coordinates as arrays indexed by the ray's axes (one load each; a `DVec3` indexed
-        // at run time branches on the index).
-        let [kx, ky, kz] = ray.watertight_axes();
-        let d = ray.dir().as_dvec3();
-        let da = d.to_array();
-        let (sx, sy, sz) = (da[kx] / da[kz], da[ky] / da[kz], 1.0 / da[kz]);
-        let o = ray.origin().as_dvec3();
-        let shear = |p: Vec3| {
-            let p = (p.as_dvec3() - o).to_array();
-            (p[kx] - sx * p[kz], p[ky] - sy * p[kz], p[kz] * sz)
-        };
-        let (ax, ay, az) = shear(self.v[0]);
-        let (bx, by, bz) = shear(self.v[1]);
-        let (cx, cy, cz) = shear(self.v[2]);
         let orient = if u + v + w < 0.0 { -1.0 } else { 1.0 };
-        let e0 = (cx * by - cy * bx) * orient;
-        let e1 = (ax * cy - ay * cx) * orient;
-        let e2 = (bx * ay - by * ax) * orient;
-        let sum = e0 + e1 + e2;
-        let t = if e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0 && sum > 0.0 {
-            ((e0 * az + e1 * bz + e2 * cz) / sum) as f32
-        } else {
-            self.closest_on_boundary(o, d)? as f32
+        let edges = self.edges_in_f64(ray, orient);
+        let t = match edges.depth() {
+            Some(t) => t as f32,
+            None => self.closest_on_boundary(ray.origin().as_dvec3(), ray.dir().as_dvec3())? as f32,
         };
         if !ray.in_range(t) {
             return None;
@@ -198,6 +188,52 @@ impl Triangle {
             u: v * rcp,
             v: w * rcp,
         })
+    }
+
+    /// The watertight test decided by the `f64` edge functions alone (no `f32` test to
+    /// follow to the boundary): a hit when they agree in sign, with their barycentrics.
+    fn refine_in_f64(&self, ray: &Ray) -> Option<PrimHit> {
+        let edges = self.edges_in_f64(ray, 1.0);
+        let orient = if edges.e.iter().sum::<f64>() < 0.0 { -1.0 } else { 1.0 };
+        let edges = self.edges_in_f64(ray, orient);
+        let t = edges.depth()? as f32;
+        if !ray.in_range(t) {
+            return None;
+        }
+        let [_, e1, e2] = edges.e;
+        let sum = edges.e.iter().sum::<f64>();
+        Some(PrimHit {
+            t,
+            u: (e1 / sum) as f32,
+            v: (e2 / sum) as f32,
+        })
+    }
+
+    /// The edge functions `(U, V, W)` times `orient`, in `f64` from the `f32` inputs in the
+    /// ray's exact shear (vertex minus origin is exact, each product rounded once), and the
+    /// vertices' depths along the ray.
+    fn edges_in_f64(&self, ray: &Ray, orient: f64) -> EdgesF64 {
+        // Coordinates as arrays indexed by the ray's axes (one load each; a `DVec3` indexed
+        // at run time branches on the index).
+        let [kx, ky, kz] = ray.watertight_axes();
+        let da = ray.dir().as_dvec3().to_array();
+        let (sx, sy, sz) = (da[kx] / da[kz], da[ky] / da[kz], 1.0 / da[kz]);
+        let o = ray.origin().as_dvec3();
+        let shear = |p: Vec3| {
+            let p = (p.as_dvec3() - o).to_array();
+            (p[kx] - sx * p[kz], p[ky] - sy * p[kz], p[kz] * sz)
+        };
+        let (ax, ay, az) = shear(self.v[0]);
+        let (bx, by, bz) = shear(self.v[1]);
+        let (cx, cy, cz) = shear(self.v[2]);
+        EdgesF64 {
+            e: [
+                (cx * by - cy * bx) * orient,
+                (ax * cy - ay * cx) * orient,
+                (bx * ay - by * ax) * orient,
+            ],
+            z: [az, bz, cz],
+        }
     }
 
     /// The parameter `s` of the point of the line `o + s d` closest to the triangle's edges.
@@ -319,6 +355,24 @@ impl Triangle {
             out.max = out.max.max(hi);
         }
         out.intersection(*clip).intersection(bounds)
+    }
+}
+
+/// Edge functions and vertex depths of a triangle in a ray's shear, in `f64`.
+struct EdgesF64 {
+    e: [f64; 3],
+    z: [f64; 3],
+}
+
+impl EdgesF64 {
+    /// The depth `(U za + V zb + W zc) / (U + V + W)` of the point the ray meets, when the
+    /// edge functions say it pierces the triangle (all `>= 0`, sum `> 0`): a convex
+    /// combination of the vertices' depths, so the point lies in the triangle's box.
+    fn depth(&self) -> Option<f64> {
+        let [e0, e1, e2] = self.e;
+        let sum = e0 + e1 + e2;
+        (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0 && sum > 0.0)
+            .then(|| (e0 * self.z[0] + e1 * self.z[1] + e2 * self.z[2]) / sum)
     }
 }
 

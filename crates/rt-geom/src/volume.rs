@@ -129,6 +129,11 @@ impl BoundingVolume for BoundingSphere {
             // A point: pad_radius keeps radius > 0 for anything but a point at the origin.
             return Aabb::new(self.center, self.center).hit_distance(ray);
         }
+        if !(self.radius <= f32::MAX) && ray.is_valid() {
+            // Distances between vertices near the largest floats overflow to an infinite (or,
+            // once merged, NaN) radius: such a sphere holds everything.
+            return clip_interval(ray.tmin, ray.tmax, ray);
+        }
         // Roots in f64 (for rays that graze the sphere an f32 discriminant loses so much that
         // the padded radius would not cover it), rounded outwards.
         let (t0, t1) = sphere_roots(self.center, self.radius, ray)?;

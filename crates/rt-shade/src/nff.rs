@@ -19,19 +19,24 @@ use std::path::Path;
 
 /// Loads an NFF file.
 pub fn load_nff(path: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read(path).map_err(|e| SceneError::in_file(path, e.to_string()))?;
-    let text = String::from_utf8(text).map_err(|e| {
-        let line = 1 + e.as_bytes()[..e.utf8_error().valid_up_to()]
+    let bytes = std::fs::read(path).map_err(|e| SceneError::in_file(path, e.to_string()))?;
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    parse_nff_bytes(&bytes, path, &name)
+}
+
+/// Parses the bytes of an NFF file: text that is not UTF-8 is an error naming its line.
+pub fn parse_nff_bytes(bytes: &[u8], path: &Path, name: &str) -> Result<Scene, SceneError> {
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        let line = 1 + bytes[..e.valid_up_to()]
             .iter()
             .filter(|&&b| b == b'\n')
             .count();
         SceneError::at(path, line, "not UTF-8 text")
     })?;
-    let name = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    parse_nff(&text, path, &name)
+    parse_nff(text, path, name)
 }
 
 /// Parses NFF text; `path` names the source in errors.

@@ -18,7 +18,18 @@ use std::path::Path;
 /// Loads an OBJ file and the MTL files it names (relative to its folder).
 pub fn load_obj_scene(path: &Path) -> Result<Scene, SceneError> {
     let text = std::fs::read(path).map_err(|e| SceneError::in_file(path, e.to_string()))?;
-    let mesh = match parse_obj(&text, path) {
+    parse_obj_scene(&text, path, &|mtl| std::fs::read_to_string(mtl))
+}
+
+/// Parses OBJ text as a scene; `path` names the source in errors and its folder is where MTL
+/// files are looked up, each read by `read_mtl` (a missing one is a warning, default materials
+/// are used).
+pub fn parse_obj_scene(
+    text: &[u8],
+    path: &Path,
+    read_mtl: &dyn Fn(&Path) -> std::io::Result<String>,
+) -> Result<Scene, SceneError> {
+    let mesh = match parse_obj(text, path) {
         Ok(mesh) => mesh,
         // A file without faces is a scene without geometry: background, with a warning.
         Err(rt_geom::MeshError::NoTriangles { .. }) => rt_geom::Mesh::default(),
@@ -37,8 +48,8 @@ pub fn load_obj_scene(path: &Path) -> Result<Scene, SceneError> {
         ignore_points: true,
         ignore_lines: true,
     };
-    let loaded = tobj::load_obj_buf(&mut std::io::BufReader::new(&text[..]), &options, |mtl| {
-        library.borrow_mut().load(&dir.join(mtl));
+    let loaded = tobj::load_obj_buf(&mut std::io::BufReader::new(text), &options, |mtl| {
+        library.borrow_mut().load(&dir.join(mtl), read_mtl);
         let lib = library.borrow();
         let placeholders = vec![tobj::Material::default(); lib.materials.len()];
         Ok((placeholders, lib.by_name.clone()))
@@ -59,7 +70,7 @@ pub fn load_obj_scene(path: &Path) -> Result<Scene, SceneError> {
     let triangles = mesh.triangles();
     // tobj fills a face without normals with some other vertex's normal: find which faces
     // really have them.
-    let mut with_normals = triangles_with_normals(&text);
+    let mut with_normals = triangles_with_normals(text);
     if with_normals.len() != triangles.len() {
         scene
             .warnings
@@ -159,11 +170,11 @@ struct MtlLibrary {
 }
 
 impl MtlLibrary {
-    fn load(&mut self, path: &Path) {
+    fn load(&mut self, path: &Path, read: &dyn Fn(&Path) -> std::io::Result<String>) {
         if self.error.is_some() {
             return;
         }
-        match std::fs::read_to_string(path) {
+        match read(path) {
             Err(e) => self
                 .warnings
                 .push(format!("{}: {e}; default materials used", path.display())),

@@ -317,7 +317,9 @@ fn small(refs: &mut [PrimRef], bounds: &Aabb, params: &BvhParams) -> Split {
         for i in 1..n {
             left = left.union(boxes[order[i - 1] as usize & 7]);
             let cost = left.half_area() * params.tests(i) + right[i] * params.tests(n - i);
-            if cost < best.0 {
+            // The first candidate is kept even when every cost overflows to infinity
+            // (coordinates near the largest float): a split must have two sides.
+            if cost < best.0 || best.3 == 0 {
                 best = (cost, axis, order, i);
             }
         }

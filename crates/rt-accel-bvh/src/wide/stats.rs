@@ -15,7 +15,7 @@ impl<const N: usize> WideTree<N> {
             bytes: std::mem::size_of_val(self.nodes.as_slice()),
             ..AccelStats::default()
         };
-        let root_area = self.root_bounds.half_area();
+        let root_area = self.root_bounds.half_area_f64();
         let mut sah = 0.0f64;
         if let Some((_, count)) = self.root_leaf {
             s.leaves = 1;
@@ -27,10 +27,10 @@ impl<const N: usize> WideTree<N> {
         }
         for (i, n) in self.nodes.iter().enumerate() {
             if i == 0 {
-                sah += root_area as f64 * params.traversal_cost as f64;
+                sah += root_area * params.traversal_cost as f64;
             }
             for lane in (0..N).filter(|&l| n.is_used(l)) {
-                let area = n.bounds(lane).half_area() as f64;
+                let area = n.bounds(lane).half_area_f64();
                 if n.count[lane] > 0 {
                     s.leaves += 1;
                     s.references += n.count[lane] as usize;
@@ -44,7 +44,7 @@ impl<const N: usize> WideTree<N> {
         }
         s.nodes += s.leaves;
         s.sah_cost = Some(if root_area > 0.0 {
-            (sah / root_area as f64) as f32
+            (sah / root_area) as f32
         } else {
             0.0
         });

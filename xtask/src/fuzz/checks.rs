@@ -1,0 +1,345 @@
+//! What each fuzz target checks, as functions of the input bytes: `Err` is a broken property
+//! (a wrong answer), a panic is a crash. The fuzz targets (`fuzz/`) call these; the ordinary
+//! test suite runs them on every seed and on every input that once failed
+//! (`fuzz/regressions/<target>/`), so a fixed crash stays fixed without a nightly toolchain.
+
+use crate::rayfile::{HitRecord, encode_hits, encode_rays, parse_hits, parse_rays};
+use crate::registry::{AccelEntry, REGISTRY};
+use crate::verify::packet_report;
+use rt_geom::{Accel, BruteForce, Cone, Hit, Ray, Shape, Sphere, Triangle, Vec3, parse_obj};
+use rt_shade::{RenderOptions, Scene, ShadeOptions, parse_nff_bytes, parse_obj_scene};
+use rt_testkit::conformance::{Report, Tolerance, compare_with_expected};
+use rt_testkit::rays::{RayKind, SamplePoints, TestRay, conformance_rays};
+use std::path::Path;
+
+/// The fuzz targets, by name: each is `fuzz/fuzz_targets/<name>.rs`.
+pub const TARGETS: [(&str, fn(&[u8]) -> Result<(), String>); 5] = [
+    ("obj", obj),
+    ("obj_scene", obj_scene),
+    ("nff", nff),
+    ("rays", rays),
+    ("build_trace", build_trace),
+];
+
+/// The check of the target `name`.
+pub fn target(name: &str) -> Option<fn(&[u8]) -> Result<(), String>> {
+    TARGETS.iter().find(|(n, _)| *n == name).map(|(_, f)| *f)
+}
+
+/// Scenes larger than this are parsed but not traced (the fuzzer's time goes to parsing).
+const TRACE_MAX_PRIMS: usize = 256;
+
+/// The OBJ mesh reader: any bytes give a mesh or an error; a mesh's triangles, in a BVH8,
+/// answer rays as brute force does.
+pub fn obj(bytes: &[u8]) -> Result<(), String> {
+    let Ok(mesh) = parse_obj(bytes, Path::new("fuzz.obj")) else {
+        return Ok(());
+    };
+    let tris = mesh.triangles();
+    if tris.iter().any(|t| !t.bounds().is_finite()) {
+        return Err("parse_obj returned a non-finite vertex".into());
+    }
+    if tris.len() <= TRACE_MAX_PRIMS {
+        let bvh8 = crate::registry::find("bvh8-tri").ok_or("no bvh8-tri entry")?;
+        check_entry(bvh8, &tris, &scene_rays(&tris, 8))?;
+    }
+    Ok(())
+}
+
+/// The OBJ scene reader (rt-shade): the bytes before the first NUL are the OBJ file, the bytes
+/// after it the text of every MTL file it names. A scene that loads renders (4x4 pixels) to the
+/// same image with a BVH as with brute force.
+pub fn obj_scene(bytes: &[u8]) -> Result<(), String> {
+    let (obj, mtl) = match bytes.iter().position(|&b| b == 0) {
+        Some(i) => (&bytes[..i], Some(&bytes[i + 1..])),
+        None => (bytes, None),
+    };
+    let read_mtl = |_: &Path| match mtl {
+        Some(m) => Ok(String::from_utf8_lossy(m).into_owned()),
+        None => Err(std::io::Error::from(std::io::ErrorKind::NotFound)),
+    };
+    match parse_obj_scene(obj, Path::new("fuzz.obj"), &read_mtl) {
+        Ok(scene) => render_agrees(&scene),
+        Err(_) => Ok(()),
+    }
+}
+
+/// The NFF reader: any bytes give a scene or an error; a scene renders as [`obj_scene`]'s.
+pub fn nff(bytes: &[u8]) -> Result<(), String> {
+    match parse_nff_bytes(bytes, Path::new("fuzz.nff"), "fuzz") {
+        Ok(scene) => render_agrees(&scene),
+        Err(_) => Ok(()),
+    }
+}
+
+/// The `.rays` and `.hits` readers: any bytes give rays or an error; rays written back give
+/// the same bytes; every ray (NaN, infinite, zero direction, reversed interval) is answered by
+/// the structures as brute force answers it, on a small sphere of triangles.
+pub fn rays(bytes: &[u8]) -> Result<(), String> {
+    if let Ok(hits) = parse_hits(bytes) {
+        let again = encode_hits(&hits);
+        if again != bytes {
+            return Err("hits written back differ from the bytes read".into());
+        }
+        let _: Vec<bool> = hits.iter().map(HitRecord::is_hit).collect();
+    }
+    let Ok(rays) = parse_rays(bytes) else {
+        return Ok(());
+    };
+    if encode_rays(&rays) != bytes {
+        return Err("rays written back differ from the bytes read".into());
+    }
+    let tris = rt_testkit::scenes::tessellated_sphere(6, Vec3::ZERO, 1.0);
+    let tests: Vec<TestRay> = rays
+        .iter()
+        .take(64)
+        .map(|&ray| TestRay {
+            ray,
+            kind: RayKind::Random,
+        })
+        .collect();
+    for name in ["bvh8-tri", "kd", "grid2", "octree", "bvh"] {
+        let entry = crate::registry::find(name).ok_or(format!("no {name} entry"))?;
+        check_entry(entry, &tris, &tests)?;
+    }
+    Ok(())
+}
+
+/// Arbitrary bytes as a scene of up to 48 triangles (or triangles, spheres and cones) and rays
+/// ([`Decoder`]): every rt structure in the registry (not the external peers) builds it or
+/// rejects it as brute force does, passes `validate()`, and answers every ray exactly as brute
+/// force does; packet paths answer as their single rays.
+pub fn build_trace(bytes: &[u8]) -> Result<(), String> {
+    let mut d = Decoder::new(bytes);
+    let mixed = d.byte() & 1 == 1;
+    let count = d.byte() as usize % 49;
+    let shapes: Vec<Shape> = (0..count)
+        .map(|_| match (mixed, d.byte() % 3) {
+            (true, 1) => Sphere::new(d.vec3(), d.value()).into(),
+            (true, 2) => Cone::new(d.vec3(), d.value(), d.vec3(), d.value()).into(),
+            _ => Triangle::new(d.vec3(), d.vec3(), d.vec3()).into(),
+        })
+        .collect();
+    let mut extra = Vec::new();
+    while !d.is_empty() {
+        let (o, dir) = (d.vec3(), d.vec3());
+        let ray = match d.byte() % 4 {
+            0 => Ray::new(o, dir),
+            1 => Ray::segment(o, dir, d.value(), d.value()),
+            2 => Ray::segment(o, dir, 0.0, d.value()),
+            _ => Ray::segment(o, dir, d.value(), f32::INFINITY),
+        };
+        extra.push(TestRay {
+            ray,
+            kind: RayKind::Random,
+        });
+    }
+    let entries = REGISTRY.iter().filter(|e| !e.external);
+    match shapes
+        .iter()
+        .map(|s| s.as_triangle().copied())
+        .collect::<Option<Vec<Triangle>>>()
+    {
+        Some(tris) => {
+            let mut rays = scene_rays(&tris, 4);
+            rays.extend(extra);
+            for e in entries {
+                check_entry(e, &tris, &rays)?;
+            }
+        }
+        None => {
+            let mut rays = scene_rays(&shapes, 4);
+            rays.extend(extra);
+            for e in entries.filter(|e| e.build_shapes.is_some()) {
+                check_shapes(e, &shapes, &rays)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Rays for a small scene: the conformance families (`per_kind` each), or none when brute
+/// force rejects the scene.
+fn scene_rays<P: SamplePoints>(prims: &[P], per_kind: usize) -> Vec<TestRay> {
+    match BruteForce::build(prims) {
+        Ok(brute) => conformance_rays(prims, &brute, per_kind, 0xf022 ^ prims.len() as u64),
+        Err(_) => Vec::new(),
+    }
+}
+
+/// One entry on a triangle scene: the single-ray structure and its packet path.
+fn check_entry(entry: &AccelEntry, tris: &[Triangle], rays: &[TestRay]) -> Result<(), String> {
+    let built = (entry.build)(tris);
+    agrees(entry.name, tris, built.map_err(|e| e.to_string()), rays)?;
+    if entry.packets.is_some() && BruteForce::build(tris).is_ok() {
+        let report = packet_report("fuzz", tris, rays, entry)
+            .map_err(|e| format!("{} packets: {e}", entry.name))?;
+        mismatches(&format!("{} packets", entry.name), &report)?;
+    }
+    Ok(())
+}
+
+/// One entry that takes any shape, on a scene of mixed shapes.
+fn check_shapes(entry: &AccelEntry, shapes: &[Shape], rays: &[TestRay]) -> Result<(), String> {
+    let build = entry.build_shapes.ok_or("no shape builder")?;
+    agrees(
+        entry.name,
+        shapes,
+        build(shapes).map_err(|e| e.to_string()),
+        rays,
+    )
+}
+
+/// A build result against brute force's: both rejected, or both built and agreeing on every
+/// ray, the structure valid and its stats consistent.
+fn agrees<P: rt_geom::Primitive>(
+    name: &str,
+    prims: &[P],
+    built: Result<Box<dyn Accel>, String>,
+    rays: &[TestRay],
+) -> Result<(), String> {
+    let reference = BruteForce::build(prims);
+    let accel = match (reference.is_ok(), built) {
+        (false, Err(_)) => return Ok(()),
+        (false, Ok(_)) => return Err(format!("{name} built a scene brute force rejects")),
+        (true, Err(e)) => return Err(format!("{name} rejected a valid scene: {e}")),
+        (true, Ok(a)) => a,
+    };
+    let reference = reference.map_err(|e| e.to_string())?;
+    accel
+        .validate()
+        .map_err(|e| format!("{name}: validate() failed: {e}"))?;
+    let stats = accel.stats();
+    stats
+        .check_consistency()
+        .map_err(|e| format!("{name}: stats() inconsistent: {e}"))?;
+    if stats.primitives != prims.len() {
+        return Err(format!(
+            "{name}: stats().primitives = {} for {} primitives",
+            stats.primitives,
+            prims.len()
+        ));
+    }
+    let expected: Vec<Option<Hit>> = rays.iter().map(|r| reference.intersect(&r.ray)).collect();
+    let report = compare_with_expected("fuzz", prims, rays, &expected, &accel, Tolerance::EXACT);
+    mismatches(name, &report)
+}
+
+fn mismatches(name: &str, report: &Report) -> Result<(), String> {
+    match report.mismatches.first() {
+        None => Ok(()),
+        Some(m) => Err(format!(
+            "{name}: {} of {} rays disagree with brute force, first: {m}",
+            report.mismatch_count, report.rays
+        )),
+    }
+}
+
+/// A parsed scene renders, 4x4 pixels at depth 3, to the same image bit for bit with brute
+/// force and with a BVH (scenes of up to [`TRACE_MAX_PRIMS`] shapes).
+fn render_agrees(scene: &Scene) -> Result<(), String> {
+    if scene.shapes.len() > TRACE_MAX_PRIMS {
+        return Ok(());
+    }
+    let options = RenderOptions {
+        width: 4,
+        height: 4,
+        samples_per_axis: 1,
+        shade: ShadeOptions {
+            max_depth: 3,
+            ..ShadeOptions::default()
+        },
+    };
+    let brute = BruteForce::build(&scene.shapes);
+    let bvh = rt_accel_bvh::Bvh::build(&scene.shapes, rt_accel_bvh::BvhParams::balanced());
+    let (brute, bvh) = match (brute, bvh) {
+        (Ok(a), Ok(b)) => (a, b),
+        (Err(_), Err(_)) => return Ok(()),
+        (a, b) => {
+            return Err(format!(
+                "brute force and BVH disagree on building the scene: {:?} / {:?}",
+                a.err(),
+                b.err()
+            ));
+        }
+    };
+    let image = |accel: &dyn Accel| {
+        rt_shade::render(scene, accel, &options, &|_| {}).map(|r| r.image.to_rgb8().into_raw())
+    };
+    match (image(&brute), image(&bvh)) {
+        (Ok(a), Ok(b)) if a == b => Ok(()),
+        (Ok(_), Ok(_)) => Err("the BVH renders a different image than brute force".into()),
+        (Err(_), Err(_)) => Ok(()),
+        (a, b) => Err(format!(
+            "render fails with one structure only: {:?} / {:?}",
+            a.err(),
+            b.err()
+        )),
+    }
+}
+
+/// Reads a fuzzer's bytes as values that make hard scenes likely: most bytes are points of a
+/// coarse lattice (coincident vertices, axis-aligned and degenerate triangles, rays through
+/// vertices and edges), some are special values (signed zeros, subnormals, near the largest
+/// and smallest normal floats, NaN, infinities), some start a raw `f32`. Past the end, zeros.
+pub struct Decoder<'a> {
+    bytes: &'a [u8],
+}
+
+/// The special values of [`Decoder::value`].
+const SPECIAL: [f32; 16] = [
+    0.0,
+    -0.0,
+    1e-38,
+    -1e-38,
+    1e-45,
+    1e38,
+    -1e38,
+    f32::MAX,
+    1e-7,
+    1e7,
+    0.1,
+    f32::NAN,
+    f32::INFINITY,
+    f32::NEG_INFINITY,
+    1e-20,
+    1e20,
+];
+
+impl<'a> Decoder<'a> {
+    /// A decoder over `bytes`.
+    pub fn new(bytes: &'a [u8]) -> Self {
+        Self { bytes }
+    }
+
+    /// Whether every byte is read.
+    pub fn is_empty(&self) -> bool {
+        self.bytes.is_empty()
+    }
+
+    /// The next byte (0 past the end).
+    pub fn byte(&mut self) -> u8 {
+        match self.bytes.split_first() {
+            Some((&b, rest)) => {
+                self.bytes = rest;
+                b
+            }
+            None => 0,
+        }
+    }
+
+    /// The next value: bytes 0-223 a lattice point in quarters from -28 to 27.75, 224-239 a
+    /// [`SPECIAL`] value, 240-255 the raw `f32` of the next four bytes.
+    pub fn value(&mut self) -> f32 {
+        match self.byte() {
+            b @ 0..=223 => (b as i32 - 112) as f32 * 0.25,
+            b @ 224..=239 => SPECIAL[(b - 224) as usize],
+            _ => f32::from_le_bytes([self.byte(), self.byte(), self.byte(), self.byte()]),
+        }
+    }
+
+    /// Three values.
+    pub fn vec3(&mut self) -> Vec3 {
+        Vec3::new(self.value(), self.value(), self.value())
+    }
+}
