@@ -1,6 +1,6 @@
 //! # xtask: the command-line face of rt
 //!
-//! `cargo xtask accels | verify | bench | render | trace | rays`. Everything is a library function first
+//! `cargo xtask accels | verify | bench | render | trace | rays | stress | fuzz`. Everything is a library function first
 //! (so that tests call it directly) and a subcommand second (`main.rs`).
 //!
 //! | module | what it holds |
@@ -11,6 +11,7 @@
 //! | [`bench`](mod@bench) | throughput, build time, memory, beside obvhs in the same run |
 //! | [`report`] | `bench --report DIR`: bench, sweep and SPD renders written as index.md with verdicts and PNG plots |
 //! | [`table`] | one record as one table row, for `bench`'s text and the report's Markdown |
+//! | [`stress`] | pathological scenes: every structure's build time, peak memory, size and answers |
 //! | [`sweep`] | the scaling sweep: build time and time per ray against N (`bench --sweep`) |
 //! | [`render`] | Whitted renders of the chess, OBJ and NFF scenes with any structure (rt-shade) |
 //! | [`trace`] | ray files in, hit files out; standard ray sets out |
@@ -31,6 +32,7 @@ pub mod registry;
 pub mod render;
 pub mod report;
 pub mod run;
+pub mod stress;
 pub mod sweep;
 pub mod table;
 pub mod trace;

@@ -25,6 +25,21 @@ enum Command {
         #[arg(long)]
         markdown: bool,
     },
+    /// Every rt structure on pathological scenes (copies of one triangle, a point, coordinates
+    /// near 1e38 and 1e-38, needles beside a huge triangle, a teapot in a stadium, flat boxes):
+    /// build time, peak memory, size, answers against brute force.
+    Stress {
+        /// The full sizes (200k copies, 1M needles, 1M-triangle stadium) instead of the test
+        /// suite's.
+        #[arg(long)]
+        full: bool,
+        /// Comma-separated structure names (default: rt's own).
+        #[arg(long)]
+        accels: Option<String>,
+        /// Write the table as Markdown to this file too.
+        #[arg(long)]
+        markdown: Option<PathBuf>,
+    },
     /// Runs the fuzz targets of fuzz/ (cargo-fuzz, nightly toolchain) for a given time each and
     /// prints executions and failing inputs per target.
     Fuzz {
@@ -85,7 +100,7 @@ enum Command {
         /// Shadow-ray queries: an occluded ray is written as t = 0, prim = 0.
         #[arg(long)]
         occluded: bool,
-        /// Threads (0 = all cores).
+        /// Threads (0 = all cores; at most 1024).
         #[arg(long, default_value_t = 0)]
         threads: usize,
         /// Trace this many times and report the median.
@@ -145,6 +160,28 @@ fn run(command: Command) -> Result<ExitCode, String> {
                 } else {
                     println!("{}", e.name);
                 }
+            }
+        }
+        Command::Stress {
+            full,
+            accels,
+            markdown,
+        } => {
+            let entries = match accels {
+                Some(list) => registry::select(Some(&list))?,
+                None => xtask::stress::default_entries(),
+            };
+            let scenes = xtask::stress::stress_scenes(full);
+            let spinner = xtask::run::spinner("stress".to_string());
+            let rows = xtask::stress::run(&scenes, &entries, &|m| spinner.set_message(m.to_string()));
+            spinner.finish_and_clear();
+            let table = xtask::stress::markdown(&rows);
+            println!("{table}");
+            if let Some(path) = markdown {
+                std::fs::write(&path, &table).map_err(|e| format!("{}: {e}", path.display()))?;
+            }
+            if rows.iter().any(|r| !r.problems.is_empty()) {
+                return Ok(ExitCode::FAILURE);
             }
         }
         Command::Fuzz { seconds, targets } => {

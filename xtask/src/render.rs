@@ -22,7 +22,7 @@ pub struct RenderArgs {
     /// Image size WxH (default: the scene's own; chess 800x600, NFF 512x512).
     #[arg(long, value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
-    /// Deepest ray; the eye ray is depth 1.
+    /// Deepest ray, 1 to 32; the eye ray is depth 1.
     #[arg(long, default_value_t = 5)]
     pub depth: u32,
     /// Supersampling: N x N eye rays per pixel.
@@ -41,14 +41,14 @@ pub struct RenderArgs {
     /// Thin-lens aperture radius for depth of field (focus on the look-at point); 0 = pinhole.
     #[arg(long, default_value_t = 0.0)]
     pub aperture: f32,
-    /// Threads (0 = all cores).
+    /// Threads (0 = all cores; at most 1024).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
     /// Trace eye rays one by one even when the structure has a packet path (by default each
     /// 16x16 tile's eye rays go through it as one packet; the image is the same).
     #[arg(long)]
     pub no_packets: bool,
-    /// PNG to write (default target/render/SCENE.png).
+    /// PNG to write (default target/render/SCENE.png; missing folders are created).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Write ray statistics as JSON.
@@ -161,6 +161,14 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
     };
     options.check()?;
     let pool = pool(args.threads)?;
+    if let Some(out) = &args.out {
+        if out.extension().is_none_or(|e| !e.eq_ignore_ascii_case("png")) {
+            return Err(format!(
+                "{}: the image is written as PNG; name it *.png (missing folders are created)",
+                out.display()
+            ));
+        }
+    }
 
     let building = (!args.quiet).then(|| {
         spinner(format!(

@@ -9,8 +9,16 @@ use std::time::{Duration, Instant};
 /// Rays per rayon task: large enough to amortise scheduling, small enough to balance 2 cores.
 const CHUNK: usize = 1024;
 
-/// A rayon pool of exactly `threads` threads (0 = rayon's default).
+/// The most threads a command starts.
+pub const MAX_THREADS: usize = 1024;
+
+/// A rayon pool of exactly `threads` threads (0 = rayon's default), at most [`MAX_THREADS`].
 pub fn pool(threads: usize) -> Result<rayon::ThreadPool, String> {
+    if threads > MAX_THREADS {
+        return Err(format!(
+            "threads must lie in 0..={MAX_THREADS} (0: one per core), got {threads}"
+        ));
+    }
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()

@@ -195,6 +195,9 @@ impl Cone {
             if !(0.0..=f.height).contains(&s) || f.base_radius + f.slope * s < 0.0 {
                 continue;
             }
+            if !self.bounds().holds_hit(ray, t32) {
+                continue;
+            }
             let w = o_perp + d_perp * t;
             let (e1, e2) = f.axis.any_orthonormal_pair();
             let turn = w.dot(e2).atan2(w.dot(e1)) / TAU;

@@ -56,7 +56,7 @@ pub use glam::{self, Vec3};
 pub use leaf_prims::{LeafPrims, TriangleSoa};
 pub use mesh::{Mesh, MeshError, MeshGroup, load_obj, parse_obj};
 pub use primitive::Primitive;
-pub use ray::{Hit, PrimHit, Ray, keep_hit, replaces, test_each, test_primitives};
+pub use ray::{Hit, MIN_DIRECTION, PrimHit, Ray, keep_hit, replaces, test_each, test_primitives};
 pub use shape::Shape;
 pub use sphere::Sphere;
 pub use triangle::{

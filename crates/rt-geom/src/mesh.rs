@@ -85,7 +85,7 @@ pub enum MeshError {
         /// The line, where known.
         line: Option<usize>,
     },
-    /// A face refers to a vertex that does not exist.
+    /// A face refers to a vertex, texture coordinate or normal that does not exist.
     IndexOutOfRange {
         /// The file.
         path: PathBuf,
@@ -120,7 +120,7 @@ impl fmt::Display for MeshError {
             MeshError::IndexOutOfRange { path, line } => {
                 write!(
                     f,
-                    "{}: face refers to a vertex that does not exist",
+                    "{}: face refers to a vertex, texture coordinate or normal that does not exist",
                     at(path, line)
                 )
             }
@@ -170,6 +170,14 @@ pub fn parse_obj(text: &[u8], path: &Path) -> Result<Mesh, MeshError> {
         ignore_points: true,
         ignore_lines: true,
     };
+    // tobj resolves an out-of-range texture or normal index past the end of its arrays
+    // (wrapping arithmetic): such faces are errors here, before it reads them.
+    if let Some(line) = first_bad_face(text, true) {
+        return Err(MeshError::IndexOutOfRange {
+            path: path.to_owned(),
+            line: Some(line),
+        });
+    }
     let mut reader = std::io::BufReader::new(text);
     let loaded = tobj::load_obj_buf(&mut reader, &options, |_| {
         Err(tobj::LoadError::OpenFileFailed)
@@ -282,36 +290,43 @@ fn vertex_is_finite(rest: &str) -> bool {
         .all(|x| x.parse::<f32>().is_ok_and(f32::is_finite))
 }
 
-/// The first face with an unparsable index (`range_only == false`) or an index outside the
-/// vertices defined so far (`range_only == true`; OBJ indices are 1-based, negative = relative).
+/// The first face with an unparsable vertex index (`range_only == false`) or an index of a
+/// vertex, texture coordinate or normal that does not exist (`range_only == true`; OBJ
+/// indices are 1-based, negative ones count back from the last defined so far).
 fn first_bad_face(text: &[u8], range_only: bool) -> Option<usize> {
-    let mut vertices: i64 = 0;
-    let mut total_v: i64 = 0;
+    const KINDS: [&str; 3] = ["v", "vt", "vn"];
+    let mut total = [0i64; 3];
     first_line(text, |kw, _| {
-        if kw == "v" {
-            total_v += 1;
+        if let Some(k) = KINDS.iter().position(|&x| x == kw) {
+            total[k] += 1;
         }
         false
     });
+    let mut so_far = [0i64; 3];
     first_line(text, |kw, rest| {
-        match kw {
-            "v" => vertices += 1,
-            "f" => {
-                let idx: Vec<Option<i64>> = rest
-                    .split_whitespace()
-                    .map(|c| c.split('/').next().and_then(|s| s.parse().ok()))
-                    .collect();
-                if !range_only {
-                    return idx.len() < 3 || idx.iter().any(Option::is_none);
-                }
-                return idx.iter().flatten().any(|&i| {
-                    let abs = if i < 0 { vertices + 1 + i } else { i };
-                    abs < 1 || abs > total_v
-                });
-            }
-            _ => {}
+        if let Some(k) = KINDS.iter().position(|&x| x == kw) {
+            so_far[k] += 1;
+            return false;
         }
-        false
+        if kw != "f" {
+            return false;
+        }
+        if !range_only {
+            let idx: Vec<Option<i64>> = rest
+                .split_whitespace()
+                .map(|c| c.split('/').next().and_then(|s| s.parse().ok()))
+                .collect();
+            return idx.len() < 3 || idx.iter().any(Option::is_none);
+        }
+        rest.split_whitespace().any(|corner| {
+            corner.split('/').enumerate().any(|(k, s)| {
+                let Ok(i) = s.parse::<i64>() else {
+                    return false;
+                };
+                let abs = if i < 0 { so_far[k.min(2)].saturating_add(1).saturating_add(i) } else { i };
+                abs < 1 || abs > total[k.min(2)]
+            })
+        })
     })
 }
 
@@ -321,6 +336,22 @@ mod tests {
 
     fn parse(s: &str) -> Result<Mesh, MeshError> {
         parse_obj(s.as_bytes(), Path::new("test.obj"))
+    }
+
+    /// Relative texture and normal indices before the first ones defined (found by fuzzing:
+    /// tobj wraps them around).
+    #[test]
+    fn texture_and_normal_indices_out_of_range_are_errors() {
+        for (text, line) in [
+            ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/-3 3\n", 5),
+            ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1//1 2//1 3//1\nvn 0 0 1\nf 1//2 2//1 3//1\n", 6),
+            ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/0 2/1 3/1\n", 5),
+        ] {
+            match parse(text) {
+                Err(MeshError::IndexOutOfRange { line: l, .. }) => assert_eq!(l, Some(line), "{text}"),
+                other => panic!("{text}: {other:?}"),
+            }
+        }
     }
 
     #[test]

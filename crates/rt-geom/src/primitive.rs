@@ -103,7 +103,12 @@ impl Primitive for Triangle {
     }
 
     fn farthest_distance(&self, p: Vec3) -> f32 {
-        self.v.iter().map(|v| v.distance(p)).fold(0.0, f32::max)
+        let far = self
+            .v
+            .iter()
+            .map(|v| v.as_dvec3().distance(p.as_dvec3()))
+            .fold(0.0, f64::max);
+        round_up(far)
     }
 
     fn is_finite(&self) -> bool {
@@ -145,10 +150,17 @@ impl Primitive for Sphere {
     }
 
     fn farthest_distance(&self, p: Vec3) -> f32 {
-        self.center.distance(p) + self.radius.max(0.0)
+        round_up(self.center.as_dvec3().distance(p.as_dvec3()) + self.radius.max(0.0) as f64)
     }
 
     fn is_finite(&self) -> bool {
         self.center.is_finite() && self.radius.is_finite()
     }
+}
+
+/// A distance computed in `f64` (where squares of tiny or huge coordinates neither underflow nor
+/// overflow) as the next `f32` at or above it.
+fn round_up(d: f64) -> f32 {
+    let f = d as f32;
+    if (f as f64) < d { f.next_up() } else { f }
 }

@@ -40,6 +40,13 @@ pub struct Ray {
 
 const _: () = assert!(std::mem::size_of::<Ray>() == 64);
 
+/// The shortest ray direction (its largest component), `2^-100`: shorter directions make
+/// invalid rays. Rays are exact down to it; the components of a valid direction that lie
+/// below `1 / f32::MAX` are flushed to zero.
+pub const MIN_DIRECTION: f32 = 7.888609e-31;
+
+const _: () = assert!(MIN_DIRECTION == 1.0 / (1u128 << 100) as f32);
+
 impl Ray {
     /// A ray over `[0, +inf]`.
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
@@ -48,13 +55,15 @@ impl Ray {
 
     /// A ray over `[tmin, tmax]`.
     pub fn segment(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Self {
-        // A direction whose largest component is zero or subnormal has no finite reciprocal
-        // shear: such rays are invalid (and miss), as zero directions are.
-        // Origins beyond the coordinate range are invalid too (`MAX_COORDINATE`).
+        // Directions shorter than `MIN_DIRECTION` (zero among them) and origins beyond
+        // `MAX_COORDINATE` make invalid rays, which miss. Components below `1 / f32::MAX`,
+        // whose reciprocals overflow, are below the direction's resolution then (2^-28 of
+        // its largest): they are flushed to zero, so that every kernel sees the same ray.
         let valid = origin.is_finite()
             && origin.abs().max_element() <= crate::MAX_COORDINATE
             && dir.is_finite()
-            && dir.abs().max_element() >= f32::MIN_POSITIVE;
+            && dir.abs().max_element() >= MIN_DIRECTION;
+        let dir = Vec3::select(dir.abs().cmplt(Vec3::splat(1.0 / f32::MAX)), dir * 0.0, dir);
         let abs = dir.abs();
         let kz = if abs.x >= abs.y && abs.x >= abs.z {
             0
@@ -120,7 +129,7 @@ impl Ray {
     }
 
     /// Finite origin within [`crate::MAX_COORDINATE`], finite direction whose largest
-    /// component is a normal float (not zero nor subnormal), and an interval that is not NaN.
+    /// component is at least [`MIN_DIRECTION`], and an interval that is not NaN.
     #[inline]
     pub fn is_valid(&self) -> bool {
         self.valid && !self.tmin.is_nan() && !self.tmax.is_nan()

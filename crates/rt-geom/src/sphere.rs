@@ -50,6 +50,9 @@ impl Sphere {
         } else {
             return None;
         };
+        if !self.bounds().holds_hit(ray, t) {
+            return None;
+        }
         let n = self.normal_at(ray.at(t));
         let u = 0.5 + n.z.atan2(n.x) / (2.0 * PI);
         let v = n.y.clamp(-1.0, 1.0).acos() / PI;

@@ -183,11 +183,15 @@ impl Triangle {
             return None;
         }
         let rcp = 1.0 / (u + v + w);
-        Some(PrimHit {
-            t,
-            u: v * rcp,
-            v: w * rcp,
-        })
+        let (bu, bv) = (v * rcp, w * rcp);
+        // An `f32` sum that underflows to a subnormal makes `rcp` infinite: such hits take
+        // the `f64` barycentrics.
+        let (u, v) = if bu.is_finite() && bv.is_finite() {
+            (bu, bv)
+        } else {
+            edges.barycentrics()
+        };
+        Some(PrimHit { t, u, v })
     }
 
     /// The watertight test decided by the `f64` edge functions alone (no `f32` test to
@@ -200,13 +204,8 @@ impl Triangle {
         if !ray.in_range(t) {
             return None;
         }
-        let [_, e1, e2] = edges.e;
-        let sum = edges.e.iter().sum::<f64>();
-        Some(PrimHit {
-            t,
-            u: (e1 / sum) as f32,
-            v: (e2 / sum) as f32,
-        })
+        let (u, v) = edges.barycentrics();
+        Some(PrimHit { t, u, v })
     }
 
     /// The edge functions `(U, V, W)` times `orient`, in `f64` from the `f32` inputs in the
@@ -373,6 +372,19 @@ impl EdgesF64 {
         let sum = e0 + e1 + e2;
         (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0 && sum > 0.0)
             .then(|| (e0 * self.z[0] + e1 * self.z[1] + e2 * self.z[2]) / sum)
+    }
+
+    /// The barycentrics `(V, W) / (U + V + W)` of the edge functions clamped to `>= 0` (the
+    /// point of the triangle nearest the ray where they disagree in sign); `(0, 0)` when all
+    /// vanish.
+    fn barycentrics(&self) -> (f32, f32) {
+        let [e0, e1, e2] = self.e.map(|e| e.max(0.0));
+        let sum = e0 + e1 + e2;
+        if sum > 0.0 {
+            ((e1 / sum) as f32, (e2 / sum) as f32)
+        } else {
+            (0.0, 0.0)
+        }
     }
 }
 

@@ -5,7 +5,7 @@
 //!
 //! The reference decides only where it is well conditioned (a hit or miss by a margin); near
 //! an edge, where `f32` and `f64` may honestly differ, the watertight property decides instead.
-//! Cases per property: 256, or `PROPTEST_CASES`.
+//! Cases per property: 1024, or `PROPTEST_CASES`.
 
 use glam::DVec3;
 use proptest::prelude::*;
@@ -115,7 +115,7 @@ fn triangle_case() -> impl Strategy<Value = (Triangle, Ray)> {
 }
 
 proptest! {
-    #![proptest_config(config(256))]
+    #![proptest_config(config(1024))]
 
     /// Where the `f64` reference is clear, the watertight kernel agrees: a hit well inside is
     /// found at the same distance, a point well outside is missed; every hit lies in the

@@ -49,7 +49,7 @@ pub use obj::{load_obj_scene, parse_mtl, parse_obj_scene};
 pub use render::{Image, PrimaryPackets, RenderOptions, Rendered, render, render_with_packets};
 pub use scene::{PointLight, Scene, SceneError};
 pub use triangulate::triangulate;
-pub use whitted::{RayStats, ShadeOptions, Whitted};
+pub use whitted::{MAX_DEPTH, RayStats, ShadeOptions, Whitted};
 
 /// Loads a scene by name: `chess` (built in), or a path ending in `.obj` or `.nff`.
 pub fn load_scene(name: &str) -> Result<Scene, SceneError> {

@@ -71,8 +71,11 @@ impl Default for ShadeOptions {
 impl ShadeOptions {
     /// Checks every field; the error names the first one out of range.
     pub fn check(&self) -> Result<(), String> {
-        if self.max_depth == 0 {
-            return Err("maximum depth must be at least 1 (the eye ray)".into());
+        if !(1..=MAX_DEPTH).contains(&self.max_depth) {
+            return Err(format!(
+                "maximum depth must lie in 1..={MAX_DEPTH} (1: the eye ray only), got {}",
+                self.max_depth
+            ));
         }
         if !(self.min_weight >= 0.0 && self.min_weight.is_finite()) {
             return Err(format!(
@@ -83,6 +86,11 @@ impl ShadeOptions {
         Ok(())
     }
 }
+
+/// The deepest ray [`ShadeOptions::max_depth`] allows. Shading recurses once per bounce, and
+/// a transmissive surface casts two rays per hit, so rays per pixel can grow as `2^depth`
+/// (`min_weight` prunes them).
+pub const MAX_DEPTH: u32 = 32;
 
 /// Traces rays through a scene with an acceleration structure built over its shapes.
 pub struct Whitted<'a> {

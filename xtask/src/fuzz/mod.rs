@@ -25,7 +25,8 @@ pub struct FuzzRun {
 
 /// The `fuzz/` folder of the checkout.
 pub fn fuzz_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fuzz")
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fuzz");
+    dir.canonicalize().unwrap_or(dir)
 }
 
 /// Whether rustup has a nightly toolchain (cargo-fuzz needs one).
