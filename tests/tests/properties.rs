@@ -115,8 +115,14 @@ fn disagreements<P: Primitive>(
         if let Err(e) = accel.validate() {
             out.push(format!("{}: validate: {e}", entry.name));
         }
-        let report =
-            compare_with_expected("generated", prims, &tests, &expected, &accel, Tolerance::EXACT);
+        let report = compare_with_expected(
+            "generated",
+            prims,
+            &tests,
+            &expected,
+            &accel,
+            Tolerance::EXACT,
+        );
         if let Some(m) = report.mismatches.first() {
             out.push(format!("{}: {m}", entry.name));
         }

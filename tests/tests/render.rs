@@ -242,14 +242,70 @@ fn render_command_writes_png_and_stats() {
     );
     // Absurd parameters: each a clear error naming what is wrong, before any work.
     let cases: Vec<(&str, xtask::render::RenderArgs, &str)> = vec![
-        ("size beyond memory", xtask::render::RenderArgs { size: Some((100_000, 100_000)), ..args.clone() }, "larger than the limit"),
-        ("depth 10^6", xtask::render::RenderArgs { depth: 1_000_000, ..args.clone() }, "depth"),
-        ("0 samples", xtask::render::RenderArgs { samples: 0, ..args.clone() }, "samples"),
-        ("10^6 samples", xtask::render::RenderArgs { samples: 1_000_000, ..args.clone() }, "samples"),
-        ("NaN weight", xtask::render::RenderArgs { min_weight: f32::NAN, ..args.clone() }, "weight"),
-        ("NaN aperture", xtask::render::RenderArgs { aperture: f32::NAN, ..args.clone() }, "aperture"),
-        ("10^5 threads", xtask::render::RenderArgs { threads: 100_000, ..args.clone() }, "threads"),
-        ("not PNG", xtask::render::RenderArgs { out: Some(dir.join("x.jpg")), ..args.clone() }, ".png"),
+        (
+            "size beyond memory",
+            xtask::render::RenderArgs {
+                size: Some((100_000, 100_000)),
+                ..args.clone()
+            },
+            "larger than the limit",
+        ),
+        (
+            "depth 10^6",
+            xtask::render::RenderArgs {
+                depth: 1_000_000,
+                ..args.clone()
+            },
+            "depth",
+        ),
+        (
+            "0 samples",
+            xtask::render::RenderArgs {
+                samples: 0,
+                ..args.clone()
+            },
+            "samples",
+        ),
+        (
+            "10^6 samples",
+            xtask::render::RenderArgs {
+                samples: 1_000_000,
+                ..args.clone()
+            },
+            "samples",
+        ),
+        (
+            "NaN weight",
+            xtask::render::RenderArgs {
+                min_weight: f32::NAN,
+                ..args.clone()
+            },
+            "weight",
+        ),
+        (
+            "NaN aperture",
+            xtask::render::RenderArgs {
+                aperture: f32::NAN,
+                ..args.clone()
+            },
+            "aperture",
+        ),
+        (
+            "10^5 threads",
+            xtask::render::RenderArgs {
+                threads: 100_000,
+                ..args.clone()
+            },
+            "threads",
+        ),
+        (
+            "not PNG",
+            xtask::render::RenderArgs {
+                out: Some(dir.join("x.jpg")),
+                ..args.clone()
+            },
+            ".png",
+        ),
     ];
     for (what, a, expect) in cases {
         let e = bad(a);
@@ -257,8 +313,11 @@ fn render_command_writes_png_and_stats() {
     }
     // An output folder that does not exist yet is created.
     let nested = dir.join("new/folder/x.png");
-    xtask::render::render(&xtask::render::RenderArgs { out: Some(nested.clone()), ..args.clone() })
-        .unwrap();
+    xtask::render::render(&xtask::render::RenderArgs {
+        out: Some(nested.clone()),
+        ..args.clone()
+    })
+    .unwrap();
     assert!(nested.exists());
     assert_eq!(xtask::render::parse_size("64x48"), Ok((64, 48)));
     assert!(xtask::render::parse_size("64").is_err());

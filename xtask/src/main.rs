@@ -173,7 +173,8 @@ fn run(command: Command) -> Result<ExitCode, String> {
             };
             let scenes = xtask::stress::stress_scenes(full);
             let spinner = xtask::run::spinner("stress".to_string());
-            let rows = xtask::stress::run(&scenes, &entries, &|m| spinner.set_message(m.to_string()));
+            let rows =
+                xtask::stress::run(&scenes, &entries, &|m| spinner.set_message(m.to_string()));
             spinner.finish_and_clear();
             let table = xtask::stress::markdown(&rows);
             println!("{table}");

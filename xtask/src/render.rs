@@ -162,7 +162,10 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
     options.check()?;
     let pool = pool(args.threads)?;
     if let Some(out) = &args.out {
-        if out.extension().is_none_or(|e| !e.eq_ignore_ascii_case("png")) {
+        if out
+            .extension()
+            .is_none_or(|e| !e.eq_ignore_ascii_case("png"))
+        {
             return Err(format!(
                 "{}: the image is written as PNG; name it *.png (missing folders are created)",
                 out.display()

@@ -12,11 +12,17 @@ use rt_testkit::rays::conformance_rays;
 use rt_testkit::scenes;
 use std::time::Instant;
 
-/// The largest size a structure may have, in flat triangle arrays (36 bytes a triangle), and
-/// the fixed allowance for small scenes: `bytes <= MEMORY_BOUND * 36 n + 1 MiB`.
-pub const MEMORY_BOUND: usize = 16;
+/// The largest size a structure may have, in flat triangle arrays (36 bytes a triangle), with
+/// a fixed allowance for small scenes: `bytes <= MEMORY_BOUND * 36 n + MEMORY_SLACK`. The
+/// grids set it: they cap references at 32 per primitive (`GridParams::max_refs_per_prim`),
+/// each an index and a copy of the primitive for the cell test; every other structure stays
+/// far below.
+pub const MEMORY_BOUND: usize = 48;
 /// See [`MEMORY_BOUND`].
 pub const MEMORY_SLACK: usize = 1 << 20;
+/// The most resident memory a build may add, in flat triangle arrays, with a fixed allowance
+/// (the allocator's and the thread pool's): `peak <= BUILD_PEAK_BOUND * 36 n + 64 MiB`.
+pub const BUILD_PEAK_BOUND: u64 = 64;
 
 /// A pathological scene.
 pub struct StressScene {
@@ -147,7 +153,12 @@ pub fn run(
             Err(_) => Vec::new(),
         };
         for entry in entries {
-            progress(&format!("{} on {} ({} triangles)", entry.name, scene.name, tris.len()));
+            progress(&format!(
+                "{} on {} ({} triangles)",
+                entry.name,
+                scene.name,
+                tris.len()
+            ));
             let before = memory::reset_peak();
             let start = Instant::now();
             let built = (entry.build)(tris);
@@ -166,11 +177,18 @@ pub fn run(
             };
             match (&brute, built) {
                 (Err(_), Err(e)) => row.rejected = Some(e.to_string()),
-                (Err(_), Ok(_)) => row.problems.push("built a scene brute force rejects".into()),
+                (Err(_), Ok(_)) => row
+                    .problems
+                    .push("built a scene brute force rejects".into()),
                 (Ok(_), Err(e)) => row.problems.push(format!("rejected a valid scene: {e}")),
-                (Ok(_), Ok(accel)) => {
-                    check(&mut row, tris, &rays, &expected, accel.as_ref(), entry.tolerance)
-                }
+                (Ok(_), Ok(accel)) => check(
+                    &mut row,
+                    tris,
+                    &rays,
+                    &expected,
+                    accel.as_ref(),
+                    entry.tolerance,
+                ),
             }
             rows.push(row);
         }
@@ -196,6 +214,13 @@ fn check(
         row.problems.push(format!(
             "{} bytes, above the bound of {bound} ({MEMORY_BOUND}x the triangles + 1 MiB)",
             stats.bytes
+        ));
+    }
+    let peak_bound = BUILD_PEAK_BOUND * 36 * tris.len() as u64 + (64 << 20);
+    if let Some(peak) = row.build_peak_bytes.filter(|&p| p > peak_bound) {
+        row.problems.push(format!(
+            "the build added {peak} bytes of resident memory, above the bound of {peak_bound} \
+             ({BUILD_PEAK_BOUND}x the triangles + 64 MiB)"
         ));
     }
     let report = compare_with_expected("stress", tris, rays, expected, accel, tolerance);

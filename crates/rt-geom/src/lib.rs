@@ -47,8 +47,8 @@ pub mod volume;
 
 pub use aabb::Aabb;
 pub use accel::{
-    Accel, AccelStats, BuildError, MAX_COORDINATE, Mailbox, StatsSum, all_referenced, check_primitives,
-    check_sah_costs, touches_cell,
+    Accel, AccelStats, BuildError, MAX_COORDINATE, Mailbox, StatsSum, all_referenced,
+    check_primitives, check_sah_costs, touches_cell,
 };
 pub use brute::BruteForce;
 pub use cone::Cone;

@@ -323,7 +323,11 @@ fn first_bad_face(text: &[u8], range_only: bool) -> Option<usize> {
                 let Ok(i) = s.parse::<i64>() else {
                     return false;
                 };
-                let abs = if i < 0 { so_far[k.min(2)].saturating_add(1).saturating_add(i) } else { i };
+                let abs = if i < 0 {
+                    so_far[k.min(2)].saturating_add(1).saturating_add(i)
+                } else {
+                    i
+                };
                 abs < 1 || abs > total[k.min(2)]
             })
         })
@@ -344,11 +348,16 @@ mod tests {
     fn texture_and_normal_indices_out_of_range_are_errors() {
         for (text, line) in [
             ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/-3 3\n", 5),
-            ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1//1 2//1 3//1\nvn 0 0 1\nf 1//2 2//1 3//1\n", 6),
+            (
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1//1 2//1 3//1\nvn 0 0 1\nf 1//2 2//1 3//1\n",
+                6,
+            ),
             ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/0 2/1 3/1\n", 5),
         ] {
             match parse(text) {
-                Err(MeshError::IndexOutOfRange { line: l, .. }) => assert_eq!(l, Some(line), "{text}"),
+                Err(MeshError::IndexOutOfRange { line: l, .. }) => {
+                    assert_eq!(l, Some(line), "{text}")
+                }
                 other => panic!("{text}: {other:?}"),
             }
         }

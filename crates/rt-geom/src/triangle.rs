@@ -177,7 +177,17 @@ impl Triangle {
         let edges = self.edges_in_f64(ray, orient);
         let t = match edges.depth() {
             Some(t) => t as f32,
-            None => self.closest_on_boundary(ray.origin().as_dvec3(), ray.dir().as_dvec3())? as f32,
+            None => {
+                // A ray the `f32` test accepted a rounding step outside an edge: its point
+                // nearest the boundary, when that lies in the triangle's box (on needles far
+                // longer than wide it need not, and no box test would find it there).
+                let o = ray.origin().as_dvec3();
+                let t = self.closest_on_boundary(o, ray.dir().as_dvec3())? as f32;
+                if !self.bounds().holds_hit(ray, t) {
+                    return None;
+                }
+                t
+            }
         };
         if !ray.in_range(t) {
             return None;
@@ -198,7 +208,11 @@ impl Triangle {
     /// follow to the boundary): a hit when they agree in sign, with their barycentrics.
     fn refine_in_f64(&self, ray: &Ray) -> Option<PrimHit> {
         let edges = self.edges_in_f64(ray, 1.0);
-        let orient = if edges.e.iter().sum::<f64>() < 0.0 { -1.0 } else { 1.0 };
+        let orient = if edges.e.iter().sum::<f64>() < 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
         let edges = self.edges_in_f64(ray, orient);
         let t = edges.depth()? as f32;
         if !ray.in_range(t) {

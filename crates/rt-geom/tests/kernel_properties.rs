@@ -14,7 +14,10 @@ use rt_geom::{Aabb, Cone, Primitive, Ray, Sphere, Triangle, Vec3};
 /// `cases` generated cases, or `PROPTEST_CASES` when set (heavier runs); failures print
 /// their minimal input instead of being saved to files.
 fn config(cases: u32) -> ProptestConfig {
-    let cases = std::env::var("PROPTEST_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(cases);
+    let cases = std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(cases);
     ProptestConfig {
         cases,
         max_global_rejects: cases,

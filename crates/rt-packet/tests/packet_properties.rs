@@ -79,7 +79,12 @@ fn rays() -> impl Strategy<Value = Vec<Ray>> {
 }
 
 /// Runs both packet queries with the lanes off in `mask` switched off, and checks every lane.
-fn check<A: PacketTraversal + Accel>(name: &str, accel: &A, rays: &[Ray], mask: u16) -> Result<(), TestCaseError> {
+fn check<A: PacketTraversal + Accel>(
+    name: &str,
+    accel: &A,
+    rays: &[Ray],
+    mask: u16,
+) -> Result<(), TestCaseError> {
     let off = |i: usize| mask & (1 << i) != 0;
     let mut packet = RayPacket::<16>::new(rays);
     for i in (0..16).filter(|&i| off(i)) {
@@ -89,9 +94,18 @@ fn check<A: PacketTraversal + Accel>(name: &str, accel: &A, rays: &[Ray], mask: 
     let hits = accel.intersect_packet(&mut packet);
     for (i, ray) in rays.iter().enumerate() {
         if off(i) {
-            prop_assert!(hits[i].is_none() && !packet.active[i], "{name}: inactive lane {i} touched");
+            prop_assert!(
+                hits[i].is_none() && !packet.active[i],
+                "{name}: inactive lane {i} touched"
+            );
         } else {
-            prop_assert_eq!(hits[i], accel.intersect(ray), "{}: lane {} intersect", name, i);
+            prop_assert_eq!(
+                hits[i],
+                accel.intersect(ray),
+                "{}: lane {} intersect",
+                name,
+                i
+            );
         }
     }
     let mut packet = RayPacket::<16>::new(rays);
@@ -102,9 +116,18 @@ fn check<A: PacketTraversal + Accel>(name: &str, accel: &A, rays: &[Ray], mask: 
     let blocked = accel.occluded_packet(&mut packet);
     for (i, ray) in rays.iter().enumerate() {
         if off(i) {
-            prop_assert!(!blocked[i] && !packet.active[i], "{name}: inactive lane {i} touched");
+            prop_assert!(
+                !blocked[i] && !packet.active[i],
+                "{name}: inactive lane {i} touched"
+            );
         } else {
-            prop_assert_eq!(blocked[i], accel.occluded(ray), "{}: lane {} occluded", name, i);
+            prop_assert_eq!(
+                blocked[i],
+                accel.occluded(ray),
+                "{}: lane {} occluded",
+                name,
+                i
+            );
         }
     }
     Ok(())

@@ -247,11 +247,10 @@ fn agrees<P: rt_geom::Primitive>(
         ));
     }
     let expected: Vec<Option<Hit>> = rays.iter().map(|r| reference.intersect(&r.ray)).collect();
-    if let Some((r, h)) = rays
-        .iter()
-        .zip(&expected)
-        .find_map(|(r, h)| h.filter(|h| !(h.u.is_finite() && h.v.is_finite())).map(|h| (r, h)))
-    {
+    if let Some((r, h)) = rays.iter().zip(&expected).find_map(|(r, h)| {
+        h.filter(|h| !(h.u.is_finite() && h.v.is_finite()))
+            .map(|h| (r, h))
+    }) {
         return Err(format!("non-finite barycentrics {h:?} for {:?}", r.ray));
     }
     let report = compare_with_expected("fuzz", prims, rays, &expected, &accel, Tolerance::EXACT);

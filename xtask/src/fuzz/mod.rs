@@ -59,7 +59,9 @@ pub fn run(seconds: u64, targets: Option<&str>) -> Result<Vec<FuzzRun>, String> 
         return Err("--seconds must be at least 1".into());
     }
     if !has_nightly() {
-        return Err("cargo-fuzz needs a nightly toolchain: `rustup toolchain install nightly`".into());
+        return Err(
+            "cargo-fuzz needs a nightly toolchain: `rustup toolchain install nightly`".into(),
+        );
     }
     ensure_cargo_fuzz()?;
     let dir = fuzz_dir();
@@ -74,7 +76,10 @@ pub fn run(seconds: u64, targets: Option<&str>) -> Result<Vec<FuzzRun>, String> 
     let mut runs = Vec::new();
     for name in names {
         let corpus = prepare_corpus(&dir, name)?;
-        eprintln!("fuzzing {name} for {seconds} s ({} seeds)", count_files(&corpus));
+        eprintln!(
+            "fuzzing {name} for {seconds} s ({} seeds)",
+            count_files(&corpus)
+        );
         runs.push(run_target(&dir, name, &corpus, seconds)?);
     }
     print_table(&runs);
@@ -175,13 +180,22 @@ pub fn generated_seeds(name: &str) -> Vec<(String, Vec<u8>)> {
         }
         "build_trace" => vec![
             // Triangles: two sharing an edge, one degenerate, rays down the axes.
-            ("gen-tris".into(), vec![0, 3, 0, 112, 112, 112, 120, 112, 112, 112, 120, 112, 0,
-                120, 120, 112, 120, 112, 112, 112, 120, 112, 0, 112, 112, 112, 112, 112, 112,
-                116, 116, 116, 114, 114, 100, 112, 112, 120, 0]),
+            (
+                "gen-tris".into(),
+                vec![
+                    0, 3, 0, 112, 112, 112, 120, 112, 112, 112, 120, 112, 0, 120, 120, 112, 120,
+                    112, 112, 112, 120, 112, 0, 112, 112, 112, 112, 112, 112, 116, 116, 116, 114,
+                    114, 100, 112, 112, 120, 0,
+                ],
+            ),
             // Mixed: a sphere, a cone, a triangle.
-            ("gen-shapes".into(), vec![1, 3, 1, 112, 112, 112, 116, 2, 112, 112, 104, 116, 112,
-                112, 120, 114, 0, 100, 100, 100, 124, 100, 100, 100, 124, 100, 112, 112, 90, 112,
-                112, 120, 1, 0, 230]),
+            (
+                "gen-shapes".into(),
+                vec![
+                    1, 3, 1, 112, 112, 112, 116, 2, 112, 112, 104, 116, 112, 112, 120, 114, 0, 100,
+                    100, 100, 124, 100, 100, 100, 124, 100, 112, 112, 90, 112, 112, 120, 1, 0, 230,
+                ],
+            ),
         ],
         _ => Vec::new(),
     }
@@ -198,7 +212,10 @@ pub fn shared_seeds(name: &str) -> Vec<(String, Vec<u8>)> {
             };
             for model in rt_testkit::models::MODEL_NAMES {
                 if let Ok(text) = std::fs::read_to_string(dir.join(format!("{model}.obj"))) {
-                    out.push((format!("shared-{model}.obj"), obj_head(&text, 60).into_bytes()));
+                    out.push((
+                        format!("shared-{model}.obj"),
+                        obj_head(&text, 60).into_bytes(),
+                    ));
                 }
             }
         }
@@ -257,7 +274,10 @@ fn count_files(dir: &Path) -> usize {
 fn run_target(dir: &Path, name: &str, corpus: &Path, seconds: u64) -> Result<FuzzRun, String> {
     let artifacts = dir.join("artifacts").join(name);
     std::fs::create_dir_all(&artifacts).map_err(|e| format!("{}: {e}", artifacts.display()))?;
-    let before: Vec<_> = read_folder(&artifacts)?.into_iter().map(|(n, _)| n).collect();
+    let before: Vec<_> = read_folder(&artifacts)?
+        .into_iter()
+        .map(|(n, _)| n)
+        .collect();
     let output = Command::new("cargo")
         .args(["+nightly", "fuzz", "run", "-s", "none", name])
         .arg(corpus)

@@ -21,9 +21,7 @@ impl<const N: usize> WideTree<N> {
             s.leaves = 1;
             s.nodes = 1;
             s.references = count as usize;
-            sah = root_area as f64
-                * params.tests(count as usize) as f64
-                * params.intersection_cost as f64;
+            sah = root_area * params.tests(count as usize) as f64 * params.intersection_cost as f64;
         }
         for (i, n) in self.nodes.iter().enumerate() {
             if i == 0 {
