@@ -103,7 +103,7 @@ enum Command {
         /// Threads (0 = all cores; at most 1024).
         #[arg(long, default_value_t = 0)]
         threads: usize,
-        /// Trace this many times and report the median.
+        /// Trace this many times (1 to 1000) and report the median.
         #[arg(long, default_value_t = 1)]
         repeat: usize,
         /// Trace WxH tiles of the image as packets (needs --width; the structure's packet path);

@@ -46,10 +46,24 @@ impl TraceSummary {
     }
 }
 
+/// The most timed repetitions `trace` runs.
+pub const MAX_REPEAT: usize = 1000;
+
+/// Builds the structure over the mesh, traces the ray file `repeat` times (timed), and
+/// writes the hits of the last pass when `out` is given (creating its folder).
 pub fn trace(opts: &TraceOptions) -> Result<TraceSummary, String> {
     let entry = registry::find(&opts.accel).ok_or_else(|| registry::unknown(&opts.accel))?;
-    if opts.repeat == 0 {
-        return Err("--repeat must be at least 1".into());
+    if !(1..=MAX_REPEAT).contains(&opts.repeat) {
+        return Err(format!(
+            "--repeat must lie in 1..={MAX_REPEAT}, got {}",
+            opts.repeat
+        ));
+    }
+    let pool = run::pool(opts.threads)?;
+    if let Some(dir) = opts.out.as_ref().and_then(|p| p.parent()) {
+        if !dir.as_os_str().is_empty() {
+            std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        }
     }
     let rays = rayfile::read_rays(&opts.rays)?;
     let mesh = load_obj(&opts.mesh).map_err(|e| e.to_string())?;
@@ -61,7 +75,6 @@ pub fn trace(opts: &TraceOptions) -> Result<TraceSummary, String> {
             rays.len()
         );
     }
-    let pool = run::pool(opts.threads)?;
     let pb = run::spinner(format!(
         "building {} over {} triangles",
         entry.name,

@@ -48,12 +48,14 @@ impl Triangle {
         0.5 * self.cross().length()
     }
 
-    /// Zero area (collinear vertices, computed in `f64` so that tiny triangles, whose `f32`
-    /// cross product underflows, keep their area): such triangles are kept but never hit.
+    /// Zero area, in `f32` and in `f64` (tiny triangles, whose `f32` cross product
+    /// underflows, keep their area): such triangles are kept but never hit.
     #[inline]
     pub fn is_degenerate(&self) -> bool {
-        let [a, b, c] = self.v.map(|p| p.as_dvec3());
-        (b - a).cross(c - a) == DVec3::ZERO
+        self.cross() == Vec3::ZERO && {
+            let [a, b, c] = self.v.map(|p| p.as_dvec3());
+            (b - a).cross(c - a) == DVec3::ZERO
+        }
     }
 
     /// The box around the three vertices.

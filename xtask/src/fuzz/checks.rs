@@ -41,7 +41,7 @@ pub fn obj(bytes: &[u8]) -> Result<(), String> {
     }
     if tris.len() <= TRACE_MAX_PRIMS {
         let bvh8 = crate::registry::find("bvh8-tri").ok_or("no bvh8-tri entry")?;
-        check_entry(bvh8, &tris, &scene_rays(&tris, 8))?;
+        check_entry(bvh8, &tris, &exact_domain(&tris, &scene_rays(&tris, 8)))?;
     }
     Ok(())
 }
@@ -104,6 +104,7 @@ pub fn rays(bytes: &[u8]) -> Result<(), String> {
             kind: RayKind::Random,
         })
         .collect();
+    let tests = exact_domain(&tris, &tests);
     for name in ["bvh8-tri", "kd", "grid2", "octree", "bvh"] {
         let entry = crate::registry::find(name).ok_or(format!("no {name} entry"))?;
         check_entry(entry, &tris, &tests)?;
@@ -149,6 +150,7 @@ pub fn build_trace(bytes: &[u8]) -> Result<(), String> {
         Some(tris) => {
             let mut rays = scene_rays(&tris, 4);
             rays.extend(extra);
+            let rays = exact_domain(&tris, &rays);
             for e in entries {
                 check_entry(e, &tris, &rays)?;
             }
@@ -156,6 +158,7 @@ pub fn build_trace(bytes: &[u8]) -> Result<(), String> {
         None => {
             let mut rays = scene_rays(&shapes, 4);
             rays.extend(extra);
+            let rays = exact_domain(&shapes, &rays);
             for e in entries.filter(|e| e.build_shapes.is_some()) {
                 check_shapes(e, &shapes, &rays)?;
             }
@@ -173,27 +176,34 @@ fn scene_rays<P: SamplePoints>(prims: &[P], per_kind: usize) -> Vec<TestRay> {
     }
 }
 
-/// The rays whose answers rt promises exactly: those without a closest hit at a subnormal
-/// distance (`0 < |t| < f32::MIN_POSITIVE`), where the box tests' relative padding rounds
-/// away and a structure may report another primitive hit within that distance (ARCHITECTURE.md,
-/// robustness).
+/// The rays whose answers rt promises exactly (ARCHITECTURE.md, robustness): not those whose
+/// closest hit lies at a subnormal distance (`0 < |t| < f32::MIN_POSITIVE`), where the box
+/// tests' relative padding rounds away, nor farther from the origin than [`FAR_HIT`] times
+/// the size of the primitive hit, where points computed in `f32` along the ray (a grid's or
+/// an octree's entry point, a box test's rounding) are off by more than that primitive.
 fn exact_domain<P: rt_geom::Primitive>(prims: &[P], rays: &[TestRay]) -> Vec<TestRay> {
     let Ok(brute) = BruteForce::build(prims) else {
         return rays.to_vec();
     };
     rays.iter()
-        .filter(|r| {
-            brute
-                .intersect(&r.ray)
-                .is_none_or(|h| h.t == 0.0 || h.t.abs() >= f32::MIN_POSITIVE)
+        .filter(|r| match brute.intersect(&r.ray) {
+            None => true,
+            Some(h) if h.t == 0.0 => true,
+            Some(h) => {
+                let size = prims[h.prim as usize].bounds().extent().max_element() as f64;
+                let distance = h.t.abs() as f64 * r.ray.dir().as_dvec3().length();
+                h.t.abs() >= f32::MIN_POSITIVE && distance <= FAR_HIT * size
+            }
         })
         .copied()
         .collect()
 }
 
+/// How far from a ray's origin, in sizes of the primitive hit, a hit is exact.
+pub const FAR_HIT: f64 = 65536.0;
+
 /// One entry on a triangle scene: the single-ray structure and its packet path.
 fn check_entry(entry: &AccelEntry, tris: &[Triangle], rays: &[TestRay]) -> Result<(), String> {
-    let rays = &exact_domain(tris, rays);
     let built = (entry.build)(tris);
     agrees(entry.name, tris, built.map_err(|e| e.to_string()), rays)?;
     if entry.packets.is_some() && BruteForce::build(tris).is_ok() {
@@ -207,7 +217,6 @@ fn check_entry(entry: &AccelEntry, tris: &[Triangle], rays: &[TestRay]) -> Resul
 /// One entry that takes any shape, on a scene of mixed shapes.
 fn check_shapes(entry: &AccelEntry, shapes: &[Shape], rays: &[TestRay]) -> Result<(), String> {
     let build = entry.build_shapes.ok_or("no shape builder")?;
-    let rays = &exact_domain(shapes, rays);
     agrees(
         entry.name,
         shapes,
