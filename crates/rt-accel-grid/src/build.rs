@@ -49,10 +49,20 @@ fn cells_of<P: Primitive>(p: &P, level: &Level, out: &mut Vec<u32>) {
     if b.is_empty() {
         return;
     }
-    let lo: [u32; 3] = std::array::from_fn(|a| level.index_of(a, b.min[a]));
+    // A box starting exactly on a plane touches the previous cell's face, one ending exactly
+    // on a plane the next cell's (where `index_of` already puts `hi`): both cells list it, so
+    // that a ray crossing the plane at that edge or vertex, whichever way its walk turns at a
+    // corner, meets it (found by fuzzing: a walk stepping diagonally past a shared vertex).
+    let lo: [u32; 3] = std::array::from_fn(|a| {
+        let i = level.index_of(a, b.min[a]);
+        if i > 0 && b.min[a] == level.plane(a, i) {
+            i - 1
+        } else {
+            i
+        }
+    });
     let hi: [u32; 3] = std::array::from_fn(|a| level.index_of(a, b.max[a]));
-    // A box ending exactly on a plane touches the next cell's face: `index_of` already put
-    // `hi` there. One cell: no test needed.
+    // One cell: no test needed.
     let single = lo == hi;
     for z in lo[2]..=hi[2] {
         for y in lo[1]..=hi[1] {

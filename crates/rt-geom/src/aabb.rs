@@ -252,19 +252,18 @@ impl Aabb {
         e.x * e.y + e.y * e.z + e.z * e.x
     }
 
-    /// Whether the point at `t` of `ray`, computed in `f64`, lies in the box (up to a relative
-    /// `1e-12` of the coordinates involved, far below the box test's padding). The analytic
-    /// kernels (spheres, cones) check their hits with it: from an origin far from a primitive
-    /// (or on a primitive far longer than wide) their `f64` roots lose the digits that place
-    /// the hit, and a hit off the primitive's box would be one that brute force reports and
-    /// every structure's box test rules out.
+    /// Whether the point at `t` of `ray`, computed in `f64`, lies in the box up to half the
+    /// box test's padding (`PAD / 2` of the ray's step along each axis): a hit this accepts,
+    /// every structure's padded box test accepts too. The analytic kernels (spheres, cones)
+    /// check their hits with it: from far away (or on a cone far longer than wide) their
+    /// `f64` roots lose the digits that place a hit.
     #[inline]
     pub fn holds_hit(&self, ray: &Ray, t: f32) -> bool {
         let (o, d) = (ray.origin().as_dvec3(), ray.dir().as_dvec3());
         let step = d * t as f64;
         let p = o + step;
         (0..3).all(|k| {
-            let slack = (o[k].abs() + p[k].abs() + step[k].abs()) * 1e-12;
+            let slack = step[k].abs() * (PAD as f64 * 0.5) + p[k].abs() * 1e-15;
             self.min[k] as f64 - slack <= p[k] && p[k] <= self.max[k] as f64 + slack
         })
     }

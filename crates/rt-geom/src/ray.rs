@@ -41,11 +41,14 @@ pub struct Ray {
 const _: () = assert!(std::mem::size_of::<Ray>() == 64);
 
 /// The shortest ray direction (its largest component), `2^-100`: shorter directions make
-/// invalid rays. Rays are exact down to it; the components of a valid direction that lie
-/// below `1 / f32::MAX` are flushed to zero.
+/// invalid rays. Components of a valid direction below 2^-48 of its largest are flushed to
+/// zero when the ray is made.
 pub const MIN_DIRECTION: f32 = 7.888609e-31;
 
 const _: () = assert!(MIN_DIRECTION == 1.0 / (1u128 << 100) as f32);
+
+/// Direction components below this fraction (2^-48) of the largest are flushed to zero.
+const FLUSH_BELOW: f32 = 1.0 / (1u64 << 48) as f32;
 
 impl Ray {
     /// A ray over `[0, +inf]`.
@@ -56,14 +59,16 @@ impl Ray {
     /// A ray over `[tmin, tmax]`.
     pub fn segment(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Self {
         // Directions shorter than `MIN_DIRECTION` (zero among them) and origins beyond
-        // `MAX_COORDINATE` make invalid rays, which miss. Components below `1 / f32::MAX`,
-        // whose reciprocals overflow, are below the direction's resolution then (2^-28 of
-        // its largest): they are flushed to zero, so that every kernel sees the same ray.
+        // `MAX_COORDINATE` make invalid rays, which miss. Components below 2^-48 of the
+        // largest (so all whose reciprocals overflow) move the ray by less than any `f32`
+        // position can show: they are flushed to zero, so that every kernel and every cell
+        // walk sees the same ray.
         let valid = origin.is_finite()
             && origin.abs().max_element() <= crate::MAX_COORDINATE
             && dir.is_finite()
             && dir.abs().max_element() >= MIN_DIRECTION;
-        let dir = Vec3::select(dir.abs().cmplt(Vec3::splat(1.0 / f32::MAX)), dir * 0.0, dir);
+        let floor = (dir.abs().max_element() * FLUSH_BELOW).max(1.0 / f32::MAX);
+        let dir = Vec3::select(dir.abs().cmplt(Vec3::splat(floor)), dir * 0.0, dir);
         let abs = dir.abs();
         let kz = if abs.x >= abs.y && abs.x >= abs.z {
             0

@@ -20,11 +20,31 @@ impl Sphere {
         Self { center, radius }
     }
 
-    /// The box around the sphere.
+    /// The box around the sphere, rounded outwards (`center +- radius` in `f32` may round
+    /// into the sphere, and a hit on the box face would then lie outside the box).
     #[inline]
     pub fn bounds(&self) -> Aabb {
         if self.radius > 0.0 {
-            Aabb::new(self.center - self.radius, self.center + self.radius)
+            let (c, r) = (self.center.as_dvec3(), self.radius as f64);
+            let (lo, hi) = (c - r, c + r);
+            let down = |v: f64| {
+                if (v as f32) as f64 > v {
+                    (v as f32).next_down()
+                } else {
+                    v as f32
+                }
+            };
+            let up = |v: f64| {
+                if ((v as f32) as f64) < v {
+                    (v as f32).next_up()
+                } else {
+                    v as f32
+                }
+            };
+            Aabb::new(
+                Vec3::new(down(lo.x), down(lo.y), down(lo.z)),
+                Vec3::new(up(hi.x), up(hi.y), up(hi.z)),
+            )
         } else {
             Aabb::new(self.center, self.center)
         }

@@ -179,17 +179,7 @@ impl Triangle {
         let edges = self.edges_in_f64(ray, orient);
         let t = match edges.depth() {
             Some(t) => t as f32,
-            None => {
-                // A ray the `f32` test accepted a rounding step outside an edge: its point
-                // nearest the boundary, when that lies in the triangle's box (on needles far
-                // longer than wide it need not, and no box test would find it there).
-                let o = ray.origin().as_dvec3();
-                let t = self.closest_on_boundary(o, ray.dir().as_dvec3())? as f32;
-                if !self.bounds().holds_hit(ray, t) {
-                    return None;
-                }
-                t
-            }
+            None => self.closest_on_boundary(ray.origin().as_dvec3(), ray.dir().as_dvec3())? as f32,
         };
         if !ray.in_range(t) {
             return None;

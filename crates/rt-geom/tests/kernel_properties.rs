@@ -107,8 +107,12 @@ fn triangle_case() -> impl Strategy<Value = (Triangle, Ray)> {
         direction_edit(),
         0usize..3,
         prop_oneof![Just(0.0f32), Just(-1.0), Just(1e-3)],
+        // Needles: one vertex pulled 1e9 times farther along an axis.
+        prop_oneof![4 => Just(1.0f64), 1 => Just(1e9)],
     )
-        .prop_map(|(a, b, c, o, (u, v), s, edit, axis, tmin)| {
+        .prop_map(|(a, b, c, o, (u, v), s, edit, axis, tmin, stretch)| {
+            let mut c = c;
+            c[axis] = c[axis] * stretch + (stretch - 1.0).signum();
             let tri = Triangle::new(f32s(a * s), f32s(b * s), f32s(c * s));
             let target = a * (1.0 - u - v) + b * u + c * v;
             let o = f32s(o * s + DVec3::splat(0.25 * s));
@@ -126,6 +130,10 @@ proptest! {
     #[test]
     fn triangle_kernel_agrees_with_f64(case in triangle_case()) {
         let (tri, ray) = case;
+        // Directions shorter than `MIN_DIRECTION` make invalid rays (they miss); builders
+        // reject vertices beyond `MAX_COORDINATE`.
+        prop_assume!(ray.is_valid());
+        prop_assume!(tri.v.iter().all(|p| p.abs().max_element() <= rt_geom::MAX_COORDINATE));
         let got = tri.intersect_watertight(&ray);
         if let Some(h) = got {
             prop_assert!(h.u >= 0.0 && h.v >= 0.0 && h.u + h.v <= 1.0 + 1e-5, "barycentrics {h:?}");
@@ -176,6 +184,7 @@ proptest! {
             (o, target - o)
         };
         let ray = Ray::new(origin, dir);
+        prop_assume!(ray.is_valid());
         // Not edge-on: the fan is seen as a disc.
         let dd = dir.as_dvec3();
         prop_assume!(dd.length() > 0.0 && (dd.normalize().dot(normal)).abs() > 1e-2);

@@ -178,9 +178,10 @@ fn scene_rays<P: SamplePoints>(prims: &[P], per_kind: usize) -> Vec<TestRay> {
 
 /// The rays whose answers rt promises exactly (ARCHITECTURE.md, robustness): not those whose
 /// closest hit lies at a subnormal distance (`0 < |t| < f32::MIN_POSITIVE`), where the box
-/// tests' relative padding rounds away, nor farther from the origin than [`FAR_HIT`] times
-/// the size of the primitive hit, where points computed in `f32` along the ray (a grid's or
-/// an octree's entry point, a box test's rounding) are off by more than that primitive.
+/// tests' relative padding rounds away, nor those whose hit lies farther from the ray's
+/// origin, or at coordinates larger, than [`FAR_HIT`] times the narrowest extent of the
+/// primitive hit: there points computed in `f32` along the ray (a grid's or octree's entry
+/// point, a box test's or an edge test's rounding) are off by more than that primitive.
 fn exact_domain<P: rt_geom::Primitive>(prims: &[P], rays: &[TestRay]) -> Vec<TestRay> {
     let Ok(brute) = BruteForce::build(prims) else {
         return rays.to_vec();
@@ -190,16 +191,26 @@ fn exact_domain<P: rt_geom::Primitive>(prims: &[P], rays: &[TestRay]) -> Vec<Tes
             None => true,
             Some(h) if h.t == 0.0 => true,
             Some(h) => {
-                let size = prims[h.prim as usize].bounds().extent().max_element() as f64;
-                let distance = h.t.abs() as f64 * r.ray.dir().as_dvec3().length();
-                h.t.abs() >= f32::MIN_POSITIVE && distance <= FAR_HIT * size
+                let e = prims[h.prim as usize].bounds().extent().to_array();
+                let narrowest = e
+                    .into_iter()
+                    .filter(|&x| x > 0.0)
+                    .fold(f32::INFINITY, f32::min);
+                let (o, d) = (r.ray.origin().as_dvec3(), r.ray.dir().as_dvec3());
+                let step = d * h.t as f64;
+                let reach = step
+                    .length()
+                    .max((o + step).abs().max_element())
+                    .max(o.abs().max_element());
+                h.t.abs() >= f32::MIN_POSITIVE && reach <= FAR_HIT * narrowest as f64
             }
         })
         .copied()
         .collect()
 }
 
-/// How far from a ray's origin, in sizes of the primitive hit, a hit is exact.
+/// How far from a ray's origin (and from the coordinate origin), in narrowest extents of the
+/// primitive hit, a hit is exact.
 pub const FAR_HIT: f64 = 65536.0;
 
 /// One entry on a triangle scene: the single-ray structure and its packet path.
