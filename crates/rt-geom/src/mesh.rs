@@ -290,9 +290,10 @@ fn vertex_is_finite(rest: &str) -> bool {
         .all(|x| x.parse::<f32>().is_ok_and(f32::is_finite))
 }
 
-/// The first face with an unparsable vertex index (`range_only == false`) or an index of a
-/// vertex, texture coordinate or normal that does not exist (`range_only == true`; OBJ
-/// indices are 1-based, negative ones count back from the last defined so far).
+/// The first face with an unparsable vertex index (`range_only == false`) or the first face,
+/// line or point with an index of a vertex, texture coordinate or normal that does not exist
+/// (`range_only == true`; OBJ indices are 1-based, negative ones count back from the last
+/// defined so far).
 fn first_bad_face(text: &[u8], range_only: bool) -> Option<usize> {
     const KINDS: [&str; 3] = ["v", "vt", "vn"];
     let mut total = [0i64; 3];
@@ -308,7 +309,8 @@ fn first_bad_face(text: &[u8], range_only: bool) -> Option<usize> {
             so_far[k] += 1;
             return false;
         }
-        if kw != "f" {
+        // Lines and points are ignored, but tobj resolves their indices too.
+        if kw != "f" && !(range_only && (kw == "l" || kw == "p")) {
             return false;
         }
         if !range_only {
@@ -353,6 +355,10 @@ mod tests {
                 6,
             ),
             ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/0 2/1 3/1\n", 5),
+            (
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nl 1//-31 2\nf 1 2 3\n",
+                5,
+            ),
         ] {
             match parse(text) {
                 Err(MeshError::IndexOutOfRange { line: l, .. }) => {
