@@ -176,9 +176,10 @@ fn scene_rays<P: SamplePoints>(prims: &[P], per_kind: usize) -> Vec<TestRay> {
     }
 }
 
-/// The rays whose answers rt promises exactly (ARCHITECTURE.md, robustness): not those whose
-/// closest hit lies at a subnormal distance (`0 < |t| < f32::MIN_POSITIVE`), where the box
-/// tests' relative padding rounds away, nor those whose hit lies farther from the ray's
+/// The rays whose answers rt promises exactly (ARCHITECTURE.md, robustness): not those with
+/// a subnormal origin or direction component, or whose closest hit lies at a subnormal
+/// distance (`0 < |t| < f32::MIN_POSITIVE`), where the box and cell tests' relative padding
+/// rounds away, nor those whose hit lies farther from the ray's
 /// origin, or at coordinates larger, than [`FAR_HIT`] times the narrowest extent of the
 /// primitive hit: there points computed in `f32` along the ray (a grid's or octree's entry
 /// point, a box test's or an edge test's rounding) are off by more than that primitive.
@@ -186,7 +187,9 @@ fn exact_domain<P: rt_geom::Primitive>(prims: &[P], rays: &[TestRay]) -> Vec<Tes
     let Ok(brute) = BruteForce::build(prims) else {
         return rays.to_vec();
     };
+    let subnormal = |v: Vec3| v.to_array().iter().any(|x| x.is_subnormal());
     rays.iter()
+        .filter(|r| !subnormal(r.ray.origin()) && !subnormal(r.ray.dir()))
         .filter(|r| match brute.intersect(&r.ray) {
             None => true,
             Some(h) if h.t == 0.0 => true,
@@ -338,8 +341,9 @@ pub struct Decoder<'a> {
     bytes: &'a [u8],
 }
 
-/// The special values of [`Decoder::value`].
-const SPECIAL: [f32; 16] = [
+/// The special values of [`Decoder::value`]: signed zeros, near the smallest and largest
+/// floats, a subnormal, NaN and infinities.
+pub const SPECIAL: [f32; 16] = [
     0.0,
     -0.0,
     1e-38,
