@@ -231,6 +231,23 @@ fn round_up(v: DVec3) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// From 4.5e16 away the `f64` roots put this ray's crossing on the cone, 0.6 beside its box
+    /// on an axis the ray does not move along (found by fuzzing the NFF reader): no hit.
+    #[test]
+    fn far_hits_outside_the_box_are_dropped() {
+        let c = Cone::new(
+            Vec3::new(-0.753191, 2.3684, 0.489453),
+            0.07412,
+            Vec3::new(-2.22045e-16, 3.10258, 0.791951),
+            0.07412,
+        );
+        let r = Ray::new(
+            Vec3::new(0.6817568, -1.6404778e16, 4.2062676e16),
+            Vec3::new(0.0, 1.6404778e16, -4.2062676e16),
+        );
+        assert_eq!(c.intersect(&r), None);
+    }
     use approx::assert_relative_eq;
 
     #[test]
