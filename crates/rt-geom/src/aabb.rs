@@ -30,6 +30,20 @@ pub fn pad_up(t: f32) -> f32 {
     t + t.abs() * PAD
 }
 
+/// The largest `f32` at or below `v` (an `f64` rounded towards `-inf`).
+#[inline]
+pub(crate) fn f32_at_or_below(v: f64) -> f32 {
+    let f = v as f32;
+    if f as f64 > v { f.next_down() } else { f }
+}
+
+/// The smallest `f32` at or above `v` (an `f64` rounded towards `+inf`).
+#[inline]
+pub(crate) fn f32_at_or_above(v: f64) -> f32 {
+    let f = v as f32;
+    if (f as f64) < v { f.next_up() } else { f }
+}
+
 /// The per-ray constants of the slab test, computed once per ray for traversals that test
 /// many boxes ([`SlabRay::entry`], and the lane loops of wide BVH nodes).
 ///

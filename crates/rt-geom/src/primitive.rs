@@ -1,5 +1,6 @@
 //! The `Primitive` trait: what every acceleration structure needs to know about its elements.
 
+use crate::aabb::f32_at_or_above;
 use crate::{Aabb, Hit, PrimHit, Ray, Sphere, Triangle};
 use glam::Vec3;
 
@@ -108,7 +109,7 @@ impl Primitive for Triangle {
             .iter()
             .map(|v| v.as_dvec3().distance(p.as_dvec3()))
             .fold(0.0, f64::max);
-        round_up(far)
+        f32_at_or_above(far)
     }
 
     fn is_finite(&self) -> bool {
@@ -150,17 +151,10 @@ impl Primitive for Sphere {
     }
 
     fn farthest_distance(&self, p: Vec3) -> f32 {
-        round_up(self.center.as_dvec3().distance(p.as_dvec3()) + self.radius.max(0.0) as f64)
+        f32_at_or_above(self.center.as_dvec3().distance(p.as_dvec3()) + self.radius.max(0.0) as f64)
     }
 
     fn is_finite(&self) -> bool {
         self.center.is_finite() && self.radius.is_finite()
     }
-}
-
-/// A distance computed in `f64` (where squares of tiny or huge coordinates neither underflow nor
-/// overflow) as the next `f32` at or above it.
-fn round_up(d: f64) -> f32 {
-    let f = d as f32;
-    if (f as f64) < d { f.next_up() } else { f }
 }

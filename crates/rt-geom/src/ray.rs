@@ -63,12 +63,14 @@ impl Ray {
         // largest (so all whose reciprocals overflow) move the ray by less than any `f32`
         // position can show: they are flushed to zero, so that every kernel and every cell
         // walk sees the same ray.
+        let abs = dir.abs();
+        let largest = abs.max_element();
         let valid = origin.is_finite()
             && origin.abs().max_element() <= crate::MAX_COORDINATE
             && dir.is_finite()
-            && dir.abs().max_element() >= MIN_DIRECTION;
-        let floor = (dir.abs().max_element() * FLUSH_BELOW).max(1.0 / f32::MAX);
-        let dir = Vec3::select(dir.abs().cmplt(Vec3::splat(floor)), dir * 0.0, dir);
+            && largest >= MIN_DIRECTION;
+        let floor = (largest * FLUSH_BELOW).max(1.0 / f32::MAX);
+        let dir = Vec3::select(abs.cmplt(Vec3::splat(floor)), dir * 0.0, dir);
         let abs = dir.abs();
         let kz = if abs.x >= abs.y && abs.x >= abs.z {
             0

@@ -1,5 +1,6 @@
 //! Analytic spheres.
 
+use crate::aabb::{f32_at_or_above, f32_at_or_below};
 use crate::{Aabb, PrimHit, Ray};
 use glam::Vec3;
 use std::f32::consts::PI;
@@ -27,24 +28,11 @@ impl Sphere {
         if self.radius > 0.0 {
             let (c, r) = (self.center.as_dvec3(), self.radius as f64);
             let (lo, hi) = (c - r, c + r);
-            let down = |v: f64| {
-                if (v as f32) as f64 > v {
-                    (v as f32).next_down()
-                } else {
-                    v as f32
-                }
-            };
-            let up = |v: f64| {
-                if ((v as f32) as f64) < v {
-                    (v as f32).next_up()
-                } else {
-                    v as f32
-                }
-            };
-            Aabb::new(
-                Vec3::new(down(lo.x), down(lo.y), down(lo.z)),
-                Vec3::new(up(hi.x), up(hi.y), up(hi.z)),
-            )
+            let [lo, hi] = [
+                lo.to_array().map(f32_at_or_below),
+                hi.to_array().map(f32_at_or_above),
+            ];
+            Aabb::new(Vec3::from_array(lo), Vec3::from_array(hi))
         } else {
             Aabb::new(self.center, self.center)
         }

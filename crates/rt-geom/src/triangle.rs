@@ -199,13 +199,10 @@ impl Triangle {
     /// The watertight test decided by the `f64` edge functions alone (no `f32` test to
     /// follow to the boundary): a hit when they agree in sign, with their barycentrics.
     fn refine_in_f64(&self, ray: &Ray) -> Option<PrimHit> {
-        let edges = self.edges_in_f64(ray, 1.0);
-        let orient = if edges.e.iter().sum::<f64>() < 0.0 {
-            -1.0
-        } else {
-            1.0
-        };
-        let edges = self.edges_in_f64(ray, orient);
+        let mut edges = self.edges_in_f64(ray, 1.0);
+        if edges.e.iter().sum::<f64>() < 0.0 {
+            edges.e = edges.e.map(|e| -e);
+        }
         let t = edges.depth()? as f32;
         if !ray.in_range(t) {
             return None;

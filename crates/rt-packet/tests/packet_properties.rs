@@ -86,11 +86,16 @@ fn check<A: PacketTraversal + Accel>(
     mask: u16,
 ) -> Result<(), TestCaseError> {
     let off = |i: usize| mask & (1 << i) != 0;
-    let mut packet = RayPacket::<16>::new(rays);
-    for i in (0..16).filter(|&i| off(i)) {
-        packet.active[i] = false;
-        packet.tmax[i] = f32::NEG_INFINITY;
-    }
+    // A packet of the rays with the lanes of `mask` switched off, as a fill leaves them.
+    let masked = || {
+        let mut packet = RayPacket::<16>::new(rays);
+        for i in (0..16).filter(|&i| off(i)) {
+            packet.active[i] = false;
+            packet.tmax[i] = f32::NEG_INFINITY;
+        }
+        packet
+    };
+    let mut packet = masked();
     let hits = accel.intersect_packet(&mut packet);
     for (i, ray) in rays.iter().enumerate() {
         if off(i) {
@@ -108,11 +113,7 @@ fn check<A: PacketTraversal + Accel>(
             );
         }
     }
-    let mut packet = RayPacket::<16>::new(rays);
-    for i in (0..16).filter(|&i| off(i)) {
-        packet.active[i] = false;
-        packet.tmax[i] = f32::NEG_INFINITY;
-    }
+    let mut packet = masked();
     let blocked = accel.occluded_packet(&mut packet);
     for (i, ray) in rays.iter().enumerate() {
         if off(i) {
