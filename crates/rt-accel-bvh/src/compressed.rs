@@ -23,6 +23,7 @@
 //! wide-BVH stack loop) then visits a superset of the nodes the exact boxes would give, and
 //! returns exactly their hits.
 
+use crate::refit::{Refit, check_moved, in_leaf_order, leaf_bounds};
 use crate::stats::check_leaf_primitive;
 use crate::wide::{
     WideLanes, WideNode, WideTopology, WideTree, lane_entries, test_leaf, traverse_nodes,
@@ -192,6 +193,25 @@ impl CompressedTree {
         &self.nodes
     }
 
+    /// The same topology with full-precision nodes holding the dequantized boxes.
+    pub fn decompress(&self) -> WideTree<8> {
+        let node = |c: &CompressedNode| {
+            let mut w = WideNode::EMPTY;
+            w.child = c.child;
+            w.count = c.count;
+            for lane in (0..8).filter(|&l| c.child[l] != u32::MAX) {
+                w.set_bounds(lane, c.bounds(lane));
+            }
+            w
+        };
+        WideTree {
+            nodes: self.nodes.iter().map(node).collect(),
+            root_bounds: self.root_bounds,
+            root_leaf: self.root_leaf,
+            depth: self.depth,
+        }
+    }
+
     /// Statistics of `tree` (the same topology) with this layout's node bytes plus
     /// `leaf_bytes` (primitives and ids).
     pub(crate) fn stats(
@@ -258,6 +278,23 @@ impl WideTopology for CompressedTree {
         }
         Ok(())
     }
+
+    fn leaves(&self) -> Vec<(u32, u32)> {
+        self.decompress().leaves()
+    }
+
+    /// Refits the full-precision topology and quantizes it again.
+    fn refit_boxes(
+        &mut self,
+        leaf_bounds: &dyn Fn(u32, u32) -> Aabb,
+        prims: usize,
+        params: &BvhParams,
+    ) -> AccelStats {
+        let mut wide = self.decompress();
+        wide.refit(leaf_bounds);
+        *self = Self::compress(&wide);
+        self.stats(&wide, prims, params, 0)
+    }
 }
 
 /// An 8-wide BVH with quantized child boxes ([`CompressedNode`]), compressed from a [`Bvh8`];
@@ -305,6 +342,19 @@ impl<P: Primitive> CompressedBvh8<P> {
         self.tree.traverse::<ANY_HIT>(ray, |first, count, r, best| {
             test_leaf::<P, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
         })
+    }
+}
+
+impl<P: Primitive> Refit<P> for CompressedBvh8<P> {
+    fn refit(&mut self, prims: &[P]) -> Result<(), BuildError> {
+        check_moved(prims, self.count)?;
+        self.prims = in_leaf_order(prims, &self.ids);
+        let leaves = &self.prims;
+        let bounds = |first, count| leaf_bounds(leaves, first, count);
+        let mut stats = self.tree.refit_boxes(&bounds, self.count, &self.params);
+        stats.bytes += self.stats.bytes - std::mem::size_of_val(self.tree.nodes.as_slice());
+        self.stats = stats;
+        Ok(())
     }
 }
 

@@ -13,7 +13,7 @@
 //! | `build` | top-down builders: midpoint, median, binned SAH (Wald 2007), sweep SAH, spatial splits; flattening; reinsertion |
 //! | `traverse` | closest-hit and any-hit traversal, one generic function |
 //! | `stats` | `stats()` and `validate()` |
-//! | `refit` | [`Bvh::refit`] after vertices move |
+//! | `refit` | [`Refit`]: new vertex positions, same topology, for every BVH layout |
 //! | `collapse` | binary → wide: the greedy largest-area rule and the SAH-optimal plan ([`WideCollapse`]) |
 //! | [`wide`] | [`Bvh4`], [`Bvh8`]: collapsed wide BVHs, all children tested at once ([`WideTree`]); node, build, traverse and stats in files of those names |
 //! | [`compressed`] | [`CompressedBvh8`]: the 8-wide BVH with child boxes quantized to 8 bits per plane, 128-byte nodes ([`CompressedNode`], topology [`CompressedTree`]) |
@@ -57,6 +57,7 @@ pub use bvlist::{BvList, BvListParams, Grouping};
 pub use compressed::{CompressedBvh8, CompressedNode, CompressedTree};
 pub use node::BvhNode;
 pub use params::{BvhBuilder, BvhParams, MAX_DEPTH, WideCollapse};
+pub use refit::Refit;
 pub use rt_geom::TriangleSoa;
 pub use tri::{CompressedTriBvh8, TriBvh, TriBvh4, TriBvh8};
 pub use wide::{Bvh4, Bvh8, WideBvh, WideNode, WideTopology, WideTree};

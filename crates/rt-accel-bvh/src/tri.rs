@@ -4,6 +4,7 @@
 //! kernel.
 
 use crate::compressed::CompressedTree;
+use crate::refit::{Refit, check_moved, in_leaf_order, leaf_bounds};
 use crate::stats::check_leaf_primitive;
 use crate::wide::{WideTopology, WideTree};
 use crate::{Bvh, BvhParams};
@@ -126,6 +127,19 @@ impl<T: WideTopology> TriBvh<T> {
             self.tris
                 .intersect_range::<ANY_HIT>(first as usize, count as usize, r, &self.ids, best)
         })
+    }
+}
+
+impl<T: WideTopology> Refit<Triangle> for TriBvh<T> {
+    fn refit(&mut self, tris: &[Triangle]) -> Result<(), BuildError> {
+        check_moved(tris, self.count)?;
+        let leaf_tris = in_leaf_order(tris, &self.ids);
+        self.tris = TriangleSoa::new(&leaf_tris, self.tree.leaves());
+        let bounds = |first, count| leaf_bounds(&leaf_tris, first, count);
+        let mut stats = self.tree.refit_boxes(&bounds, self.count, &self.params);
+        stats.bytes += self.tris.bytes() + std::mem::size_of_val(self.ids.as_slice());
+        self.stats = stats;
+        Ok(())
     }
 }
 

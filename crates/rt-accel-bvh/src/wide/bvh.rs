@@ -1,6 +1,7 @@
 //! [`WideBvh`]: a wide topology that owns its leaf-ordered primitives.
 
 use super::{WideTree, test_leaf};
+use crate::refit::{Refit, check_moved, in_leaf_order, leaf_bounds};
 use crate::stats::check_leaf_primitive;
 use crate::{Bvh, BvhParams};
 use rt_geom::all_referenced;
@@ -71,6 +72,17 @@ impl<P: Primitive, const N: usize> WideBvh<P, N> {
     /// The parts: topology, leaf-ordered primitives, their ids, the primitive count, params.
     pub(crate) fn into_parts(self) -> (WideTree<N>, Vec<P>, Vec<u32>, usize, BvhParams) {
         (self.tree, self.prims, self.ids, self.count, self.params)
+    }
+}
+
+impl<P: Primitive, const N: usize> Refit<P> for WideBvh<P, N> {
+    fn refit(&mut self, prims: &[P]) -> Result<(), BuildError> {
+        check_moved(prims, self.count)?;
+        self.prims = in_leaf_order(prims, &self.ids);
+        let prims = &self.prims;
+        self.tree
+            .refit(&|first, count| leaf_bounds(prims, first, count));
+        Ok(())
     }
 }
 

@@ -8,11 +8,13 @@
 //! | `build.rs` | [`WideTree::collapse`]: wide nodes written from a collapse plan |
 //! | `traverse.rs` | the stack walk over any wide node layout, the lanes' slab test, the leaf test |
 //! | `stats.rs` | [`WideTree::stats`] and [`WideTree::check`] |
+//! | `refit.rs` | [`WideTree::refit`]: child boxes recomputed after primitives move |
 //! | `bvh.rs` | [`WideBvh`] ([`Bvh4`], [`Bvh8`]): a topology and the primitives its leaves hold |
 
 mod build;
 mod bvh;
 mod node;
+mod refit;
 mod stats;
 mod traverse;
 
@@ -20,7 +22,8 @@ pub use bvh::{Bvh4, Bvh8, WideBvh};
 pub use node::WideNode;
 pub(crate) use traverse::{WideLanes, lane_entries, test_leaf, traverse_nodes};
 
-use rt_geom::{Aabb, Hit, Ray};
+use crate::BvhParams;
+use rt_geom::{Aabb, AccelStats, Hit, Ray};
 
 /// The topology of a wide BVH: nodes, root box, depth. Leaves are ranges of a leaf-ordered
 /// primitive array kept by the owner ([`WideBvh`], or `TriBvh` with SIMD triangle leaves), which
@@ -46,6 +49,17 @@ pub trait WideTopology: Send + Sync {
     ) -> Option<Hit>;
     /// Checks the topology; `leaf(first, count, bounds)` checks each leaf.
     fn check(&self, leaf: impl FnMut(u32, u32, &Aabb) -> Result<(), String>) -> Result<(), String>;
+    /// Every leaf's `(first, count)`.
+    fn leaves(&self) -> Vec<(u32, u32)>;
+    /// Recomputes every box from `leaf_bounds(first, count)` (see [`WideTree::refit`]) and
+    /// returns the statistics of the refitted topology over `prims` primitives (node bytes
+    /// only).
+    fn refit_boxes(
+        &mut self,
+        leaf_bounds: &dyn Fn(u32, u32) -> Aabb,
+        prims: usize,
+        params: &BvhParams,
+    ) -> AccelStats;
 }
 
 impl<const N: usize> WideTopology for WideTree<N> {
@@ -60,6 +74,20 @@ impl<const N: usize> WideTopology for WideTree<N> {
 
     fn check(&self, leaf: impl FnMut(u32, u32, &Aabb) -> Result<(), String>) -> Result<(), String> {
         WideTree::check(self, leaf)
+    }
+
+    fn leaves(&self) -> Vec<(u32, u32)> {
+        WideTree::leaves(self)
+    }
+
+    fn refit_boxes(
+        &mut self,
+        leaf_bounds: &dyn Fn(u32, u32) -> Aabb,
+        prims: usize,
+        params: &BvhParams,
+    ) -> AccelStats {
+        self.refit(leaf_bounds);
+        self.stats(prims, params)
     }
 }
 
