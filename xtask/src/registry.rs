@@ -76,6 +76,7 @@ pub const OBVHS_TOLERANCE: Tolerance = Tolerance {
     boundary_misses: true,
     behind_origin_misses: true,
     lowest_on_ties: false,
+    edge_band: 0.0,
 };
 
 /// An rt structure: exact agreement with brute force, benched on every scene.
@@ -244,6 +245,7 @@ pub const EMBREE_TOLERANCE: Tolerance = Tolerance {
     boundary_misses: true,
     behind_origin_misses: true,
     lowest_on_ties: false,
+    edge_band: 0.0,
 };
 
 const BASE: &[AccelEntry] = &[

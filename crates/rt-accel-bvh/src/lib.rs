@@ -17,6 +17,7 @@
 //! | `collapse` | binary → wide: the greedy largest-area rule and the SAH-optimal plan ([`WideCollapse`]) |
 //! | [`wide`] | [`Bvh4`], [`Bvh8`]: collapsed wide BVHs, all children tested at once ([`WideTree`]); node, build, traverse and stats in files of those names |
 //! | [`compressed`] | [`CompressedBvh8`]: the 8-wide BVH with child boxes quantized to 8 bits per plane, 128-byte nodes ([`CompressedNode`], topology [`CompressedTree`]) |
+//! | [`instance`] | [`InstanceBvh`]: two-level ray tracing, a top-level BVH over [`Instance`]s (affine transforms) of [`Object`]s with their own structures; moving instances and refit objects |
 //! | [`tri`] | [`TriBvh4`], [`TriBvh8`], [`CompressedTriBvh8`]: wide BVHs over triangles stored leaf by leaf as SoA ([`TriangleSoa`], from rt-geom), four tested at once |
 //!
 //! ```
@@ -44,6 +45,7 @@ mod build;
 pub mod bvlist;
 mod collapse;
 pub mod compressed;
+pub mod instance;
 pub mod node;
 pub mod params;
 mod refit;
@@ -55,6 +57,7 @@ pub mod wide;
 pub use binary::Bvh;
 pub use bvlist::{BvList, BvListParams, Grouping};
 pub use compressed::{CompressedBvh8, CompressedNode, CompressedTree};
+pub use instance::{Instance, InstanceBvh, InstanceHit, Object, TopUpdate};
 pub use node::BvhNode;
 pub use params::{BvhBuilder, BvhParams, MAX_DEPTH, WideCollapse};
 pub use refit::Refit;

@@ -1,10 +1,13 @@
-//! Closest-hit and any-hit traversal, written once (`traverse::<ANY_HIT>`).
+//! Closest-hit and any-hit traversal, written once (`walk_ray::<ANY_HIT>`) over any leaf test: the
+//! primitives of [`Bvh`], or the instances of the top level of an
+//! [`InstanceBvh`](crate::InstanceBvh).
 
 use crate::Bvh;
 use crate::node::BvhNode;
 use crate::params::MAX_DEPTH;
+use crate::wide::test_leaf;
 use rt_geom::aabb::SlabRay;
-use rt_geom::{Hit, Primitive, Ray, keep_hit};
+use rt_geom::{Hit, Primitive, Ray};
 
 /// Entry distance into the node's box within `[tmin, tmax]` ([`SlabRay::entry`]).
 #[inline(always)]
@@ -12,12 +15,17 @@ fn entry(boxes: &SlabRay, node: &BvhNode, tmin: f32, tmax: f32) -> Option<f32> {
     boxes.entry(&node.min, &node.max, tmin, tmax)
 }
 
-impl<P: Primitive> Bvh<P> {
+impl<P> Bvh<P> {
     /// Depth-first traversal with an explicit stack, nearer child first (by entry distance);
-    /// subtrees entered beyond the closest hit so far are skipped. With `ANY_HIT`, returns the
-    /// first hit found.
-    #[inline]
-    pub(crate) fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
+    /// subtrees entered beyond the closest hit so far are skipped. `leaf(first, count, ray,
+    /// best)` tests the leaf-ordered slots `first..first + count`, shrinking `ray.tmax` and
+    /// updating `best`; it returns true to stop (any-hit queries).
+    #[inline(always)]
+    pub(crate) fn walk_ray<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        mut leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<Hit>) -> bool,
+    ) -> Option<Hit> {
         if self.nodes.is_empty() || !ray.is_valid() {
             return None;
         }
@@ -32,13 +40,8 @@ impl<P: Primitive> Bvh<P> {
         loop {
             let node = &self.nodes[index];
             if node.is_leaf() {
-                let first = node.offset as usize;
-                for i in first..first + node.count() as usize {
-                    if let Some(h) = self.prims[i].intersect(&r) {
-                        if keep_hit::<ANY_HIT>(h, self.ids[i], &mut r.tmax, &mut best) {
-                            return best;
-                        }
-                    }
+                if leaf(node.offset, node.count(), &mut r, &mut best) {
+                    return best;
                 }
             } else {
                 let (a, b) = (index + 1, node.offset as usize);
@@ -76,5 +79,15 @@ impl<P: Primitive> Bvh<P> {
                 }
             }
         }
+    }
+}
+
+impl<P: Primitive> Bvh<P> {
+    /// The walk over the tree's own primitives. With `ANY_HIT`, returns the first hit found.
+    #[inline]
+    pub(crate) fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
+        self.walk_ray::<ANY_HIT>(ray, |first, count, r, best| {
+            test_leaf::<P, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
+        })
     }
 }

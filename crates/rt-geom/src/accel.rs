@@ -25,22 +25,30 @@ pub trait Accel: Send + Sync {
     fn validate(&self) -> Result<(), String>;
 }
 
-impl<A: Accel + ?Sized> Accel for Box<A> {
-    #[inline]
-    fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        (**self).intersect(ray)
-    }
-    #[inline]
-    fn occluded(&self, ray: &Ray) -> bool {
-        (**self).occluded(ray)
-    }
-    fn stats(&self) -> AccelStats {
-        (**self).stats()
-    }
-    fn validate(&self) -> Result<(), String> {
-        (**self).validate()
-    }
+/// Boxed and shared structures answer as the structure they hold.
+macro_rules! forward_accel {
+    ($($ptr:ident)::+) => {
+        impl<A: Accel + ?Sized> Accel for $($ptr)::+<A> {
+            #[inline]
+            fn intersect(&self, ray: &Ray) -> Option<Hit> {
+                (**self).intersect(ray)
+            }
+            #[inline]
+            fn occluded(&self, ray: &Ray) -> bool {
+                (**self).occluded(ray)
+            }
+            fn stats(&self) -> AccelStats {
+                (**self).stats()
+            }
+            fn validate(&self) -> Result<(), String> {
+                (**self).validate()
+            }
+        }
+    };
 }
+
+forward_accel!(Box);
+forward_accel!(std::sync::Arc);
 
 /// What a structure reports about itself.
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -1,0 +1,437 @@
+//! Two-level ray tracing against the same scene flattened into world-space triangles: the
+//! conformance suite's instanced mode. Objects get every kind of structure; instances get
+//! rotations, non-uniform scales, mirrors, overlaps and counts in the thousands.
+
+use rt_accel_bvh::{Bvh, BvhParams, Instance, InstanceBvh, Object, Refit, TopUpdate, TriBvh8};
+use rt_accel_kd::{KdParams, KdTree};
+use rt_geom::glam::{Affine3A, Quat};
+use rt_geom::{Accel, BruteForce, BuildError, Ray, Triangle, Vec3};
+use rt_testkit::conformance::{Report, Tolerance, check_scene};
+use rt_testkit::rays::RayKind;
+use rt_testkit::{Rng, Scene, scenes};
+
+/// The objects of the transformed scenes, each with another structure.
+fn objects() -> (Vec<Vec<Triangle>>, Vec<Object>) {
+    let geometry = vec![
+        scenes::tessellated_sphere(300, Vec3::ZERO, 1.0),
+        scenes::torus(400, 1.0, 0.3),
+        scenes::random_soup(60, 7),
+        scenes::planar_grid(4),
+    ];
+    let objects = vec![
+        Object::build(&geometry[0], TriBvh8::build_for_tracing)
+            .unwrap()
+            .shared(),
+        Object::build(&geometry[1], |p| Bvh::build(p, BvhParams::balanced()))
+            .unwrap()
+            .shared(),
+        Object::build(&geometry[2], |p| KdTree::build(p, KdParams::sah()))
+            .unwrap()
+            .shared(),
+        Object::build(&geometry[3], BruteForce::build)
+            .unwrap()
+            .shared(),
+    ];
+    (geometry, objects)
+}
+
+/// A rotation about a random axis, a scale per axis in [0.3, 3] (negative on x for a mirror)
+/// and a translation.
+fn random_transform(rng: &mut Rng, mirror: bool, spread: f32) -> Affine3A {
+    let axis = rng.unit_vector();
+    let angle = rng.range(0.0, std::f32::consts::TAU);
+    let mut scale = Vec3::new(
+        rng.range(0.3, 3.0),
+        rng.range(0.3, 3.0),
+        rng.range(0.3, 3.0),
+    );
+    if mirror {
+        scale.x = -scale.x;
+    }
+    let at = Vec3::new(
+        rng.range(-1.0, 1.0),
+        rng.range(-1.0, 1.0),
+        rng.range(-1.0, 1.0),
+    ) * spread;
+    Affine3A::from_scale_rotation_translation(scale, Quat::from_axis_angle(axis, angle), at)
+}
+
+/// The scene flattened instance by instance: the world-space triangles in the order of the
+/// global primitive ids.
+fn flatten(geometry: &[Vec<Triangle>], instances: &[Instance]) -> Vec<Triangle> {
+    instances
+        .iter()
+        .flat_map(|inst| {
+            geometry[inst.object as usize]
+                .iter()
+                .map(move |t| Triangle {
+                    v: t.v.map(|p| inst.transform.transform_point3(p)),
+                })
+        })
+        .collect()
+}
+
+/// Holds the instanced scene to brute force on its flattened form with
+/// [`Tolerance::TRANSFORMED`]: no mismatch, and at most 1% of the rays of the general families
+/// excused for hits within the rounding band of an edge or an interval's end (the families
+/// aimed at edges, vertices and hit distances are excused as often as they land there).
+fn conforms_flattened(
+    name: &str,
+    objects: &[Object],
+    geometry: &[Vec<Triangle>],
+    instances: &[Instance],
+) -> Report {
+    let flat = Scene::new(name, flatten(geometry, instances));
+    let report = check_scene(
+        &flat,
+        |_| InstanceBvh::build(objects.to_vec(), instances, BvhParams::balanced()),
+        Tolerance::TRANSFORMED,
+    )
+    .unwrap();
+    let lines: Vec<String> = report.mismatches.iter().map(|m| format!("  {m}")).collect();
+    assert!(
+        report.is_ok(),
+        "{} of {} rays disagree:\n{}",
+        report.mismatch_count,
+        report.rays,
+        lines.join("\n")
+    );
+    assert_general_rays_agree(&report);
+    assert!(
+        report.hits * 4 > report.rays,
+        "only {} hits in {} rays",
+        report.hits,
+        report.rays
+    );
+    report
+}
+
+/// At most 1% of the random, inside and aimed rays are excused.
+fn assert_general_rays_agree(report: &Report) {
+    for kind in [RayKind::Random, RayKind::Inside, RayKind::Aimed] {
+        let excused = report.tolerated_by_kind.get(&kind).copied().unwrap_or(0);
+        assert!(
+            excused <= 4,
+            "{excused} of 400 {kind:?} rays excused on {}",
+            report.scene
+        );
+    }
+}
+
+#[test]
+fn rotated_scaled_and_mirrored_instances_agree_with_the_flattened_scene() {
+    let (geometry, objects) = objects();
+    let mut rng = Rng::new(11);
+    let mut instances: Vec<Instance> = (0..40)
+        .map(|i| Instance {
+            object: (i % 4) as u32,
+            transform: random_transform(&mut rng, i % 3 == 0, 8.0),
+        })
+        .collect();
+    // A small sphere inside the torus's box, and a soup inside the sphere's.
+    let torus_at = Affine3A::from_scale_rotation_translation(
+        Vec3::splat(4.0),
+        Quat::from_rotation_x(0.3),
+        Vec3::new(20.0, 0.0, 0.0),
+    );
+    instances.push(Instance {
+        object: 1,
+        transform: torus_at,
+    });
+    instances.push(Instance {
+        object: 0,
+        transform: Affine3A::from_scale_rotation_translation(
+            Vec3::new(0.5, 0.8, -0.6),
+            Quat::IDENTITY,
+            Vec3::new(20.0, 0.0, 0.0),
+        ),
+    });
+    instances.push(Instance {
+        object: 2,
+        transform: Affine3A::from_translation(Vec3::new(20.0, 0.5, 0.2)),
+    });
+    let report = conforms_flattened("transformed", &objects, &geometry, &instances);
+    eprintln!(
+        "transformed: {} rays, {} hits, excused near edges {:?}, max |dt| {}",
+        report.rays, report.hits, report.tolerated_by_kind, report.max_dt
+    );
+}
+
+#[test]
+fn thousands_of_instances_of_one_small_object() {
+    let object = scenes::tessellated_sphere(24, Vec3::ZERO, 0.4);
+    let objects = vec![
+        Object::build(&object, TriBvh8::build_for_tracing)
+            .unwrap()
+            .shared(),
+    ];
+    let mut rng = Rng::new(3);
+    let instances: Vec<Instance> = (0..3000)
+        .map(|i| {
+            let cell = Vec3::new((i % 15) as f32, (i / 15 % 15) as f32, (i / 225) as f32);
+            let t = random_transform(&mut rng, i % 2 == 0, 0.0);
+            Instance {
+                object: 0,
+                transform: Affine3A {
+                    translation: (cell * 1.5).into(),
+                    ..t
+                },
+            }
+        })
+        .collect();
+    let report = conforms_flattened("thousands", &objects, &[object.clone()], &instances);
+    eprintln!(
+        "thousands: {} rays, {} hits, excused {:?}, max |dt| {}",
+        report.rays, report.hits, report.tolerated_by_kind, report.max_dt
+    );
+    // The object is stored once: the scene takes far less than 3000 copies of it.
+    let scene = InstanceBvh::build(objects.clone(), &instances, BvhParams::balanced()).unwrap();
+    let (one, all) = (objects[0].accel().stats().bytes, scene.stats().bytes);
+    assert_eq!(scene.stats().primitives, 3000 * object.len());
+    assert!(
+        all < one + 3000 * 256,
+        "{all} bytes for 3000 instances of a {one}-byte object"
+    );
+}
+
+#[test]
+fn untransformed_objects_answer_exactly_like_the_flat_scene() {
+    // Every conformance scene cut into objects of 100 consecutive triangles, each placed by
+    // the identity: a top level over per-object structures, bit for bit the flat answers
+    // (the identity transform is exact, and global ids keep the flat order for ties).
+    for scene in scenes::conformance_triangle_scenes() {
+        let chunks: Vec<Vec<Triangle>> =
+            scene.prims.chunks(100).map(<[Triangle]>::to_vec).collect();
+        let objects: Vec<Object> = chunks
+            .iter()
+            .map(|c| {
+                Object::build(c, TriBvh8::build_for_tracing)
+                    .unwrap()
+                    .shared()
+            })
+            .collect();
+        let instances: Vec<Instance> = (0..objects.len() as u32)
+            .map(|object| Instance {
+                object,
+                transform: Affine3A::IDENTITY,
+            })
+            .collect();
+        rt_testkit::conformance::assert_conforms(&scene, |_| {
+            InstanceBvh::build(objects.clone(), &instances, BvhParams::balanced())
+        });
+    }
+}
+
+#[test]
+fn hits_name_the_instance_and_the_object_primitive() {
+    let (geometry, objects) = objects();
+    let mut rng = Rng::new(5);
+    let instances: Vec<Instance> = (0..12)
+        .map(|i| Instance {
+            object: (i % 4) as u32,
+            transform: random_transform(&mut rng, i % 2 == 1, 6.0),
+        })
+        .collect();
+    let scene = InstanceBvh::build(objects, &instances, BvhParams::balanced()).unwrap();
+    let mut hits = 0;
+    for _ in 0..2000 {
+        // From anywhere towards an instance's origin, give or take a unit.
+        let origin = rng.point_in(Vec3::splat(-12.0), Vec3::splat(12.0));
+        let aim = instances[rng.below(instances.len())].transform.translation;
+        let ray = Ray::new(origin, Vec3::from(aim) + rng.unit_vector() - origin);
+        let (Some(global), Some(local)) = (scene.intersect(&ray), scene.intersect_instance(&ray))
+        else {
+            assert!(scene.intersect_instance(&ray).is_none());
+            continue;
+        };
+        hits += 1;
+        let inst = instances[local.instance as usize];
+        assert_eq!(
+            scene.first_primitive(local.instance) + local.hit.prim,
+            global.prim
+        );
+        assert_eq!(local.hit.t, global.t);
+        // The object's primitive, moved by the instance's transform, is hit there.
+        let tri = geometry[inst.object as usize][local.hit.prim as usize];
+        let world = Triangle {
+            v: tri.v.map(|p| inst.transform.transform_point3(p)),
+        };
+        let h = world
+            .intersect_watertight(&ray)
+            .expect("the named primitive is hit");
+        assert!(
+            (h.t - global.t).abs() <= 1e-4 * h.t.max(1.0),
+            "{h:?} {global:?}"
+        );
+    }
+    assert!(hits > 1000, "{hits}");
+}
+
+#[test]
+fn moving_instances_refit_or_rebuild_the_top_level() {
+    let (geometry, objects) = objects();
+    let mut rng = Rng::new(8);
+    let instances: Vec<Instance> = (0..30)
+        .map(|i| Instance {
+            object: (i % 4) as u32,
+            transform: random_transform(&mut rng, false, 8.0),
+        })
+        .collect();
+    for update in [TopUpdate::Refit, TopUpdate::Rebuild] {
+        let mut scene =
+            InstanceBvh::build(objects.clone(), &instances, BvhParams::balanced()).unwrap();
+        let moved: Vec<Affine3A> = (0..30)
+            .map(|i| random_transform(&mut rng, i % 3 == 0, 12.0))
+            .collect();
+        scene.set_transforms(&moved, update).unwrap();
+        let now: Vec<Instance> = instances
+            .iter()
+            .zip(&moved)
+            .map(|(i, &transform)| Instance { transform, ..*i })
+            .collect();
+        assert_eq!(scene.instances(), &now[..]);
+        let flat = Scene::new("moved", flatten(&geometry, &now));
+        let once = std::cell::RefCell::new(Some(scene));
+        let report = check_scene(
+            &flat,
+            |_| Ok::<_, BuildError>(once.borrow_mut().take().unwrap()),
+            Tolerance::TRANSFORMED,
+        )
+        .unwrap();
+        assert!(
+            report.is_ok(),
+            "{update:?}: {:?}",
+            report.mismatches.first().map(ToString::to_string)
+        );
+        assert_general_rays_agree(&report);
+    }
+}
+
+#[test]
+fn a_deforming_object_refits_its_structure_and_the_top_level() {
+    let geometry = scenes::tessellated_sphere(500, Vec3::ZERO, 1.0);
+    let objects = vec![Object::build(&geometry, TriBvh8::build_for_tracing).unwrap()];
+    let instances: Vec<Instance> = (0..5)
+        .map(|i| Instance {
+            object: 0,
+            transform: Affine3A::from_translation(Vec3::new(3.0 * i as f32, 0.0, 0.0)),
+        })
+        .collect();
+    let mut scene: InstanceBvh<TriBvh8> =
+        InstanceBvh::build(objects, &instances, BvhParams::balanced()).unwrap();
+    // A ripple that also stretches the object to twice its height.
+    let rippled: Vec<Triangle> = geometry
+        .iter()
+        .map(|t| Triangle {
+            v: t.v
+                .map(|p| Vec3::new(p.x, 2.0 * p.y + 0.2 * (5.0 * p.x).sin(), p.z)),
+        })
+        .collect();
+    scene.refit_object(0, &rippled, TopUpdate::Refit).unwrap();
+    scene.validate().unwrap();
+    let flat = Scene::new("rippled", flatten(&[rippled.clone()], &instances));
+    let once = std::cell::RefCell::new(Some(scene));
+    let report = check_scene(
+        &flat,
+        |_| Ok::<_, BuildError>(once.borrow_mut().take().unwrap()),
+        Tolerance::TRANSFORMED,
+    )
+    .unwrap();
+    assert!(
+        report.is_ok(),
+        "{:?}",
+        report.mismatches.first().map(ToString::to_string)
+    );
+    // Bad refits leave the scene unchanged.
+    let mut scene: InstanceBvh<TriBvh8> = InstanceBvh::build(
+        vec![Object::build(&geometry, TriBvh8::build_for_tracing).unwrap()],
+        &instances,
+        BvhParams::balanced(),
+    )
+    .unwrap();
+    let probe = Ray::new(Vec3::new(0.1, 0.1, -5.0), Vec3::Z);
+    let before = scene.intersect(&probe);
+    assert!(before.is_some());
+    let mut bad = rippled.clone();
+    bad[7].v[2].z = f32::INFINITY;
+    assert_eq!(
+        scene.refit_object(0, &bad, TopUpdate::Refit),
+        Err(BuildError::NonFinite { prim: 7 })
+    );
+    assert!(
+        scene
+            .refit_object(0, &rippled[1..], TopUpdate::Rebuild)
+            .unwrap_err()
+            .to_string()
+            .contains("primitive count")
+    );
+    assert!(
+        scene
+            .refit_object(3, &rippled, TopUpdate::Refit)
+            .unwrap_err()
+            .to_string()
+            .contains("object")
+    );
+    assert_eq!(scene.intersect(&probe), before);
+    scene.validate().unwrap();
+    // A structure that cannot be refit through the trait is a compile error, not a run-time one.
+    fn refits<O: Refit<Triangle>>() {}
+    refits::<TriBvh8>();
+}
+
+#[test]
+fn bad_instances_get_clear_errors() {
+    let (_, objects) = objects();
+    let build = |t: Affine3A, object: u32| {
+        InstanceBvh::build(
+            objects.clone(),
+            &[Instance {
+                object,
+                transform: t,
+            }],
+            BvhParams::balanced(),
+        )
+    };
+    let singular = build(Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0)), 0).unwrap_err();
+    assert!(singular.to_string().contains("invertible"), "{singular}");
+    let mut nan = Affine3A::IDENTITY;
+    nan.translation.y = f32::NAN;
+    assert!(build(nan, 0).unwrap_err().to_string().contains("finite"));
+    let inf = Affine3A::from_scale(Vec3::splat(f32::INFINITY));
+    assert!(build(inf, 0).is_err());
+    let missing = build(Affine3A::IDENTITY, 9).unwrap_err();
+    assert!(missing.to_string().contains("object"), "{missing}");
+    let far = build(Affine3A::from_translation(Vec3::splat(1e19)), 0).unwrap_err();
+    assert!(matches!(far, BuildError::OutOfRange { .. }), "{far}");
+    // Moving: a count mismatch or a singular transform leaves the scene as it was.
+    let mut scene = build(Affine3A::IDENTITY, 0).unwrap();
+    let probe = Ray::new(Vec3::new(0.1, 0.2, -5.0), Vec3::Z);
+    let before = scene.intersect(&probe);
+    assert!(before.is_some());
+    assert!(scene.set_transforms(&[], TopUpdate::Refit).is_err());
+    assert!(
+        scene
+            .set_transforms(&[Affine3A::from_scale(Vec3::ZERO)], TopUpdate::Rebuild)
+            .is_err()
+    );
+    assert_eq!(scene.intersect(&probe), before);
+    // No instances, and instances of an empty object: a scene that misses every ray.
+    let empty = InstanceBvh::build(objects.clone(), &[], BvhParams::balanced()).unwrap();
+    assert!(empty.intersect(&probe).is_none());
+    let nothing = vec![
+        Object::build(&[] as &[Triangle], TriBvh8::build_for_tracing)
+            .unwrap()
+            .shared(),
+    ];
+    let hollow = InstanceBvh::build(
+        nothing,
+        &[Instance {
+            object: 0,
+            transform: Affine3A::IDENTITY,
+        }],
+        BvhParams::balanced(),
+    )
+    .unwrap();
+    assert!(hollow.intersect(&probe).is_none());
+    hollow.validate().unwrap();
+}
