@@ -179,7 +179,12 @@ fn thousands_of_instances_of_one_small_object() {
             }
         })
         .collect();
-    let report = conforms_flattened("thousands", &objects, std::slice::from_ref(&object), &instances);
+    let report = conforms_flattened(
+        "thousands",
+        &objects,
+        std::slice::from_ref(&object),
+        &instances,
+    );
     eprintln!(
         "thousands: {} rays, {} hits, excused {:?}, max |dt| {}",
         report.rays, report.hits, report.tolerated_by_kind, report.max_dt
@@ -329,7 +334,10 @@ fn a_deforming_object_refits_its_structure_and_the_top_level() {
         .collect();
     scene.refit_object(0, &rippled, TopUpdate::Refit).unwrap();
     scene.validate().unwrap();
-    let flat = Scene::new("rippled", flatten(std::slice::from_ref(&rippled), &instances));
+    let flat = Scene::new(
+        "rippled",
+        flatten(std::slice::from_ref(&rippled), &instances),
+    );
     let once = std::cell::RefCell::new(Some(scene));
     let report = check_scene(
         &flat,

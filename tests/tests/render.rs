@@ -323,3 +323,53 @@ fn render_command_writes_png_and_stats() {
     assert!(xtask::render::parse_size("64").is_err());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn chess_renders_alike_flat_per_piece_and_instanced() {
+    use xtask::render::{Objects, RenderArgs, render as run};
+    let dir = std::env::temp_dir().join(format!("rt-objects-{}", std::process::id()));
+    let image = |objects: Objects, accel: &str| {
+        let args = RenderArgs {
+            size: Some((160, 120)),
+            out: Some(dir.join(format!("chess-{objects:?}-{accel}.png"))),
+            accel: accel.into(),
+            objects,
+            quiet: true,
+            ..Default::default()
+        };
+        run(&args).unwrap_or_else(|e| panic!("{e}"))
+    };
+    let flat = image(Objects::Flat, "bvh8-tri");
+    // Per piece, untransformed: bit for bit the flat image, whatever each object's structure.
+    for accel in ["bvh8-tri", "brute", "kd", "grid"] {
+        let pieces = image(Objects::Pieces, accel);
+        assert_eq!(pieces.image.pixels, flat.image.pixels, "{accel}");
+        assert_eq!(pieces.stats.shadow, flat.stats.shadow, "{accel}");
+        assert!(pieces.line().contains("per piece"));
+    }
+    // Instanced: rays carried into each piece's space round differently, so a few pixels on
+    // silhouettes and shadow edges may differ; the image is otherwise the same.
+    let instanced = image(Objects::Instanced, "bvh8-tri");
+    let px = flat.image.pixels.len();
+    let differ: Vec<f32> = flat
+        .image
+        .pixels
+        .iter()
+        .zip(&instanced.image.pixels)
+        .map(|(a, b)| (*a - *b).abs().max_element())
+        .filter(|&d| d > 0.0)
+        .collect();
+    let visible = differ.iter().filter(|&&d| d > 2.0 / 255.0).count();
+    eprintln!("instanced: {} of {px} pixels differ, {visible} by more than 2/255", differ.len());
+    assert!(visible * 100 <= px, "{visible} of {px} pixels differ visibly");
+    // Other scenes have no objects to speak of.
+    let err = run(&RenderArgs {
+        scene: "scene.nff".into(),
+        objects: Objects::Instanced,
+        quiet: true,
+        ..Default::default()
+    })
+    .err()
+    .unwrap();
+    assert!(err.contains("chess"), "{err}");
+}

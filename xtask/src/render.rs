@@ -3,9 +3,12 @@
 
 use crate::registry;
 use crate::run::{bar, pool, spinner};
+use rt_accel_bvh::{BvhParams, Instance, InstanceBvh, Object};
 use rt_geom::{Accel, Hit, Ray, Triangle};
 use rt_packet::PacketAccel;
-use rt_shade::{Camera, PrimaryPackets, Projection, RayStats, RenderOptions, Scene, ShadeOptions};
+use rt_shade::{
+    Camera, PrimaryPackets, Projection, RayStats, RenderOptions, Scene, SceneObjects, ShadeOptions,
+};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -16,9 +19,15 @@ pub struct RenderArgs {
     /// `chess` (built in), or an .obj or .nff file.
     #[arg(long, default_value = "chess")]
     pub scene: String,
-    /// Structure name (`cargo xtask accels`).
+    /// Structure name (`cargo xtask accels`); with `--objects pieces|instanced`, the structure
+    /// of each object.
     #[arg(long, default_value = "bvh8")]
     pub accel: String,
+    /// The chess scene as one structure over all triangles (`flat`), or two-level: the board
+    /// and each piece an object with its own structure under a top-level BVH (`pieces`), or
+    /// one object per piece shape placed by 32 instances (`instanced`).
+    #[arg(long, value_enum, default_value_t = Objects::Flat)]
+    pub objects: Objects,
     /// Image size WxH (default: the scene's own; chess 800x600, NFF 512x512).
     #[arg(long, value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
@@ -71,6 +80,18 @@ impl Default for RenderArgs {
     }
 }
 
+/// `--objects`: how the scene's geometry is organised.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Objects {
+    /// One structure over every primitive.
+    Flat,
+    /// Each chess piece and the board an object with its own structure, under a top level.
+    Pieces,
+    /// One object per chess piece shape, placed by instances under a top level.
+    Instanced,
+}
+
 /// The `--stats` file.
 #[derive(Clone, Debug, Serialize)]
 pub struct RenderStats {
@@ -89,6 +110,8 @@ pub struct RenderStats {
     pub build_seconds: f64,
     /// Whether the eye rays went through the structure's packet path (one packet per tile).
     pub eye_packets: bool,
+    /// `--objects`.
+    pub objects: Objects,
 }
 
 /// A finished render: where the PNG went, and the statistics.
@@ -105,12 +128,17 @@ impl RenderSummary {
         let s = &self.stats;
         let rays = s.eye_rays + s.reflected + s.refracted + s.shadow;
         format!(
-            "{} {}x{} with {}: {} eye rays{} ({} hit), {} reflected, {} refracted, {} shadow; \
+            "{} {}x{} with {}{}: {} eye rays{} ({} hit), {} reflected, {} refracted, {} shadow; \
              build {:.3} s, trace {:.3} s ({:.2} Mrays/s) -> {}",
             s.scene,
             s.width,
             s.height,
             s.accel,
+            match s.objects {
+                Objects::Flat => "",
+                Objects::Pieces => " per piece under a top level",
+                Objects::Instanced => " per piece shape, 33 instances under a top level",
+            },
             s.eye_rays,
             if s.eye_packets {
                 " in 16x16 packets"
@@ -143,7 +171,26 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
 pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
     let entry = registry::find(&args.accel).ok_or_else(|| registry::unknown(&args.accel))?;
     let load = (!args.quiet).then(|| spinner(format!("loading {}", args.scene)));
-    let mut scene = rt_shade::load_scene(&args.scene).map_err(|e| e.to_string())?;
+    let (mut scene, objects) = match (args.objects, args.scene.as_str()) {
+        (Objects::Flat, _) => (
+            rt_shade::load_scene(&args.scene).map_err(|e| e.to_string())?,
+            None,
+        ),
+        (form, "chess") => {
+            let form = match form {
+                Objects::Instanced => rt_shade::ChessForm::Instanced,
+                _ => rt_shade::ChessForm::Pieces,
+            };
+            let (scene, objects) = rt_shade::chess_objects(form);
+            (scene, Some(objects))
+        }
+        (_, other) => {
+            return Err(format!(
+                "--objects pieces and instanced are forms of the chess scene (--scene chess), \
+                 not of {other}"
+            ));
+        }
+    };
     if let Some(pb) = load {
         pb.finish_and_clear();
     }
@@ -189,6 +236,13 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
         .collect();
     let (single, packets): (Option<Box<dyn Accel>>, Option<Box<dyn PacketAccel>>) =
         match (entry.packets, triangles) {
+            _ if objects.is_some() => {
+                let objects = objects.as_ref().expect("two-level");
+                (
+                    Some(pool.install(|| build_two_level(entry, objects))?),
+                    None,
+                )
+            }
             (Some(build), Some(tris)) if !args.no_packets => {
                 let packets = pool
                     .install(|| build(&tris))
@@ -262,6 +316,7 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
         primitives: scene.shapes.len(),
         build_seconds,
         eye_packets: packets.is_some(),
+        objects: args.objects,
     };
     if let Some(path) = &args.stats {
         let json = serde_json::to_string_pretty(&stats).map_err(|e| e.to_string())?;
@@ -273,6 +328,29 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
         image: rendered.image,
         warnings: scene.render_warnings(),
     })
+}
+
+/// A two-level structure: each object built with `entry`, a top-level BVH over the instances.
+pub fn build_two_level(
+    entry: &registry::AccelEntry,
+    objects: &SceneObjects,
+) -> Result<Box<dyn Accel>, String> {
+    let built: Vec<Object<Box<dyn Accel>>> = objects
+        .objects
+        .iter()
+        .map(|shapes| {
+            let accel = entry.build_any(shapes)?;
+            Object::new(shapes, accel).map_err(|e| e.to_string())
+        })
+        .collect::<Result<_, String>>()?;
+    let instances: Vec<Instance> = objects
+        .instances
+        .iter()
+        .map(|&(object, transform)| Instance { object, transform })
+        .collect();
+    let top = InstanceBvh::build(built, &instances, BvhParams::balanced())
+        .map_err(|e| format!("top level: {e}"))?;
+    Ok(Box::new(top))
 }
 
 /// Applies `--orthographic` and `--aperture` to the scene's camera.

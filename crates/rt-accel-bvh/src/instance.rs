@@ -40,8 +40,14 @@ impl<O: Accel> Object<O> {
         build: impl FnOnce(&[P]) -> Result<O, BuildError>,
     ) -> Result<Self, BuildError> {
         check_primitives(prims, u32::MAX as usize - 1)?;
+        Self::new(prims, build(prims)?)
+    }
+
+    /// The object over `prims` whose structure `accel` (built over them) is.
+    pub fn new<P: Primitive>(prims: &[P], accel: O) -> Result<Self, BuildError> {
+        check_primitives(prims, u32::MAX as usize - 1)?;
         Ok(Self {
-            accel: build(prims)?,
+            accel,
             bounds: prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds())),
             primitives: prims.len() as u32,
         })

@@ -2,8 +2,8 @@
 //! table, 32 lathed pieces of about 100 triangles each (smooth normals from the lathe), the
 //! white king, queen and bishops in glass, lit by two lights. Needs no files.
 
-use crate::{Camera, Material, PointLight, Scene};
-use glam::Vec3;
+use crate::{Camera, Material, PointLight, Scene, SceneObjects};
+use glam::{Affine3A, Vec3, Vec3A};
 use rt_geom::Triangle;
 
 /// Scale of the pieces (profiles are given for a king 1.1 squares tall).
@@ -88,8 +88,28 @@ enum Piece {
     King,
 }
 
-/// The chess scene (4:3 view).
+/// The chess scene (4:3 view), one flat list of triangles.
 pub fn chess() -> Scene {
+    chess_objects(ChessForm::Pieces).0
+}
+
+/// The forms the chess scene takes for two-level ray tracing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ChessForm {
+    /// The board (squares, frame and table) and each of the 32 pieces an object of its own,
+    /// in world space, each placed once by the identity: the bounding-volume argument's
+    /// "board and 32 boxes". Flattened, exactly [`chess`].
+    Pieces,
+    /// The board and one object per piece shape (pawn, rook, knight, bishop, queen, king)
+    /// around the origin; 33 instances translate them to their squares (the black pieces
+    /// turned half a turn to face white).
+    Instanced,
+}
+
+/// The chess scene as objects and instances ([`ChessForm`]), and the same scene flattened:
+/// the world-space triangles in the order of the instances, with their materials and normals,
+/// for shading by global primitive id.
+pub fn chess_objects(form: ChessForm) -> (Scene, SceneObjects) {
     let camera = Camera::perspective(
         Vec3::new(-5.0, 7.5, -10.5),
         Vec3::new(0.3, 0.3, 0.2),
@@ -170,10 +190,16 @@ pub fn chess() -> Scene {
         s.add_quad([a + down, b + down, b, a], out, frame);
     }
     rect_y(&mut s, (-20.0, -20.0), (20.0, 20.0), bottom, table);
+    let mut objects = SceneObjects {
+        objects: vec![s.shapes.clone()],
+        instances: vec![(0, Affine3A::IDENTITY)],
+    };
 
-    // Pieces.
+    // Pieces: each back-rank piece, then the pawn in front of it, white then black.
     use Piece::*;
     let back = [Rook, Knight, Bishop, Queen, King, Bishop, Knight, Rook];
+    // The instanced form's objects: one per piece shape, standing at the origin facing +z.
+    let mut shapes: Vec<(Piece, Scene)> = Vec::new();
     for (file, &kind) in back.iter().enumerate() {
         for (white, rank, pawn_rank) in [(true, 0, 1), (false, 7, 6)] {
             let glass_piece = white && matches!(kind, King | Queen | Bishop);
@@ -184,18 +210,65 @@ pub fn chess() -> Scene {
             } else {
                 ebony
             };
-            let facing = if white { 1.0 } else { -1.0 };
-            piece(&mut s, kind, square_centre(file, rank), facing, m);
-            piece(
-                &mut s,
-                Pawn,
-                square_centre(file, pawn_rank),
-                facing,
-                if white { ivory } else { ebony },
+            let pawn_m = if white { ivory } else { ebony };
+            for (kind, at, m) in [
+                (kind, square_centre(file, rank), m),
+                (Pawn, square_centre(file, pawn_rank), pawn_m),
+            ] {
+                match form {
+                    ChessForm::Pieces => {
+                        let start = s.shapes.len();
+                        piece(&mut s, kind, at, if white { 1.0 } else { -1.0 }, m);
+                        objects
+                            .instances
+                            .push((objects.objects.len() as u32, Affine3A::IDENTITY));
+                        objects.objects.push(s.shapes[start..].to_vec());
+                    }
+                    ChessForm::Instanced => {
+                        let object = match shapes.iter().position(|(k, _)| *k == kind) {
+                            Some(k) => k,
+                            None => {
+                                let mut proto = Scene::new("piece", camera);
+                                piece(&mut proto, kind, Vec3::ZERO, 1.0, 0);
+                                objects.objects.push(proto.shapes.clone());
+                                shapes.push((kind, proto));
+                                shapes.len() - 1
+                            }
+                        };
+                        // Black pieces turn half a turn about the vertical (exactly).
+                        let turn = if white { 1.0 } else { -1.0 };
+                        let transform = Affine3A::from_cols(
+                            Vec3A::X * turn,
+                            Vec3A::Y,
+                            Vec3A::Z * turn,
+                            at.into(),
+                        );
+                        place(&mut s, &shapes[object].1, transform, m);
+                        objects.instances.push((object as u32 + 1, transform));
+                    }
+                }
+            }
+        }
+    }
+    (s, objects)
+}
+
+/// Appends the triangles of `part` moved by `transform` (which keeps orientation), with
+/// material `m`; vertex normals by the inverse transpose.
+fn place(s: &mut Scene, part: &Scene, transform: Affine3A, m: u32) {
+    let normals = transform.matrix3.inverse().transpose();
+    for (shape, n) in part.shapes.iter().zip(&part.vertex_normals) {
+        if let Some(t) = shape.as_triangle() {
+            let moved = Triangle {
+                v: t.v.map(|p| transform.transform_point3(p)),
+            };
+            s.add(
+                moved,
+                m,
+                n.map(|n| n.map(|n| Vec3::from(normals * Vec3A::from(n)))),
             );
         }
     }
-    s
 }
 
 fn square_centre(file: usize, rank: usize) -> Vec3 {
@@ -328,6 +401,40 @@ mod tests {
             .unwrap() as u32;
         let glass_tris = s.material_of.iter().filter(|&&m| m == glass).count();
         assert!(glass_tris > 300 && glass_tris < pieces / 2, "{glass_tris}");
+    }
+
+    #[test]
+    fn the_three_forms_are_one_scene() {
+        let flat = chess();
+        let (pieces, objects) = chess_objects(ChessForm::Pieces);
+        assert_eq!(pieces.shapes, flat.shapes);
+        assert_eq!((objects.objects.len(), objects.instances.len()), (33, 33));
+        let flat_tris = flat.triangles().unwrap();
+        assert_eq!(objects.flattened_triangles(), flat_tris);
+        let (instanced, objects) = chess_objects(ChessForm::Instanced);
+        // The board and six piece shapes; every instance's shapes follow in order.
+        assert_eq!((objects.objects.len(), objects.instances.len()), (7, 33));
+        assert_eq!(
+            objects.flattened_triangles(),
+            instanced.triangles().unwrap()
+        );
+        assert_eq!(instanced.shapes.len(), flat.shapes.len());
+        assert_eq!(instanced.material_of, flat.material_of);
+        // The same surfaces: each instance's vertices match, within rounding, vertices of
+        // the same piece in the flat scene (black pieces turn half a turn, so their
+        // triangles come in another order, and their boxes split along the other diagonal).
+        let tris = instanced.triangles().unwrap();
+        let mut first = 0;
+        for &(object, _) in &objects.instances {
+            let range = first..first + objects.objects[object as usize].len();
+            first = range.end;
+            let flat_points: Vec<Vec3> =
+                flat_tris[range.clone()].iter().flat_map(|t| t.v).collect();
+            for p in tris[range].iter().flat_map(|t| t.v) {
+                let near = |q: &Vec3| (p - *q).abs().max_element() < 1e-5;
+                assert!(flat_points.iter().any(near), "{p:?}");
+            }
+        }
     }
 
     #[test]

@@ -8,10 +8,10 @@
 //! |---|---|
 //! | [`camera`] | [`Camera`]: perspective (thin lens optional) and orthographic |
 //! | [`material`] | [`Material`]: Lambert, Phong highlight, reflection, refraction, per channel |
-//! | [`scene`] | [`Scene`], [`PointLight`], [`SceneError`] |
+//! | [`scene`] | [`Scene`], [`PointLight`], [`SceneError`], [`SceneObjects`] (objects and instances) |
 //! | [`whitted`] | the recursive integrator ([`Whitted`]), its ray rules, [`RayStats`] |
 //! | [`render`](mod@render) | parallel tiles, supersampling, [`Image`] and PNG output |
-//! | [`chess`](mod@chess) | the built-in scene: a reflective board and 32 lathed pieces, some glass |
+//! | [`chess`](mod@chess) | the built-in scene: a reflective board and 32 lathed pieces, some glass; flat, per piece, or instanced ([`ChessForm`]) |
 //! | [`nff`] | Haines' NFF (the SPD scenes) |
 //! | [`obj`] | OBJ with MTL materials |
 //! | [`triangulate`](mod@triangulate) | ear clipping of concave polygons |
@@ -42,12 +42,12 @@ pub mod triangulate;
 pub mod whitted;
 
 pub use camera::{Camera, CameraFrame, Projection, ThinLens};
-pub use chess::chess;
+pub use chess::{ChessForm, chess, chess_objects};
 pub use material::Material;
 pub use nff::{load_nff, parse_nff, parse_nff_bytes};
 pub use obj::{load_obj_scene, parse_mtl, parse_obj_scene};
 pub use render::{Image, PrimaryPackets, RenderOptions, Rendered, render, render_with_packets};
-pub use scene::{PointLight, Scene, SceneError};
+pub use scene::{PointLight, Scene, SceneError, SceneObjects};
 pub use triangulate::triangulate;
 pub use whitted::{MAX_DEPTH, RayStats, ShadeOptions, Whitted};
 

@@ -1,7 +1,7 @@
 //! A renderable scene: shapes with materials and optional vertex normals, lights, a camera.
 
 use crate::{Camera, Material};
-use glam::Vec3;
+use glam::{Affine3A, Vec3};
 use rt_geom::{Aabb, Primitive, Shape, Triangle};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -44,6 +44,35 @@ pub struct Scene {
     pub vertex_normals: Vec<Option<[Vec3; 3]>>,
     /// Things the loader skipped or guessed, for the user (unknown MTL statements, ...).
     pub warnings: Vec<String>,
+}
+
+/// A scene's geometry as objects placed by instances: what two-level structures are built
+/// from. Flattened instance by instance, in order, the instances' shapes are the scene's
+/// [`Scene::shapes`], so a two-level structure's global primitive ids index the scene's
+/// materials and normals.
+#[derive(Clone, Debug, Default)]
+pub struct SceneObjects {
+    /// Each object's shapes, in the object's own space.
+    pub objects: Vec<Vec<Shape>>,
+    /// Per instance, the object and its object-to-world transform.
+    pub instances: Vec<(u32, Affine3A)>,
+}
+
+impl SceneObjects {
+    /// The instances' triangles in world space, instance by instance (shapes other than
+    /// triangles are left out).
+    pub fn flattened_triangles(&self) -> Vec<Triangle> {
+        self.instances
+            .iter()
+            .flat_map(|&(object, t)| {
+                self.objects[object as usize].iter().filter_map(move |s| {
+                    s.as_triangle().map(|tri| Triangle {
+                        v: tri.v.map(|p| t.transform_point3(p)),
+                    })
+                })
+            })
+            .collect()
+    }
 }
 
 /// Why a scene could not be loaded or used. Names the file and the 1-based line when there is one.
