@@ -360,8 +360,14 @@ fn chess_renders_alike_flat_per_piece_and_instanced() {
         .filter(|&d| d > 0.0)
         .collect();
     let visible = differ.iter().filter(|&&d| d > 2.0 / 255.0).count();
-    eprintln!("instanced: {} of {px} pixels differ, {visible} by more than 2/255", differ.len());
-    assert!(visible * 100 <= px, "{visible} of {px} pixels differ visibly");
+    eprintln!(
+        "instanced: {} of {px} pixels differ, {visible} by more than 2/255",
+        differ.len()
+    );
+    assert!(
+        visible * 100 <= px,
+        "{visible} of {px} pixels differ visibly"
+    );
     // Other scenes have no objects to speak of.
     let err = run(&RenderArgs {
         scene: "scene.nff".into(),
@@ -372,4 +378,36 @@ fn chess_renders_alike_flat_per_piece_and_instanced() {
     .err()
     .unwrap();
     assert!(err.contains("chess"), "{err}");
+}
+
+#[test]
+fn render_counts_the_tests_per_ray() {
+    use xtask::render::{Objects, RenderArgs, render as run};
+    let dir = std::env::temp_dir().join(format!("rt-count-{}", std::process::id()));
+    let counted = |objects: Objects, accel: &str| {
+        let args = RenderArgs {
+            size: Some((48, 36)),
+            out: Some(dir.join(format!("count-{objects:?}-{accel}.png"))),
+            accel: accel.into(),
+            objects,
+            count: true,
+            quiet: true,
+            ..Default::default()
+        };
+        let s = run(&args).unwrap_or_else(|e| panic!("{e}")).stats;
+        (s.node_tests.unwrap(), s.prim_tests.unwrap(), s.rays())
+    };
+    let (nodes, prims, rays) = counted(Objects::Flat, "brute");
+    // Brute force tests no box; each closest-hit ray tests every triangle (shadow rays may
+    // stop early).
+    assert_eq!(nodes, 0);
+    assert!(prims > rays * 1000 && prims <= rays * 4082, "{prims} tests for {rays} rays");
+    let (box_nodes, box_prims, _) = counted(Objects::Pieces, "brute");
+    let (bvh_nodes, bvh_prims, _) = counted(Objects::Pieces, "bvh");
+    let (flat_nodes, flat_prims, _) = counted(Objects::Flat, "bvh8-tri");
+    // One box per piece: some box tests, far fewer primitive tests; boxes inside the pieces
+    // fewer still.
+    assert!(box_nodes > 0 && box_prims * 5 < prims, "{box_prims} vs {prims}");
+    assert!(bvh_prims < box_prims && bvh_nodes > box_nodes);
+    assert!(flat_nodes > 0 && flat_prims * 50 < prims);
 }

@@ -138,6 +138,13 @@ fn main() -> ExitCode {
             return code;
         }
     }
+    if let Command::Render(args) = &cli.command {
+        if args.count {
+            if let Some(code) = native::rerun_counting() {
+                return code;
+            }
+        }
+    }
     match run(cli.command) {
         Ok(code) => code,
         Err(e) => {

@@ -63,6 +63,10 @@ pub struct RenderArgs {
     /// Write ray statistics as JSON.
     #[arg(long)]
     pub stats: Option<PathBuf>,
+    /// Count bounding-volume and primitive tests per ray (runs a build with the `counters`
+    /// feature; eye rays then go one by one, so every test is counted).
+    #[arg(long)]
+    pub count: bool,
     /// No progress bars (tests).
     #[arg(skip)]
     pub quiet: bool,
@@ -112,6 +116,17 @@ pub struct RenderStats {
     pub eye_packets: bool,
     /// `--objects`.
     pub objects: Objects,
+    /// Bounding-volume (node, cell) tests while tracing, with `--count`.
+    pub node_tests: Option<u64>,
+    /// Primitive tests while tracing, with `--count`.
+    pub prim_tests: Option<u64>,
+}
+
+impl RenderStats {
+    /// Every ray traced: eye, reflected, refracted, shadow.
+    pub fn rays(&self) -> u64 {
+        self.eye_rays + self.reflected + self.refracted + self.shadow
+    }
 }
 
 /// A finished render: where the PNG went, and the statistics.
@@ -126,10 +141,18 @@ impl RenderSummary {
     /// One line for the terminal.
     pub fn line(&self) -> String {
         let s = &self.stats;
-        let rays = s.eye_rays + s.reflected + s.refracted + s.shadow;
+        let rays = s.rays();
+        let counted = match (s.node_tests, s.prim_tests) {
+            (Some(n), Some(p)) => format!(
+                "; per ray {:.1} box tests, {:.1} primitive tests",
+                n as f64 / rays.max(1) as f64,
+                p as f64 / rays.max(1) as f64
+            ),
+            _ => String::new(),
+        };
         format!(
             "{} {}x{} with {}{}: {} eye rays{} ({} hit), {} reflected, {} refracted, {} shadow; \
-             build {:.3} s, trace {:.3} s ({:.2} Mrays/s) -> {}",
+             build {:.3} s, trace {:.3} s ({:.2} Mrays/s){} -> {}",
             s.scene,
             s.width,
             s.height,
@@ -152,6 +175,7 @@ impl RenderSummary {
             s.build_seconds,
             s.seconds,
             rays as f64 / s.seconds.max(1e-9) / 1e6,
+            counted,
             self.out.display()
         )
     }
@@ -228,6 +252,7 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
         ))
     });
     let start = Instant::now();
+    let counting = args.count && rt_geom::counters::ENABLED;
     // Eye rays go through the structure's packet path when it has one (triangle scenes).
     let triangles: Option<Vec<Triangle>> = scene
         .shapes
@@ -243,7 +268,7 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
                     None,
                 )
             }
-            (Some(build), Some(tris)) if !args.no_packets => {
+            (Some(build), Some(tris)) if !args.no_packets && !counting => {
                 let packets = pool
                     .install(|| build(&tris))
                     .map_err(|e| format!("{}: {e}", entry.name))?;
@@ -277,6 +302,7 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
             p.intersect_group(rays, out);
         }
     };
+    pool.broadcast(|_| rt_geom::counters::take());
     let rendered = pool
         .install(|| {
             rt_shade::render_with_packets(
@@ -289,6 +315,10 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
         })
         .map_err(|e| e.to_string())?;
     progress.finish_and_clear();
+    let mut counts = rt_geom::counters::Counts::default();
+    for c in pool.broadcast(|_| rt_geom::counters::take()) {
+        counts += c;
+    }
 
     let out = args
         .out
@@ -317,6 +347,8 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
         build_seconds,
         eye_packets: packets.is_some(),
         objects: args.objects,
+        node_tests: counting.then_some(counts.nodes),
+        prim_tests: counting.then_some(counts.prims),
     };
     if let Some(path) = &args.stats {
         let json = serde_json::to_string_pretty(&stats).map_err(|e| e.to_string())?;

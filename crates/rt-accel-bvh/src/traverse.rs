@@ -31,6 +31,7 @@ impl<P> Bvh<P> {
         }
         let boxes = SlabRay::new(ray);
         let mut r = *ray;
+        rt_geom::counters::nodes(1);
         entry(&boxes, &self.nodes[0], r.tmin, r.tmax)?;
         let mut best: Option<Hit> = None;
         // The build caps depth at MAX_DEPTH, so the far children pending never exceed it.
@@ -44,6 +45,7 @@ impl<P> Bvh<P> {
                     return best;
                 }
             } else {
+                rt_geom::counters::nodes(2);
                 let (a, b) = (index + 1, node.offset as usize);
                 let ta = entry(&boxes, &self.nodes[a], r.tmin, r.tmax);
                 let tb = entry(&boxes, &self.nodes[b], r.tmin, r.tmax);

@@ -167,6 +167,7 @@ impl<P: Primitive> Walk<'_, P> {
         let mut next: [f32; 3] = std::array::from_fn(|a| self.next_wall(lv, a, idx[a]));
         let mut entry = t0;
         loop {
+            rt_geom::counters::nodes(1);
             let (exit, axis) = first_wall(&next);
             let c = lv.linear(idx);
             let child = if lv.first_child == NO_CHILD {

@@ -163,6 +163,7 @@ pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     let mut sp = 0;
     let mut i = 0usize;
     loop {
+        rt_geom::counters::nodes(1);
         if !nodes[i].is_leaf() {
             let (first, second, step) = tree.at(&data, i, t0, t1);
             match step {
@@ -218,6 +219,7 @@ pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     impl<T: SplitPlanes, P: Primitive> Walk<'_, T, P> {
         /// Returns true when the search is over (any-hit found).
         fn visit<const ANY_HIT: bool>(&mut self, i: usize, t0: f32, t1: f32) -> bool {
+            rt_geom::counters::nodes(1);
             let node = &self.tree.nodes()[i];
             if node.is_leaf() {
                 let indices = self.tree.indices();

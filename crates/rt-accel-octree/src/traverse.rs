@@ -93,6 +93,7 @@ impl<P: Primitive> Walk<'_, P> {
     }
 
     fn recursive<const ANY_HIT: bool>(&mut self, r: ChildRef, cell: &Aabb) -> bool {
+        rt_geom::counters::nodes(1);
         if r.is_leaf() {
             return self.leaf::<ANY_HIT>(r.index());
         }
@@ -150,6 +151,7 @@ impl<P: Primitive> Walk<'_, P> {
         };
         let mut top = 0;
         loop {
+            rt_geom::counters::nodes(1);
             if cur.node.is_leaf() {
                 if self.leaf::<ANY_HIT>(cur.node.index()) {
                     return true;

@@ -128,6 +128,7 @@ impl TriangleSoa {
                 lanes &= !(1 << l);
             }
         }
+        crate::counters::prims(lanes.count_ones());
         // Row `j` straight from the leaf (the ray's axes pick which rows are read).
         let row = |j: usize| L::load(&leaf[j * count + k..]);
         let (may_hit, sheared) = watertight_rows(row, r);

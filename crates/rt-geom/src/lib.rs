@@ -36,6 +36,7 @@ pub mod aabb;
 pub mod accel;
 pub mod brute;
 pub mod cone;
+pub mod counters;
 pub mod leaf_prims;
 pub mod mesh;
 pub mod primitive;

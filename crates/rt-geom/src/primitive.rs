@@ -91,6 +91,7 @@ impl Primitive for Triangle {
 
     #[inline]
     fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
+        crate::counters::prims(1);
         self.intersect_watertight(ray)
     }
 
@@ -137,6 +138,7 @@ impl Primitive for Sphere {
 
     #[inline]
     fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
+        crate::counters::prims(1);
         Sphere::intersect(self, ray)
     }
 

@@ -131,6 +131,7 @@ impl Primitive for Cone {
 
     #[inline]
     fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
+        crate::counters::prims(1);
         Cone::intersect(self, ray)
     }
 

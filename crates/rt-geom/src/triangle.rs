@@ -699,6 +699,7 @@ fn test_in_batches<const ANY_HIT: bool>(
         n += 1;
         if n == 4 {
             n = 0;
+            crate::counters::prims(4);
             let lanes: [&Triangle; 4] = batch.map(|p| &tris[p as usize]);
             let w: TriangleLanes =
                 std::array::from_fn(|j| f32x4::from(lanes.map(|t| t.v[j / 3][j % 3])));
@@ -715,6 +716,7 @@ fn test_in_batches<const ANY_HIT: bool>(
             }
         }
     }
+    crate::counters::prims(n as u32);
     for &p in &batch[..n] {
         if let Some(h) = tris[p as usize].intersect_watertight(ray) {
             if keep_hit::<ANY_HIT>(h, p, &mut ray.tmax, best) {

@@ -137,6 +137,10 @@ pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: 
                     }
                 } else {
                     let node = &nodes[child as usize];
+                    if rt_geom::counters::ENABLED {
+                        let used = (0..N).filter(|&l| node.child(l) != u32::MAX).count();
+                        rt_geom::counters::nodes(used as u32);
+                    }
                     let (entered, t) = node.entries(&slab, r.tmin, r.tmax);
                     let mut mask = entered & node.used_mask();
                     if mask != 0 {
