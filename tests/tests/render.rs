@@ -401,13 +401,58 @@ fn render_counts_the_tests_per_ray() {
     // Brute force tests no box; each closest-hit ray tests every triangle (shadow rays may
     // stop early).
     assert_eq!(nodes, 0);
-    assert!(prims > rays * 1000 && prims <= rays * 4082, "{prims} tests for {rays} rays");
+    assert!(
+        prims > rays * 1000 && prims <= rays * 4082,
+        "{prims} tests for {rays} rays"
+    );
     let (box_nodes, box_prims, _) = counted(Objects::Pieces, "brute");
     let (bvh_nodes, bvh_prims, _) = counted(Objects::Pieces, "bvh");
     let (flat_nodes, flat_prims, _) = counted(Objects::Flat, "bvh8-tri");
     // One box per piece: some box tests, far fewer primitive tests; boxes inside the pieces
     // fewer still.
-    assert!(box_nodes > 0 && box_prims * 5 < prims, "{box_prims} vs {prims}");
+    assert!(
+        box_nodes > 0 && box_prims * 5 < prims,
+        "{box_prims} vs {prims}"
+    );
     assert!(bvh_prims < box_prims && bvh_nodes > box_nodes);
     assert!(flat_nodes > 0 && flat_prims * 50 < prims);
+}
+
+#[test]
+fn moving_chess_renders_frames_and_times_each_update() {
+    use xtask::render::RenderArgs;
+    let dir = std::env::temp_dir().join(format!("rt-frames-{}", std::process::id()));
+    let args = RenderArgs {
+        size: Some((48, 36)),
+        out: Some(dir.clone()),
+        frames: Some(3),
+        quiet: true,
+        ..Default::default()
+    };
+    // Inside: the refit structure must render the rebuilt one's image, bit for bit.
+    let times = xtask::animate::animate(&args, 3).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(times.len(), 3);
+    for t in &times {
+        assert!(t.update.iter().chain(&t.trace).all(|&s| s > 0.0), "{t:?}");
+        // Instanced: the same image up to the rounding of the transforms.
+        assert!(t.instanced_differ.1 <= 2.0 / 255.0, "{t:?}");
+        assert!(dir.join(format!("frame-{:03}.png", t.frame)).exists());
+    }
+    let table = xtask::animate::table(&times);
+    assert!(
+        table.contains("refit all") && table.contains("top level"),
+        "{table}"
+    );
+    for bad in [0, 20_000] {
+        assert!(xtask::animate::animate(&args, bad).is_err());
+    }
+    let other = RenderArgs {
+        scene: "x.nff".into(),
+        ..args
+    };
+    assert!(
+        xtask::animate::animate(&other, 2)
+            .unwrap_err()
+            .contains("chess")
+    );
 }

@@ -21,6 +21,7 @@
 //! | [`fuzz`] | the fuzz targets' properties ([`fuzz::checks`]) and `cargo xtask fuzz`, which runs them |
 //! | [`native`] | re-running `bench`/`trace` built with `-C target-cpu=native` |
 
+pub mod animate;
 pub mod bench;
 #[cfg(feature = "embree")]
 pub mod embree;

@@ -246,6 +246,11 @@ fn run(command: Command) -> Result<ExitCode, String> {
                 threads,
             })?;
         }
+        Command::Render(args) if args.frames.is_some() => {
+            let frames = args.frames.unwrap_or(1);
+            let times = xtask::animate::animate(&args, frames)?;
+            print!("{}", xtask::animate::table(&times));
+        }
         Command::Render(args) => {
             let summary = render::render(&args)?;
             for w in &summary.warnings {

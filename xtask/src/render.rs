@@ -63,6 +63,11 @@ pub struct RenderArgs {
     /// Write ray statistics as JSON.
     #[arg(long)]
     pub stats: Option<PathBuf>,
+    /// Animate the chess scene over N frames (a knight's jump, a toppling pawn, a rippling
+    /// cloth) into the folder `--out` (default target/render/chess-frames), timing each way
+    /// of updating the structure and the trace after it.
+    #[arg(long)]
+    pub frames: Option<u32>,
     /// Count bounding-volume and primitive tests per ray (runs a build with the `counters`
     /// feature; eye rays then go one by one, so every test is counted).
     #[arg(long)]
@@ -370,15 +375,18 @@ pub fn build_two_level(
     let built: Vec<Object<Box<dyn Accel>>> = objects
         .objects
         .iter()
-        .map(|shapes| {
-            let accel = entry.build_any(shapes)?;
-            Object::new(shapes, accel).map_err(|e| e.to_string())
+        .map(|o| {
+            let accel = entry.build_any(&o.shapes)?;
+            Object::new(&o.shapes, accel).map_err(|e| e.to_string())
         })
         .collect::<Result<_, String>>()?;
     let instances: Vec<Instance> = objects
         .instances
         .iter()
-        .map(|&(object, transform)| Instance { object, transform })
+        .map(|i| Instance {
+            object: i.object,
+            transform: i.transform,
+        })
         .collect();
     let top = InstanceBvh::build(built, &instances, BvhParams::balanced())
         .map_err(|e| format!("top level: {e}"))?;

@@ -2,6 +2,7 @@
 //! table, 32 lathed pieces of about 100 triangles each (smooth normals from the lathe), the
 //! white king, queen and bishops in glass, lit by two lights. Needs no files.
 
+use crate::scene::{ObjectShapes, SceneInstance};
 use crate::{Camera, Material, PointLight, Scene, SceneObjects};
 use glam::{Affine3A, Vec3, Vec3A};
 use rt_geom::Triangle;
@@ -191,15 +192,20 @@ pub fn chess_objects(form: ChessForm) -> (Scene, SceneObjects) {
     }
     rect_y(&mut s, (-20.0, -20.0), (20.0, 20.0), bottom, table);
     let mut objects = SceneObjects {
-        objects: vec![s.shapes.clone()],
-        instances: vec![(0, Affine3A::IDENTITY)],
+        objects: vec![ObjectShapes::from_scene(&s, 0..s.shapes.len())],
+        instances: vec![SceneInstance {
+            object: 0,
+            transform: Affine3A::IDENTITY,
+            material: None,
+        }],
     };
 
     // Pieces: each back-rank piece, then the pawn in front of it, white then black.
     use Piece::*;
     let back = [Rook, Knight, Bishop, Queen, King, Bishop, Knight, Rook];
     // The instanced form's objects: one per piece shape, standing at the origin facing +z.
-    let mut shapes: Vec<(Piece, Scene)> = Vec::new();
+    let mut kinds: Vec<Piece> = Vec::new();
+    let mut placed = SceneObjects::default();
     for (file, &kind) in back.iter().enumerate() {
         for (white, rank, pawn_rank) in [(true, 0, 1), (false, 7, 6)] {
             let glass_piece = white && matches!(kind, King | Queen | Bishop);
@@ -219,22 +225,25 @@ pub fn chess_objects(form: ChessForm) -> (Scene, SceneObjects) {
                     ChessForm::Pieces => {
                         let start = s.shapes.len();
                         piece(&mut s, kind, at, if white { 1.0 } else { -1.0 }, m);
+                        objects.instances.push(SceneInstance {
+                            object: objects.objects.len() as u32,
+                            transform: Affine3A::IDENTITY,
+                            material: None,
+                        });
                         objects
-                            .instances
-                            .push((objects.objects.len() as u32, Affine3A::IDENTITY));
-                        objects.objects.push(s.shapes[start..].to_vec());
+                            .objects
+                            .push(ObjectShapes::from_scene(&s, start..s.shapes.len()));
                     }
                     ChessForm::Instanced => {
-                        let object = match shapes.iter().position(|(k, _)| *k == kind) {
-                            Some(k) => k,
-                            None => {
-                                let mut proto = Scene::new("piece", camera);
-                                piece(&mut proto, kind, Vec3::ZERO, 1.0, 0);
-                                objects.objects.push(proto.shapes.clone());
-                                shapes.push((kind, proto));
-                                shapes.len() - 1
-                            }
-                        };
+                        let object = kinds.iter().position(|k| *k == kind).unwrap_or_else(|| {
+                            let mut proto = Scene::new("piece", camera);
+                            piece(&mut proto, kind, Vec3::ZERO, 1.0, 0);
+                            objects
+                                .objects
+                                .push(ObjectShapes::from_scene(&proto, 0..proto.shapes.len()));
+                            kinds.push(kind);
+                            kinds.len() - 1
+                        });
                         // Black pieces turn half a turn about the vertical (exactly).
                         let turn = if white { 1.0 } else { -1.0 };
                         let transform = Affine3A::from_cols(
@@ -243,32 +252,81 @@ pub fn chess_objects(form: ChessForm) -> (Scene, SceneObjects) {
                             Vec3A::Z * turn,
                             at.into(),
                         );
-                        place(&mut s, &shapes[object].1, transform, m);
-                        objects.instances.push((object as u32 + 1, transform));
+                        placed.instances.push(SceneInstance {
+                            object: object as u32 + 1,
+                            transform,
+                            material: Some(m),
+                        });
                     }
                 }
             }
         }
     }
+    if form == ChessForm::Instanced {
+        placed.objects = objects.objects.clone();
+        placed.flatten_into(&mut s);
+        objects.instances.extend(placed.instances);
+    }
     (s, objects)
 }
 
-/// Appends the triangles of `part` moved by `transform` (which keeps orientation), with
-/// material `m`; vertex normals by the inverse transpose.
-fn place(s: &mut Scene, part: &Scene, transform: Affine3A, m: u32) {
-    let normals = transform.matrix3.inverse().transpose();
-    for (shape, n) in part.shapes.iter().zip(&part.vertex_normals) {
-        if let Some(t) = shape.as_triangle() {
-            let moved = Triangle {
-                v: t.v.map(|p| transform.transform_point3(p)),
-            };
-            s.add(
-                moved,
-                m,
-                n.map(|n| n.map(|n| Vec3::from(normals * Vec3A::from(n)))),
-            );
+/// The instanced chess scene `t` of the way (0 to 1) through a short sequence: the white
+/// king's knight jumps from g1 to f3 over an arc, the black queen's pawn topples towards the
+/// frame and drops to the table, and a cloth beside the board ripples (a deforming object,
+/// the last one, placed by the identity). The flattened scene follows the new positions.
+pub fn chess_moving(t: f32) -> (Scene, SceneObjects) {
+    let (mut scene, mut objects) = chess_objects(ChessForm::Instanced);
+    let t = t.clamp(0.0, 1.0);
+    // Instances follow the board: 1 + 4 * file + (0 back piece, 1 pawn) white, (2, 3) black.
+    let knight = 1 + 4 * 6;
+    let pawn = 1 + 4 * 3 + 3;
+    let (from, to) = (square_centre(6, 0), square_centre(5, 2));
+    let hop = Vec3::Y * (4.0 * t * (1.0 - t)) * 1.5;
+    objects.instances[knight].transform.translation = (from.lerp(to, t) + hop).into();
+    // The pawn tips over about x through its base, then slides off the board and drops.
+    let p = &mut objects.instances[pawn];
+    let base = Vec3::from(p.transform.translation);
+    let tip = (t * 2.0).min(1.0) * std::f32::consts::FRAC_PI_2;
+    let slide = (t * 2.0 - 1.0).max(0.0);
+    let at = base + Vec3::new(0.0, -0.3 * slide * slide, (4.8 - base.z) * slide);
+    p.transform = Affine3A::from_translation(at)
+        * Affine3A::from_rotation_x(tip)
+        * Affine3A::from_mat3(p.transform.matrix3.into());
+    // The cloth: a 24 x 24 grid of quads standing beyond the board's right edge, rippling.
+    let cloth_m =
+        scene.add_material(Material::matte(Vec3::new(0.55, 0.12, 0.15)).with_highlight(0.2, 10.0));
+    let mut cloth = Scene::new("cloth", scene.camera);
+    let n = 24;
+    let phase = t * std::f32::consts::TAU;
+    let point = |i: usize, j: usize| {
+        let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
+        let wave = 0.25 * u * (6.0 * u + 4.0 * v - phase * 2.0).sin();
+        Vec3::new(5.2 + wave, -0.25 + 2.5 * v, -3.0 + 6.0 * u)
+    };
+    for i in 0..n {
+        for j in 0..n {
+            let quad = [
+                point(i, j),
+                point(i + 1, j),
+                point(i + 1, j + 1),
+                point(i, j + 1),
+            ];
+            cloth.add_quad(quad, -Vec3::X, cloth_m);
         }
     }
+    objects
+        .objects
+        .push(ObjectShapes::from_scene(&cloth, 0..cloth.shapes.len()));
+    objects.instances.push(SceneInstance {
+        object: objects.objects.len() as u32 - 1,
+        transform: Affine3A::IDENTITY,
+        material: None,
+    });
+    scene.shapes.clear();
+    scene.material_of.clear();
+    scene.vertex_normals.clear();
+    objects.flatten_into(&mut scene);
+    (scene, objects)
 }
 
 fn square_centre(file: usize, rank: usize) -> Vec3 {
@@ -425,8 +483,8 @@ mod tests {
         // triangles come in another order, and their boxes split along the other diagonal).
         let tris = instanced.triangles().unwrap();
         let mut first = 0;
-        for &(object, _) in &objects.instances {
-            let range = first..first + objects.objects[object as usize].len();
+        for inst in &objects.instances {
+            let range = first..first + objects.objects[inst.object as usize].shapes.len();
             first = range.end;
             let flat_points: Vec<Vec3> =
                 flat_tris[range.clone()].iter().flat_map(|t| t.v).collect();
@@ -434,6 +492,19 @@ mod tests {
                 let near = |q: &Vec3| (p - *q).abs().max_element() < 1e-5;
                 assert!(flat_points.iter().any(near), "{p:?}");
             }
+        }
+    }
+
+    #[test]
+    fn the_moving_scene_keeps_its_topology() {
+        let (start, objects) = chess_moving(0.0);
+        assert_eq!(objects.flattened_triangles(), start.triangles().unwrap());
+        for t in [0.3, 0.7, 1.0] {
+            let (s, o) = chess_moving(t);
+            s.check().unwrap();
+            assert_eq!(s.shapes.len(), start.shapes.len());
+            assert_eq!(o.instances.len(), objects.instances.len());
+            assert_ne!(s.shapes, start.shapes, "nothing moved at {t}");
         }
     }
 

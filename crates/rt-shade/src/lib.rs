@@ -42,12 +42,12 @@ pub mod triangulate;
 pub mod whitted;
 
 pub use camera::{Camera, CameraFrame, Projection, ThinLens};
-pub use chess::{ChessForm, chess, chess_objects};
+pub use chess::{ChessForm, chess, chess_moving, chess_objects};
 pub use material::Material;
 pub use nff::{load_nff, parse_nff, parse_nff_bytes};
 pub use obj::{load_obj_scene, parse_mtl, parse_obj_scene};
 pub use render::{Image, PrimaryPackets, RenderOptions, Rendered, render, render_with_packets};
-pub use scene::{PointLight, Scene, SceneError, SceneObjects};
+pub use scene::{ObjectShapes, PointLight, Scene, SceneError, SceneInstance, SceneObjects};
 pub use triangulate::triangulate;
 pub use whitted::{MAX_DEPTH, RayStats, ShadeOptions, Whitted};
 

@@ -1,7 +1,7 @@
 //! A renderable scene: shapes with materials and optional vertex normals, lights, a camera.
 
 use crate::{Camera, Material};
-use glam::{Affine3A, Vec3};
+use glam::{Affine3A, Vec3, Vec3A};
 use rt_geom::{Aabb, Primitive, Shape, Triangle};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -47,31 +47,80 @@ pub struct Scene {
 }
 
 /// A scene's geometry as objects placed by instances: what two-level structures are built
-/// from. Flattened instance by instance, in order, the instances' shapes are the scene's
-/// [`Scene::shapes`], so a two-level structure's global primitive ids index the scene's
-/// materials and normals.
+/// from. Flattened instance by instance, in order ([`SceneObjects::flatten_into`]), the
+/// instances' shapes are the scene's [`Scene::shapes`], so a two-level structure's global
+/// primitive ids index the scene's materials and normals.
 #[derive(Clone, Debug, Default)]
 pub struct SceneObjects {
-    /// Each object's shapes, in the object's own space.
-    pub objects: Vec<Vec<Shape>>,
-    /// Per instance, the object and its object-to-world transform.
-    pub instances: Vec<(u32, Affine3A)>,
+    /// The objects, each in its own space.
+    pub objects: Vec<ObjectShapes>,
+    /// Where each object is placed.
+    pub instances: Vec<SceneInstance>,
+}
+
+/// An object's shapes (triangles), in its own space, with their vertex normals and materials.
+#[derive(Clone, Debug, Default)]
+pub struct ObjectShapes {
+    /// The triangles (as shapes, so structures over shapes take them).
+    pub shapes: Vec<Shape>,
+    /// Per shape, its vertex normals.
+    pub normals: Vec<Option<[Vec3; 3]>>,
+    /// Per shape, its material (unless the instance gives one).
+    pub materials: Vec<u32>,
+}
+
+impl ObjectShapes {
+    /// Shapes `range` of `scene`, with their normals and materials.
+    pub fn from_scene(scene: &Scene, range: std::ops::Range<usize>) -> Self {
+        Self {
+            shapes: scene.shapes[range.clone()].to_vec(),
+            normals: scene.vertex_normals[range.clone()].to_vec(),
+            materials: scene.material_of[range].to_vec(),
+        }
+    }
+}
+
+/// An object placed in the scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SceneInstance {
+    /// Index into [`SceneObjects::objects`].
+    pub object: u32,
+    /// Object space to world space (orientation-preserving: triangles keep their winding).
+    pub transform: Affine3A,
+    /// The material of all its shapes, or `None` for the object's own.
+    pub material: Option<u32>,
 }
 
 impl SceneObjects {
-    /// The instances' triangles in world space, instance by instance (shapes other than
-    /// triangles are left out).
-    pub fn flattened_triangles(&self) -> Vec<Triangle> {
-        self.instances
-            .iter()
-            .flat_map(|&(object, t)| {
-                self.objects[object as usize].iter().filter_map(move |s| {
-                    s.as_triangle().map(|tri| Triangle {
+    /// Appends every instance's shapes to `scene`, in world space: triangles by the transform,
+    /// vertex normals by its inverse transpose, with their materials. Shapes other than
+    /// triangles are left out.
+    pub fn flatten_into(&self, scene: &mut Scene) {
+        for inst in &self.instances {
+            let o = &self.objects[inst.object as usize];
+            let t = inst.transform;
+            let normals = t.matrix3.inverse().transpose();
+            for ((shape, n), &m) in o.shapes.iter().zip(&o.normals).zip(&o.materials) {
+                if let Some(tri) = shape.as_triangle() {
+                    let moved = Triangle {
                         v: tri.v.map(|p| t.transform_point3(p)),
-                    })
-                })
-            })
-            .collect()
+                    };
+                    let n = n.map(|n| n.map(|n| Vec3::from(normals * Vec3A::from(n))));
+                    scene.add(moved, inst.material.unwrap_or(m), n);
+                }
+            }
+        }
+    }
+
+    /// The instances' triangles in world space, instance by instance (as
+    /// [`SceneObjects::flatten_into`] places them).
+    pub fn flattened_triangles(&self) -> Vec<Triangle> {
+        let mut s = Scene::new(
+            "flat",
+            Camera::perspective(Vec3::Z, Vec3::ZERO, Vec3::Y, 40.0),
+        );
+        self.flatten_into(&mut s);
+        s.triangles().unwrap_or_default()
     }
 }
 
