@@ -43,6 +43,9 @@ pub struct Record {
     /// Primitives in the scene.
     pub prims: usize,
     pub sah_cost: Option<f32>,
+    /// Box (node, cell) and primitive tests per ray, in a counting build (`bench --count`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tests_per_ray: Option<(f64, f64)>,
 }
 
 /// The scenes `bench` knows: the shared meshes and procedural ones.
@@ -166,6 +169,7 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
                         hits,
                         prims: tris.len(),
                         sah_cost: stats.sah_cost,
+                        tests_per_ray: None,
                     }
                 };
             // Structures with a packet path: primary rays as image tiles, and the shadow and
@@ -218,7 +222,9 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
                     pb.set_message(format!("{} {set} x{threads}", entry.name));
                     let (rate, hits, count) =
                         measure(accel.as_ref(), rays, set == "shadow", pool, reps);
-                    records.push(record(set.to_string(), *threads, rate, hits, count));
+                    let mut r = record(set.to_string(), *threads, rate, hits, count);
+                    r.tests_per_ray = count_tests(accel.as_ref(), rays, set == "shadow");
+                    records.push(r);
                     pb.inc(1);
                 }
             }
@@ -242,6 +248,30 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
         eprintln!("wrote {} records to {}", records.len(), path.display());
     }
     Ok(records)
+}
+
+/// In a counting build, box and primitive tests per ray over (up to 65536 of) `rays`, traced
+/// on this thread after the timed runs; `None` otherwise.
+fn count_tests(accel: &dyn Accel, rays: &[Ray], occluded: bool) -> Option<(f64, f64)> {
+    if !rt_geom::counters::ENABLED || rays.is_empty() {
+        return None;
+    }
+    let sample: Vec<Ray> = rays
+        .iter()
+        .step_by(rays.len().div_ceil(65536))
+        .copied()
+        .collect();
+    rt_geom::counters::take();
+    for r in &sample {
+        if occluded {
+            accel.occluded(r);
+        } else {
+            accel.intersect(r);
+        }
+    }
+    let c = rt_geom::counters::take();
+    let n = sample.len() as f64;
+    Some((c.nodes as f64 / n, c.prims as f64 / n))
 }
 
 /// Median Mrays/s over `reps` timed runs after one warm-up; sets too slow for the time budget

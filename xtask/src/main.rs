@@ -77,6 +77,10 @@ enum Command {
         /// Comma-separated thread counts.
         #[arg(long, value_delimiter = ',', default_value = "1,2")]
         threads: Vec<usize>,
+        /// Box and primitive tests per ray in two more columns (a counting build, not the
+        /// native one: its speeds are not comparable with a plain run's).
+        #[arg(long)]
+        count: bool,
         /// The scaling sweep instead: build time and time per ray against N (1k to 1M
         /// triangles; --quick: to 100k) on spheres, soups and a teapot in a stadium, with log-log slopes. Uses the
         /// first thread count; default structures: brute,bvh,bvh8,kd,kd-midpoint,bsp,obvhs.
@@ -133,17 +137,20 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    if matches!(cli.command, Command::Bench { .. } | Command::Trace { .. }) {
-        if let Some(code) = native::rerun_natively() {
-            return code;
-        }
-    }
-    if let Command::Render(args) = &cli.command {
-        if args.count {
-            if let Some(code) = native::rerun_counting() {
-                return code;
-            }
-        }
+    let count = match &cli.command {
+        Command::Render(args) => args.count,
+        Command::Bench { count, .. } => *count,
+        _ => false,
+    };
+    let rerun = if count {
+        native::rerun_counting()
+    } else if matches!(cli.command, Command::Bench { .. } | Command::Trace { .. }) {
+        native::rerun_natively()
+    } else {
+        None
+    };
+    if let Some(code) = rerun {
+        return code;
     }
     match run(cli.command) {
         Ok(code) => code,
@@ -209,6 +216,7 @@ fn run(command: Command) -> Result<ExitCode, String> {
             threads,
             sweep,
             report,
+            ..
         } => {
             if threads.is_empty() || threads.iter().any(|&t| t == 0 || t > 1024) {
                 return Err("--threads takes counts from 1 to 1024".into());

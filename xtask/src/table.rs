@@ -3,9 +3,9 @@
 
 use crate::bench::Record;
 
-/// Column titles; with `embree`, two last columns: the ratios to Embree's robust and default
-/// modes.
-pub fn headers(embree: bool) -> Vec<&'static str> {
+/// Column titles; with `embree`, two more columns: the ratios to Embree's robust and default
+/// modes; with `counted`, two more: box and primitive tests per ray.
+pub fn headers(embree: bool, counted: bool) -> Vec<&'static str> {
     let mut h = vec![
         "structure",
         "scene",
@@ -21,11 +21,14 @@ pub fn headers(embree: bool) -> Vec<&'static str> {
     if embree {
         h.extend(["vs embree", "vs embree-fast"]);
     }
+    if counted {
+        h.extend(["boxes/ray", "prims/ray"]);
+    }
     h
 }
 
 /// The cells of `r`'s row, in [`headers`] order.
-pub fn cells(r: &Record, embree: bool) -> Vec<String> {
+pub fn cells(r: &Record, embree: bool, counted: bool) -> Vec<String> {
     let ratio = |x: Option<f64>| x.map_or("-".into(), |x| format!("{x:.2}x"));
     let mut c = vec![
         r.accel.clone(),
@@ -42,7 +45,18 @@ pub fn cells(r: &Record, embree: bool) -> Vec<String> {
     if embree {
         c.extend([ratio(r.ratio_vs_embree), ratio(r.ratio_vs_embree_fast)]);
     }
+    if counted {
+        let (boxes, prims) = r.tests_per_ray.map_or(("-".into(), "-".into()), |(b, p)| {
+            (format!("{b:.1}"), format!("{p:.1}"))
+        });
+        c.extend([boxes, prims]);
+    }
     c
+}
+
+/// Whether any record has test counts (a counting build).
+fn with_counts(records: &[Record]) -> bool {
+    records.iter().any(|r| r.tests_per_ray.is_some())
 }
 
 /// Whether any record has an Embree ratio (then every table gets the columns).
@@ -57,11 +71,15 @@ const NAME_COLUMNS: usize = 3;
 
 /// The records as aligned text, one line each under a title line.
 pub fn text(records: &[Record]) -> String {
-    let embree = with_embree(records);
-    let rows: Vec<Vec<String>> =
-        std::iter::once(headers(embree).iter().map(|h| h.to_string()).collect())
-            .chain(records.iter().map(|r| cells(r, embree)))
-            .collect();
+    let (embree, counted) = (with_embree(records), with_counts(records));
+    let rows: Vec<Vec<String>> = std::iter::once(
+        headers(embree, counted)
+            .iter()
+            .map(|h| h.to_string())
+            .collect(),
+    )
+    .chain(records.iter().map(|r| cells(r, embree, counted)))
+    .collect();
     let widths: Vec<usize> = (0..rows[0].len())
         .map(|c| rows.iter().map(|r| r[c].len()).max().unwrap_or(0))
         .collect();
@@ -87,14 +105,14 @@ pub fn text(records: &[Record]) -> String {
 
 /// The records as a Markdown table.
 pub fn markdown(records: &[Record]) -> String {
-    let embree = with_embree(records);
-    let h = headers(embree);
+    let (embree, counted) = (with_embree(records), with_counts(records));
+    let h = headers(embree, counted);
     let align: Vec<&str> = (0..h.len())
         .map(|c| if c < NAME_COLUMNS { "---" } else { "---:" })
         .collect();
     let mut out = format!("| {} |\n|{}|\n", h.join(" | "), align.join("|"));
     for r in records {
-        out.push_str(&format!("| {} |\n", cells(r, embree).join(" | ")));
+        out.push_str(&format!("| {} |\n", cells(r, embree, counted).join(" | ")));
     }
     out
 }

@@ -133,6 +133,18 @@ mod tests {
             hits: 500,
             prims: if scene == "big" { 100_000 } else { 1000 },
             sah_cost: Some(3.0),
+            tests_per_ray: (accel == "counted").then_some((20.0, 3.5)),
+        }
+    }
+
+    #[test]
+    fn counted_records_get_test_columns() {
+        let plain = crate::table::text(&[record("bvh8", "small", "primary", 8.0, 40.0)]);
+        assert!(!plain.contains("prims/ray"), "{plain}");
+        let counted = [record("counted", "small", "primary", 8.0, 40.0)];
+        for table in [crate::table::text(&counted), crate::table::markdown(&counted)] {
+            assert!(table.contains("boxes/ray") && table.contains("prims/ray"), "{table}");
+            assert!(table.contains("20.0") && table.contains("3.5"), "{table}");
         }
     }
 
