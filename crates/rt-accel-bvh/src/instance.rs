@@ -13,6 +13,26 @@
 //! Moving things: [`InstanceBvh::set_transforms`] moves instances and
 //! [`InstanceBvh::refit_object`] deforms an object (its structure refit); either then refits
 //! or rebuilds the top level only ([`TopUpdate`]).
+//!
+//! ```
+//! use rt_accel_bvh::{BvhParams, Instance, InstanceBvh, Object, TriBvh8};
+//! use rt_geom::glam::Affine3A;
+//! use rt_geom::{Accel, Ray, Triangle, Vec3};
+//!
+//! let triangle = [Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y)];
+//! let object = Object::build(&triangle, TriBvh8::build_for_tracing).unwrap();
+//! // Three copies, one behind the other.
+//! let instances: Vec<Instance> = (0..3)
+//!     .map(|i| Instance { object: 0, transform: Affine3A::from_translation(-Vec3::Z * i as f32) })
+//!     .collect();
+//! let scene = InstanceBvh::build(vec![object], &instances, BvhParams::balanced()).unwrap();
+//! let ray = Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z);
+//! let hit = scene.intersect_instance(&ray).unwrap();
+//! assert_eq!((hit.instance, hit.hit.prim, hit.hit.t), (0, 0, 1.0));
+//! // As an `Accel`, the primitive id is the flattened scene's: instance 2's triangle is 2.
+//! let behind = Ray::segment(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z, 2.5, 10.0);
+//! assert_eq!(scene.intersect(&behind).unwrap().prim, 2);
+//! ```
 
 use crate::refit::{Refit, check_moved};
 use crate::{Bvh, BvhParams};
@@ -371,8 +391,8 @@ impl<O: Accel> Accel for InstanceBvh<O> {
         s
     }
 
-    /// The top level holds every instance's world box, every object is valid, every instance
-    /// names an object.
+    /// The top level holds every instance's current world box, every object is valid, every
+    /// instance names an object.
     fn validate(&self) -> Result<(), String> {
         self.top.validate()?;
         for (i, inst) in self.instances.iter().enumerate() {
@@ -382,6 +402,13 @@ impl<O: Accel> Accel for InstanceBvh<O> {
         }
         for (k, o) in self.objects.iter().enumerate() {
             o.accel.validate().map_err(|e| format!("object {k}: {e}"))?;
+        }
+        // The top level's boxes are the instances' world boxes as they stand.
+        let now = world_boxes(&self.objects, &self.instances);
+        for (placed, &i) in self.top.prims.iter().zip(&self.top.ids) {
+            if !placed.0.contains(&now[i as usize].0) {
+                return Err(format!("instance {i}'s world box is stale"));
+            }
         }
         Ok(())
     }

@@ -142,8 +142,14 @@ mod tests {
         let plain = crate::table::text(&[record("bvh8", "small", "primary", 8.0, 40.0)]);
         assert!(!plain.contains("prims/ray"), "{plain}");
         let counted = [record("counted", "small", "primary", 8.0, 40.0)];
-        for table in [crate::table::text(&counted), crate::table::markdown(&counted)] {
-            assert!(table.contains("boxes/ray") && table.contains("prims/ray"), "{table}");
+        for table in [
+            crate::table::text(&counted),
+            crate::table::markdown(&counted),
+        ] {
+            assert!(
+                table.contains("boxes/ray") && table.contains("prims/ray"),
+                "{table}"
+            );
             assert!(table.contains("20.0") && table.contains("3.5"), "{table}");
         }
     }
