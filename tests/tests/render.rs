@@ -46,7 +46,7 @@ fn same_image_everywhere(
         );
         assert_eq!(stats, want_stats, "{}: ray counts differ", entry.name);
         checked += 1;
-        // Eye rays through the packet path, one packet per tile: the same image again.
+        // Every ray through the packet path, tile by tile: the same image again.
         let (Some(build), Some(tris)) = (entry.packets, triangles(scene)) else {
             continue;
         };
@@ -57,16 +57,21 @@ fn same_image_everywhere(
             samples_per_axis: 2,
             ..RenderOptions::default()
         };
-        let primary = |rays: &[rt_geom::Ray], out: &mut [Option<rt_geom::Hit>]| {
+        let intersect = |rays: &[rt_geom::Ray], out: &mut [Option<rt_geom::Hit>]| {
             packets.intersect_group(rays, out)
         };
-        let with = |primary: Option<rt_shade::PrimaryPackets<'_>>| {
-            render_with_packets(scene, accel.as_ref(), primary, &options, &|_| {}).expect("renders")
+        let occluded = |rays: &[rt_geom::Ray], out: &mut [bool]| packets.occluded_group(rays, out);
+        let with = |p: Option<rt_shade::Packets<'_>>| {
+            render_with_packets(scene, accel.as_ref(), p, &options, &|_| {}).expect("renders")
         };
-        let (single, packed) = (with(None), with(Some(&primary)));
+        let all = rt_shade::Packets {
+            intersect: &intersect,
+            occluded: &occluded,
+        };
+        let (single, packed) = (with(None), with(Some(all)));
         assert!(
             single.image.pixels == packed.image.pixels && single.stats == packed.stats,
-            "{}: eye rays in packets change the image",
+            "{}: rays in packets change the image",
             entry.name
         );
         packet_paths += 1;

@@ -7,7 +7,7 @@ use rt_accel_bvh::{BvhParams, Instance, InstanceBvh, Object};
 use rt_geom::{Accel, Hit, Ray, Triangle};
 use rt_packet::PacketAccel;
 use rt_shade::{
-    Camera, PrimaryPackets, Projection, RayStats, RenderOptions, Scene, SceneObjects, ShadeOptions,
+    Camera, Packets, Projection, RayStats, RenderOptions, Scene, SceneObjects, ShadeOptions,
 };
 use serde::Serialize;
 use std::path::PathBuf;
@@ -53,8 +53,9 @@ pub struct RenderArgs {
     /// Threads (0 = all cores; at most 1024).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
-    /// Trace eye rays one by one even when the structure has a packet path (by default each
-    /// 16x16 tile's eye rays go through it as one packet; the image is the same).
+    /// Trace every ray one by one even when the structure has a packet path (by default each
+    /// 16x16 tile's eye rays, its shadow rays to each light and its reflected and refracted
+    /// rays go through it as groups, packets where coherent; the image is the same).
     #[arg(long)]
     pub no_packets: bool,
     /// PNG to write (default target/render/SCENE.png; missing folders are created).
@@ -117,8 +118,8 @@ pub struct RenderStats {
     pub height: u32,
     pub primitives: usize,
     pub build_seconds: f64,
-    /// Whether the eye rays went through the structure's packet path (one packet per tile).
-    pub eye_packets: bool,
+    /// Whether the rays went through the structure's packet path (a tile's groups of rays).
+    pub packets: bool,
     /// `--objects`.
     pub objects: Objects,
     /// Bounding-volume (node, cell) tests while tracing, with `--count`.
@@ -168,8 +169,8 @@ impl RenderSummary {
                 Objects::Instanced => " per piece shape, 33 instances under a top level",
             },
             s.eye_rays,
-            if s.eye_packets {
-                " in 16x16 packets"
+            if s.packets {
+                " in 16x16 tile packets"
             } else {
                 ""
             },
@@ -302,9 +303,14 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
     } else {
         bar(options.tiles(), format!("render {}", scene.name))
     };
-    let primary = |rays: &[Ray], out: &mut [Option<Hit>]| {
+    let intersect = |rays: &[Ray], out: &mut [Option<Hit>]| {
         if let Some(p) = &packets {
             p.intersect_group(rays, out);
+        }
+    };
+    let occluded = |rays: &[Ray], out: &mut [bool]| {
+        if let Some(p) = &packets {
+            p.occluded_group(rays, out);
         }
     };
     pool.broadcast(|_| rt_geom::counters::take());
@@ -313,7 +319,10 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
             rt_shade::render_with_packets(
                 &scene,
                 accel,
-                packets.is_some().then_some(&primary as PrimaryPackets<'_>),
+                packets.is_some().then_some(Packets {
+                    intersect: &intersect,
+                    occluded: &occluded,
+                }),
                 &options,
                 &|n| progress.inc(n),
             )
@@ -350,7 +359,7 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
         height,
         primitives: scene.shapes.len(),
         build_seconds,
-        eye_packets: packets.is_some(),
+        packets: packets.is_some(),
         objects: args.objects,
         node_tests: counting.then_some(counts.nodes),
         prim_tests: counting.then_some(counts.prims),

@@ -9,7 +9,8 @@
 //! | [`camera`] | [`Camera`]: perspective (thin lens optional) and orthographic |
 //! | [`material`] | [`Material`]: Lambert, Phong highlight, reflection, refraction, per channel |
 //! | [`scene`] | [`Scene`], [`PointLight`], [`SceneError`], [`SceneObjects`] (objects and instances) |
-//! | [`whitted`] | the recursive integrator ([`Whitted`]), its ray rules, [`RayStats`] |
+//! | [`whitted`] | the Whitted integrator ([`Whitted`]), its ray rules, [`RayStats`] |
+//! | [`wavefront`] | the same rules level by level over a tile's rays, each level's shadow, reflected and refracted rays traced as groups ([`Queries`]) |
 //! | [`render`](mod@render) | parallel tiles, supersampling, [`Image`] and PNG output |
 //! | [`chess`](mod@chess) | the built-in scene: a reflective board and 32 lathed pieces, some glass; flat, per piece, or instanced ([`ChessForm`]) |
 //! | [`nff`] | Haines' NFF (the SPD scenes) |
@@ -39,6 +40,7 @@ pub mod obj;
 pub mod render;
 pub mod scene;
 pub mod triangulate;
+pub mod wavefront;
 pub mod whitted;
 
 pub use camera::{Camera, CameraFrame, Projection, ThinLens};
@@ -46,9 +48,10 @@ pub use chess::{ChessForm, chess, chess_moving, chess_objects};
 pub use material::Material;
 pub use nff::{load_nff, parse_nff, parse_nff_bytes};
 pub use obj::{load_obj_scene, parse_mtl, parse_obj_scene};
-pub use render::{Image, PrimaryPackets, RenderOptions, Rendered, render, render_with_packets};
+pub use render::{Image, Packets, RenderOptions, Rendered, render, render_with_packets};
 pub use scene::{ObjectShapes, PointLight, Scene, SceneError, SceneInstance, SceneObjects};
 pub use triangulate::triangulate;
+pub use wavefront::{Queries, SingleRays};
 pub use whitted::{MAX_DEPTH, RayStats, ShadeOptions, Whitted};
 
 /// Loads a scene by name: `chess` (built in), or a path ending in `.obj` or `.nff`.

@@ -2,6 +2,7 @@
 //! thin-lens samples from a hash of the pixel (so every render of a scene is the same, bit for
 //! bit, whatever the thread count), PNG output.
 
+use crate::wavefront::{Queries, SingleRays};
 use crate::{RayStats, Scene, SceneError, ShadeOptions, Whitted};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -115,10 +116,27 @@ pub struct Rendered {
     pub seconds: f64,
 }
 
-/// Closest hits of a group of eye rays at once (up to [`TILE`]² of them, a tile's pixels in
-/// row-major order): a packet path such as `rt_packet::PacketAccel::intersect_group`. It must
-/// answer what the structure's `intersect` answers, ray by ray.
-pub type PrimaryPackets<'a> = &'a (dyn Fn(&[Ray], &mut [Option<Hit>]) + Sync);
+/// A packet path: groups of up to [`TILE`]² rays at once (a tile's eye rays, its shadow rays
+/// to one light, its reflected or refracted rays of one bounce), such as
+/// `rt_packet::PacketAccel::intersect_group` and `occluded_group`. It must answer what the
+/// structure's `intersect` and `occluded` answer, ray by ray.
+#[derive(Clone, Copy)]
+pub struct Packets<'a> {
+    /// Closest hits of a group.
+    pub intersect: &'a (dyn Fn(&[Ray], &mut [Option<Hit>]) + Sync),
+    /// Whether each ray of a group is blocked.
+    pub occluded: &'a (dyn Fn(&[Ray], &mut [bool]) + Sync),
+}
+
+impl Queries for Packets<'_> {
+    fn intersect(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        (self.intersect)(rays, out)
+    }
+
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
+        (self.occluded)(rays, out)
+    }
+}
 
 /// Renders `scene` with `accel`, which must have been built over `scene.shapes` (or the same
 /// triangles in the same order). `progress` is called with 1 after each finished tile.
@@ -131,13 +149,14 @@ pub fn render(
     render_with_packets(scene, accel, None, options, progress)
 }
 
-/// [`render`], with the eye rays of each tile traced as packets by `primary` (groups of at
-/// most [`TILE`]² rays: one 16x16 packet per tile at one sample per pixel); every other ray
-/// goes through `accel`. The image is the same as [`render`]'s.
+/// [`render`], with every group of a tile's rays traced by `packets`: the eye rays (one 16x16
+/// packet per tile at one sample per pixel), then level by level the shadow rays to each light
+/// and the reflected and refracted rays (see [`crate::wavefront`]). The image is the same as
+/// [`render`]'s, bit for bit.
 pub fn render_with_packets(
     scene: &Scene,
     accel: &dyn Accel,
-    primary: Option<PrimaryPackets<'_>>,
+    packets: Option<Packets<'_>>,
     options: &RenderOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Rendered, SceneError> {
@@ -171,22 +190,17 @@ pub fn render_with_packets(
                     }
                 }
             }
-            let hits: Vec<Option<Hit>> = match primary {
-                Some(packets) => {
-                    let mut hits = vec![None; rays.len()];
-                    let group = (TILE * TILE) as usize;
-                    for (r, h) in rays.chunks(group).zip(hits.chunks_mut(group)) {
-                        packets(r, h);
-                    }
-                    hits
-                }
-                None => rays.iter().map(|r| accel.intersect(r)).collect(),
+            let single = SingleRays(accel);
+            let queries: &dyn Queries = match &packets {
+                Some(p) => p,
+                None => &single,
             };
+            let colours = whitted.shade_group(&rays, None, queries, &mut stats);
             let pixels = ((x1 - x0) * (y1 - y0)) as usize;
             let mut out = vec![Vec3::ZERO; pixels];
-            // Summed in the order of the samples, as before packets: the same image.
-            for (k, (ray, hit)) in rays.iter().zip(hits).enumerate() {
-                out[k % pixels] += whitted.eye_with_hit(ray, hit, &mut stats);
+            // Summed in the order of the samples.
+            for (k, c) in colours.into_iter().enumerate() {
+                out[k % pixels] += c;
             }
             for c in &mut out {
                 *c /= (n * n) as f32;

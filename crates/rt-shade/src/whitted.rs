@@ -1,4 +1,4 @@
-//! The recursive Whitted integrator: local shading with shadow rays, perfect reflection,
+//! The Whitted integrator (traced level by level over groups of rays, [`crate::wavefront`]): local shading with shadow rays, perfect reflection,
 //! refraction by Snell's law, total internal reflection, cut-offs by depth and by weight.
 //!
 //! Ray rules (what published Whitted statistics assume): the eye ray has depth 1; a shadow ray
@@ -8,6 +8,7 @@
 //! its weight goes to the reflection ray; no ray is spawned beyond `max_depth`, nor when its
 //! weight is below `min_weight` in every channel.
 
+use crate::wavefront::SingleRays;
 use crate::{Material, Scene};
 use glam::Vec3;
 use rt_geom::{Accel, Hit, Ray};
@@ -101,15 +102,15 @@ pub struct Whitted<'a> {
 }
 
 /// The surface at a hit, oriented towards the incoming ray.
-struct Surface<'a> {
-    point: Vec3,
+pub(crate) struct Surface<'a> {
+    pub(crate) point: Vec3,
     /// Geometric normal, on the side the ray came from.
-    geometric: Vec3,
+    pub(crate) geometric: Vec3,
     /// Shading normal (interpolated where the scene has vertex normals), same side.
-    shading: Vec3,
+    pub(crate) shading: Vec3,
     /// Whether the ray hit the outside (the side the geometric normal points to).
-    entering: bool,
-    material: &'a Material,
+    pub(crate) entering: bool,
+    pub(crate) material: &'a Material,
 }
 
 impl<'a> Whitted<'a> {
@@ -125,14 +126,27 @@ impl<'a> Whitted<'a> {
 
     /// The colour seen along an eye ray.
     pub fn eye(&self, ray: &Ray, stats: &mut RayStats) -> Vec3 {
-        self.eye_with_hit(ray, self.accel.intersect(ray), stats)
+        self.shade_group(
+            std::slice::from_ref(ray),
+            None,
+            &SingleRays(self.accel),
+            stats,
+        )[0]
     }
 
     /// The colour seen along an eye ray whose closest hit is known already (traced in a
     /// packet): the same as [`Self::eye`] when `hit` is `accel.intersect(ray)`.
     pub fn eye_with_hit(&self, ray: &Ray, hit: Option<Hit>, stats: &mut RayStats) -> Vec3 {
-        stats.eye_rays += 1;
-        self.shade(ray, hit, 1, Vec3::ONE, stats, true)
+        let queries = SingleRays(self.accel);
+        self.shade_group(std::slice::from_ref(ray), Some(vec![hit]), &queries, stats)[0]
+    }
+
+    pub(crate) fn scene(&self) -> &'a Scene {
+        self.scene
+    }
+
+    pub(crate) fn options(&self) -> &ShadeOptions {
+        &self.options
     }
 
     /// The chain of refracted rays that follows `ray` through transmitting surfaces (each ray
@@ -162,96 +176,7 @@ impl<'a> Whitted<'a> {
         out
     }
 
-    /// The colour along a secondary ray.
-    fn trace(&self, ray: &Ray, depth: u32, weight: Vec3, stats: &mut RayStats) -> Vec3 {
-        self.shade(ray, self.accel.intersect(ray), depth, weight, stats, false)
-    }
-
-    /// The colour along `ray`, whose closest hit is `hit`.
-    fn shade(
-        &self,
-        ray: &Ray,
-        hit: Option<Hit>,
-        depth: u32,
-        weight: Vec3,
-        stats: &mut RayStats,
-        eye: bool,
-    ) -> Vec3 {
-        let Some(hit) = hit else {
-            return self.scene.background;
-        };
-        if eye {
-            stats.eye_hits += 1;
-        }
-        let d = ray.dir().normalize();
-        let s = self.surface(ray, &hit, d);
-        let m = s.material;
-        let mut colour = m.ambient * self.scene.ambient;
-        let view = -d;
-        for light in &self.scene.lights {
-            let to_light = light.position - s.point;
-            let l = to_light.normalize_or_zero();
-            let cos = s.shading.dot(l);
-            if !(cos > 0.0) {
-                continue;
-            }
-            stats.shadow += 1;
-            let origin = self.leave(&s, to_light);
-            let shadow = Ray::segment(origin, light.position - origin, 0.0, 1.0f32.next_down());
-            if self.accel.occluded(&shadow) {
-                continue;
-            }
-            colour += m.diffuse * light.colour * cos;
-            if m.specular.max_element() > 0.0 {
-                let r = s.shading * (2.0 * cos) - l;
-                colour += m.specular * light.colour * r.dot(view).max(0.0).powf(m.shininess);
-            }
-        }
-        if depth >= self.options.max_depth {
-            return colour;
-        }
-        let mut kr = m.reflect;
-        let mut kt = m.transmit;
-        let mut refracted = None;
-        if m.is_transmissive() {
-            let eta = if s.entering { 1.0 / m.ior } else { m.ior };
-            match refract(d, &s, eta) {
-                None => {
-                    // Total internal reflection: the transmitted light is reflected.
-                    kr += kt;
-                    kt = Vec3::ZERO;
-                }
-                Some(t) => {
-                    if self.options.fresnel {
-                        let f = fresnel(s.shading.dot(view), t.dot(-s.shading), eta);
-                        kr += kt * f;
-                        kt *= 1.0 - f;
-                    }
-                    refracted = Some(t);
-                }
-            }
-        }
-        if m.spawns_reflection() {
-            let w = weight * kr;
-            if w.max_element() >= self.options.min_weight {
-                stats.reflected += 1;
-                let r = mirror(d, &s);
-                let ray = Ray::new(self.leave(&s, r), r);
-                colour += kr * self.trace(&ray, depth + 1, w, stats);
-            }
-        }
-        if let Some(t) = refracted {
-            let w = weight * kt;
-            if w.max_element() >= self.options.min_weight {
-                stats.refracted += 1;
-                let ray = Ray::new(self.leave(&s, t), t);
-                colour += kt * self.trace(&ray, depth + 1, w, stats);
-            }
-        }
-        colour
-    }
-
-    fn surface(&self, ray: &Ray, hit: &Hit, d: Vec3) -> Surface<'a> {
+    pub(crate) fn surface(&self, ray: &Ray, hit: &Hit, d: Vec3) -> Surface<'a> {
         let i = hit.prim as usize;
         let point = ray.at(hit.t);
         let shape = &self.scene.shapes[i];
@@ -281,7 +206,7 @@ impl<'a> Whitted<'a> {
 
     /// The origin of a ray leaving the surface in direction `dir`: the hit point moved off the
     /// surface, to the side `dir` goes.
-    fn leave(&self, s: &Surface, dir: Vec3) -> Vec3 {
+    pub(crate) fn leave(&self, s: &Surface, dir: Vec3) -> Vec3 {
         let side = if dir.dot(s.geometric) >= 0.0 {
             1.0
         } else {
@@ -294,7 +219,7 @@ impl<'a> Whitted<'a> {
 
 /// Mirror direction about the shading normal; about the geometric normal when the shading
 /// normal would send the ray into the surface.
-fn mirror(d: Vec3, s: &Surface) -> Vec3 {
+pub(crate) fn mirror(d: Vec3, s: &Surface) -> Vec3 {
     let about = |n: Vec3| d - n * (2.0 * d.dot(n));
     let r = about(s.shading);
     if r.dot(s.geometric) > 0.0 {
@@ -307,7 +232,7 @@ fn mirror(d: Vec3, s: &Surface) -> Vec3 {
 /// Snell's law: the refracted direction for relative index `eta` (incident over transmitted),
 /// or `None` under total internal reflection. Uses the shading normal, or the geometric one when
 /// the shading normal would keep the ray on the incoming side.
-fn refract(d: Vec3, s: &Surface, eta: f32) -> Option<Vec3> {
+pub(crate) fn refract(d: Vec3, s: &Surface, eta: f32) -> Option<Vec3> {
     let through = |n: Vec3| {
         let cos_i = -d.dot(n);
         let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
@@ -323,7 +248,7 @@ fn refract(d: Vec3, s: &Surface, eta: f32) -> Option<Vec3> {
 
 /// Unpolarised dielectric Fresnel reflectance from the cosines of the incident and transmitted
 /// angles and the relative index `eta = n_i / n_t`.
-fn fresnel(cos_i: f32, cos_t: f32, eta: f32) -> f32 {
+pub(crate) fn fresnel(cos_i: f32, cos_t: f32, eta: f32) -> f32 {
     let (ci, ct) = (cos_i.abs(), cos_t.abs());
     let rs = (eta * ci - ct) / (eta * ci + ct);
     let rp = (ci - eta * ct) / (ci + eta * ct);

@@ -1,0 +1,280 @@
+//! Whitted shading level by level over a group of eye rays (a tile): the eye rays' hits, then
+//! every shadow ray of the level to each light as one group, then the reflected rays and the
+//! refracted rays of the level as groups, and so on down the tree; colours are combined
+//! bottom-up at the end. Each group goes to a [`Queries`] at once, so a packet path traces
+//! the coherent ones (a tile's shadow rays to one light, its mirror bounces off a flat board)
+//! as packets. Every colour is computed with the operations, in the order, of the recursive
+//! rules ([`crate::whitted`]), so the image is the same bit for bit whatever traces the rays.
+
+use crate::whitted::{Whitted, fresnel, mirror, refract};
+use crate::{Material, RayStats};
+use glam::Vec3;
+use rt_geom::{Accel, Hit, Ray};
+
+/// Groups of rays answered at once: closest hits, and whether each ray is blocked. Answers
+/// must be those of the structure's `intersect` and `occluded`, ray by ray.
+pub trait Queries: Sync {
+    /// Closest hit of each ray into `out` (same length).
+    fn intersect(&self, rays: &[Ray], out: &mut [Option<Hit>]);
+    /// Whether each ray is blocked, into `out` (same length).
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]);
+}
+
+/// Ray by ray through a structure.
+pub struct SingleRays<'a>(pub &'a dyn Accel);
+
+impl Queries for SingleRays<'_> {
+    fn intersect(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        for (r, o) in rays.iter().zip(out) {
+            *o = self.0.intersect(r);
+        }
+    }
+
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
+        for (r, o) in rays.iter().zip(out) {
+            *o = self.0.occluded(r);
+        }
+    }
+}
+
+/// A ray waiting to be traced (the ray itself is kept apart, so that a level's rays are one
+/// slice for the queries), and where its colour goes.
+#[derive(Clone, Copy)]
+struct Pending {
+    depth: u32,
+    weight: Vec3,
+    /// The node whose reflection (`false`) or refraction (`true`) this ray is.
+    parent: Option<(usize, bool)>,
+}
+
+/// The rays of one level and what each one is.
+#[derive(Default)]
+struct Level {
+    rays: Vec<Ray>,
+    pending: Vec<Pending>,
+}
+
+impl Level {
+    fn push(&mut self, ray: Ray, pending: Pending) {
+        self.rays.push(ray);
+        self.pending.push(pending);
+    }
+}
+
+/// A traced ray: its colour (the background, or the surface's local light, then the
+/// children's light added), and its children with their coefficients.
+struct Node {
+    colour: Vec3,
+    reflected: Option<(Vec3, usize)>,
+    refracted: Option<(Vec3, usize)>,
+}
+
+/// What a surface's lights need: its shading normal, the direction to the viewer, its
+/// material.
+struct Lighting<'s> {
+    node: usize,
+    shading: Vec3,
+    view: Vec3,
+    material: &'s Material,
+}
+
+/// A light in front of a surface (an index into the level's [`Lighting`]), whose contribution
+/// is added unless its shadow ray is blocked (computed then, as the recursive rules compute
+/// it).
+struct Lit {
+    surface: u32,
+    cos: f32,
+    l: Vec3,
+}
+
+impl Whitted<'_> {
+    /// The colour along each eye ray of `rays` (closest hits in `hits` when already traced,
+    /// for example as a packet), tracing every other ray as groups through `queries`.
+    pub fn shade_group(
+        &self,
+        rays: &[Ray],
+        hits: Option<Vec<Option<Hit>>>,
+        queries: &dyn Queries,
+        stats: &mut RayStats,
+    ) -> Vec<Vec3> {
+        stats.eye_rays += rays.len() as u64;
+        let scene = self.scene();
+        let options = self.options();
+        let mut nodes: Vec<Node> = Vec::with_capacity(rays.len());
+        let eye = Pending {
+            depth: 1,
+            weight: Vec3::ONE,
+            parent: None,
+        };
+        let mut level = Level {
+            rays: rays.to_vec(),
+            pending: vec![eye; rays.len()],
+        };
+        let mut hits = hits;
+        while !level.rays.is_empty() {
+            let level_hits = hits.take().unwrap_or_else(|| {
+                let mut out = vec![None; level.rays.len()];
+                in_groups(&level.rays, &mut out, |r, o| queries.intersect(r, o));
+                out
+            });
+            // Per light, the shadow rays of the level and what each adds when unblocked.
+            let n = level.rays.len();
+            let mut shadow: Vec<(Vec<Ray>, Vec<Lit>)> = scene
+                .lights
+                .iter()
+                .map(|_| (Vec::with_capacity(n), Vec::with_capacity(n)))
+                .collect();
+            let (mut reflected, mut refracted) = (Level::default(), Level::default());
+            let mut surfaces: Vec<Lighting> = Vec::with_capacity(n);
+            for ((ray, p), hit) in level.rays.iter().zip(&level.pending).zip(level_hits) {
+                let node = nodes.len();
+                if let Some((parent, refr)) = p.parent {
+                    let child = if refr {
+                        &mut nodes[parent].refracted
+                    } else {
+                        &mut nodes[parent].reflected
+                    };
+                    if let Some((_, slot)) = child {
+                        *slot = node;
+                    }
+                }
+                let Some(hit) = hit else {
+                    nodes.push(Node {
+                        colour: scene.background,
+                        reflected: None,
+                        refracted: None,
+                    });
+                    continue;
+                };
+                if p.depth == 1 {
+                    stats.eye_hits += 1;
+                }
+                let d = ray.dir().normalize();
+                let s = self.surface(ray, &hit, d);
+                let m = s.material;
+                let view = -d;
+                let surface = surfaces.len() as u32;
+                surfaces.push(Lighting {
+                    node,
+                    shading: s.shading,
+                    view,
+                    material: m,
+                });
+                for (light, (rays, lit)) in scene.lights.iter().zip(&mut shadow) {
+                    let to_light = light.position - s.point;
+                    let l = to_light.normalize_or_zero();
+                    let cos = s.shading.dot(l);
+                    if !(cos > 0.0) {
+                        continue;
+                    }
+                    stats.shadow += 1;
+                    let origin = self.leave(&s, to_light);
+                    let end = light.position - origin;
+                    rays.push(Ray::segment(origin, end, 0.0, 1.0f32.next_down()));
+                    lit.push(Lit { surface, cos, l });
+                }
+                let mut out = Node {
+                    colour: m.ambient * scene.ambient,
+                    reflected: None,
+                    refracted: None,
+                };
+                if p.depth < options.max_depth {
+                    let mut kr = m.reflect;
+                    let mut kt = m.transmit;
+                    let mut transmitted = None;
+                    if m.is_transmissive() {
+                        let eta = if s.entering { 1.0 / m.ior } else { m.ior };
+                        match refract(d, &s, eta) {
+                            None => {
+                                // Total internal reflection: the transmitted light is reflected.
+                                kr += kt;
+                                kt = Vec3::ZERO;
+                            }
+                            Some(t) => {
+                                if options.fresnel {
+                                    let f = fresnel(s.shading.dot(view), t.dot(-s.shading), eta);
+                                    kr += kt * f;
+                                    kt *= 1.0 - f;
+                                }
+                                transmitted = Some(t);
+                            }
+                        }
+                    }
+                    if m.spawns_reflection() {
+                        let w = p.weight * kr;
+                        if w.max_element() >= options.min_weight {
+                            stats.reflected += 1;
+                            let r = mirror(d, &s);
+                            out.reflected = Some((kr, usize::MAX));
+                            let pending = Pending {
+                                depth: p.depth + 1,
+                                weight: w,
+                                parent: Some((node, false)),
+                            };
+                            reflected.push(Ray::new(self.leave(&s, r), r), pending);
+                        }
+                    }
+                    if let Some(t) = transmitted {
+                        let w = p.weight * kt;
+                        if w.max_element() >= options.min_weight {
+                            stats.refracted += 1;
+                            out.refracted = Some((kt, usize::MAX));
+                            let pending = Pending {
+                                depth: p.depth + 1,
+                                weight: w,
+                                parent: Some((node, true)),
+                            };
+                            refracted.push(Ray::new(self.leave(&s, t), t), pending);
+                        }
+                    }
+                }
+                nodes.push(out);
+            }
+            // Each light's shadow rays as groups; a node adds its lights in the lights' order.
+            for (light, (rays, lit)) in scene.lights.iter().zip(&shadow) {
+                let mut blocked = vec![false; rays.len()];
+                in_groups(rays, &mut blocked, |r, o| queries.occluded(r, o));
+                for (lit, blocked) in lit.iter().zip(blocked) {
+                    if blocked {
+                        continue;
+                    }
+                    let s = &surfaces[lit.surface as usize];
+                    let (m, cos) = (s.material, lit.cos);
+                    let colour = &mut nodes[s.node].colour;
+                    *colour += m.diffuse * light.colour * cos;
+                    if m.specular.max_element() > 0.0 {
+                        let r = s.shading * (2.0 * cos) - lit.l;
+                        *colour +=
+                            m.specular * light.colour * r.dot(s.view).max(0.0).powf(m.shininess);
+                    }
+                }
+            }
+            reflected.rays.append(&mut refracted.rays);
+            reflected.pending.append(&mut refracted.pending);
+            level = reflected;
+        }
+        // Children follow their parents: a reverse sweep combines each node's children first,
+        // reflection then refraction, as the recursive rules add them.
+        for i in (0..nodes.len()).rev() {
+            let mut colour = nodes[i].colour;
+            if let Some((kr, child)) = nodes[i].reflected {
+                colour += kr * nodes[child].colour;
+            }
+            if let Some((kt, child)) = nodes[i].refracted {
+                colour += kt * nodes[child].colour;
+            }
+            nodes[i].colour = colour;
+        }
+        nodes[..rays.len()].iter().map(|n| n.colour).collect()
+    }
+}
+
+/// Largest group handed to [`Queries`] at once: a 16x16 tile.
+pub const GROUP: usize = 256;
+
+/// `query` over `rays` in groups of at most [`GROUP`].
+fn in_groups<T>(rays: &[Ray], out: &mut [T], query: impl Fn(&[Ray], &mut [T])) {
+    for (r, o) in rays.chunks(GROUP).zip(out.chunks_mut(GROUP)) {
+        query(r, o);
+    }
+}
