@@ -157,7 +157,7 @@ impl RenderSummary {
             _ => String::new(),
         };
         format!(
-            "{} {}x{} with {}{}: {} eye rays{} ({} hit), {} reflected, {} refracted, {} shadow; \
+            "{} {}x{} with {}{}{}: {} eye rays ({} hit), {} reflected, {} refracted, {} shadow; \
              build {:.3} s, trace {:.3} s ({:.2} Mrays/s){} -> {}",
             s.scene,
             s.width,
@@ -168,12 +168,8 @@ impl RenderSummary {
                 Objects::Pieces => " per piece under a top level",
                 Objects::Instanced => " per piece shape, 33 instances under a top level",
             },
+            if s.packets { ", tiles as packets" } else { "" },
             s.eye_rays,
-            if s.packets {
-                " in 16x16 tile packets"
-            } else {
-                ""
-            },
             s.eye_hits,
             s.reflected,
             s.refracted,
