@@ -89,7 +89,8 @@ struct Lit {
 
 impl Whitted<'_> {
     /// The colour along each eye ray of `rays` (closest hits in `hits` when already traced,
-    /// for example as a packet), tracing every other ray as groups through `queries`.
+    /// for example as a packet: one per ray, else they are traced here), tracing every other
+    /// ray as groups through `queries`.
     pub fn shade_group(
         &self,
         rays: &[Ray],
@@ -110,7 +111,7 @@ impl Whitted<'_> {
             rays: rays.to_vec(),
             pending: vec![eye; rays.len()],
         };
-        let mut hits = hits;
+        let mut hits = hits.filter(|h| h.len() == rays.len());
         while !level.rays.is_empty() {
             let level_hits = hits.take().unwrap_or_else(|| {
                 let mut out = vec![None; level.rays.len()];
@@ -276,5 +277,42 @@ pub const GROUP: usize = 256;
 fn in_groups<T>(rays: &[Ray], out: &mut [T], query: impl Fn(&[Ray], &mut [T])) {
     for (r, o) in rays.chunks(GROUP).zip(out.chunks_mut(GROUP)) {
         query(r, o);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{ShadeOptions, chess};
+    use rt_accel_bvh::{Bvh, BvhParams};
+
+    #[test]
+    fn a_group_shades_each_ray_as_alone() {
+        let scene = chess();
+        let accel = Bvh::build(&scene.shapes, BvhParams::balanced()).unwrap();
+        let w = Whitted::new(&scene, &accel, ShadeOptions::default());
+        let frame = scene.camera.frame(64, 48);
+        let rays: Vec<Ray> = (0..48)
+            .flat_map(|y| (0..64).map(move |x| (x, y)))
+            .map(|(x, y)| frame.ray(x as f32 + 0.5, y as f32 + 0.5, (0.5, 0.5)))
+            .collect();
+        let (mut group, mut alone) = (RayStats::default(), RayStats::default());
+        let together = w.shade_group(&rays, None, &SingleRays(&accel), &mut group);
+        let one_by_one: Vec<Vec3> = rays.iter().map(|r| w.eye(r, &mut alone)).collect();
+        assert_eq!(together, one_by_one);
+        assert_eq!(group, alone);
+        assert!(group.refracted > 0 && group.reflected > 0 && group.shadow > 0);
+        // Hits given: used when one per ray, ignored otherwise.
+        let hits: Vec<Option<Hit>> = rays.iter().map(|r| accel.intersect(r)).collect();
+        let mut s = RayStats::default();
+        assert_eq!(
+            w.shade_group(&rays, Some(hits), &SingleRays(&accel), &mut s),
+            together
+        );
+        let short = Some(vec![None; 3]);
+        assert_eq!(
+            w.shade_group(&rays, short, &SingleRays(&accel), &mut s),
+            together
+        );
     }
 }
