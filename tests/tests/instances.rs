@@ -106,6 +106,27 @@ fn conforms_flattened(
     report
 }
 
+/// Holds a scene updated in place (moved instances, a refit object) to brute force on its
+/// flattened form, with [`Tolerance::TRANSFORMED`]: no mismatch.
+fn updated_scene_conforms<O: Accel>(
+    name: &str,
+    geometry: &[Vec<Triangle>],
+    instances: &[Instance],
+    scene: InstanceBvh<O>,
+) -> Report {
+    let flat = Scene::new(name, flatten(geometry, instances));
+    let once = std::cell::RefCell::new(Some(scene));
+    let report = check_scene(
+        &flat,
+        |_| Ok::<_, BuildError>(once.borrow_mut().take().unwrap()),
+        Tolerance::TRANSFORMED,
+    )
+    .unwrap();
+    let first = report.mismatches.first().map(ToString::to_string);
+    assert!(report.is_ok(), "{name}: {first:?}");
+    report
+}
+
 /// At most 1% of the random, inside and aimed rays are excused.
 fn assert_general_rays_agree(report: &Report) {
     for kind in [RayKind::Random, RayKind::Inside, RayKind::Aimed] {
@@ -295,19 +316,7 @@ fn moving_instances_refit_or_rebuild_the_top_level() {
             .map(|(i, &transform)| Instance { transform, ..*i })
             .collect();
         assert_eq!(scene.instances(), &now[..]);
-        let flat = Scene::new("moved", flatten(&geometry, &now));
-        let once = std::cell::RefCell::new(Some(scene));
-        let report = check_scene(
-            &flat,
-            |_| Ok::<_, BuildError>(once.borrow_mut().take().unwrap()),
-            Tolerance::TRANSFORMED,
-        )
-        .unwrap();
-        assert!(
-            report.is_ok(),
-            "{update:?}: {:?}",
-            report.mismatches.first().map(ToString::to_string)
-        );
+        let report = updated_scene_conforms(&format!("moved {update:?}"), &geometry, &now, scene);
         assert_general_rays_agree(&report);
     }
 }
@@ -334,22 +343,7 @@ fn a_deforming_object_refits_its_structure_and_the_top_level() {
         .collect();
     scene.refit_object(0, &rippled, TopUpdate::Refit).unwrap();
     scene.validate().unwrap();
-    let flat = Scene::new(
-        "rippled",
-        flatten(std::slice::from_ref(&rippled), &instances),
-    );
-    let once = std::cell::RefCell::new(Some(scene));
-    let report = check_scene(
-        &flat,
-        |_| Ok::<_, BuildError>(once.borrow_mut().take().unwrap()),
-        Tolerance::TRANSFORMED,
-    )
-    .unwrap();
-    assert!(
-        report.is_ok(),
-        "{:?}",
-        report.mismatches.first().map(ToString::to_string)
-    );
+    updated_scene_conforms("rippled", std::slice::from_ref(&rippled), &instances, scene);
     // Bad refits leave the scene unchanged.
     let mut scene: InstanceBvh<TriBvh8> = InstanceBvh::build(
         vec![Object::build(&geometry, TriBvh8::build_for_tracing).unwrap()],

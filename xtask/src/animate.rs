@@ -3,11 +3,10 @@
 //! timed, and the trace time after it: rebuild everything, refit everything, or move the
 //! instances and refit the deforming object under a rebuilt top level.
 
-use crate::render::RenderArgs;
+use crate::render::{RenderArgs, instances};
 use crate::run::{bar, pool};
-use rt_accel_bvh::{BvhParams, Instance, InstanceBvh, Object, Refit, TopUpdate, TriBvh8};
+use rt_accel_bvh::{BvhParams, InstanceBvh, Object, Refit, TopUpdate, TriBvh8};
 use rt_geom::{Accel, BuildError, Shape, Triangle};
-use rt_shade::{RenderOptions, SceneObjects, ShadeOptions};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -30,14 +29,6 @@ fn triangles(shapes: &[Shape]) -> Vec<Triangle> {
         .iter()
         .filter_map(|s| s.as_triangle().copied())
         .collect()
-}
-
-fn instances(objects: &SceneObjects) -> Vec<Instance> {
-    let to = |i: &rt_shade::SceneInstance| Instance {
-        object: i.object,
-        transform: i.transform,
-    };
-    objects.instances.iter().map(to).collect()
 }
 
 fn timed<T>(f: impl FnOnce() -> T) -> (T, f64) {
@@ -64,18 +55,7 @@ pub fn animate(args: &RenderArgs, frames: u32) -> Result<Vec<FrameTimes>, String
         .unwrap_or_else(|| PathBuf::from("target/render/chess-frames"));
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let pool = pool(args.threads)?;
-    let (width, height) = args.size.unwrap_or((400, 300));
-    let options = RenderOptions {
-        width,
-        height,
-        samples_per_axis: args.samples,
-        shade: ShadeOptions {
-            max_depth: args.depth,
-            min_weight: args.min_weight,
-            fresnel: args.fresnel,
-        },
-    };
-    options.check()?;
+    let options = args.options((400, 300))?;
     let at = |f: u32| {
         if frames == 1 {
             0.0
@@ -117,8 +97,9 @@ pub fn animate(args: &RenderArgs, frames: u32) -> Result<Vec<FrameTimes>, String
         let cloth_tris = triangles(&objects.objects[cloth as usize].shapes);
         let (moved, top_s) = timed(|| {
             pool.install(|| {
-                two_level.set_transforms(&transforms, TopUpdate::Rebuild)?;
-                two_level.refit_object(cloth, &cloth_tris, TopUpdate::Rebuild)
+                // The cloth's boxes refit the old top level (cheap); the one rebuild follows.
+                two_level.refit_object(cloth, &cloth_tris, TopUpdate::Refit)?;
+                two_level.set_transforms(&transforms, TopUpdate::Rebuild)
             })
         });
         moved.map_err(err)?;

@@ -78,6 +78,26 @@ pub struct RenderArgs {
     pub quiet: bool,
 }
 
+impl RenderArgs {
+    /// The render options asked for: `--size` or else `size`, samples, depth, weight, Fresnel;
+    /// checked.
+    pub fn options(&self, size: (u32, u32)) -> Result<RenderOptions, String> {
+        let (width, height) = self.size.unwrap_or(size);
+        let options = RenderOptions {
+            width,
+            height,
+            samples_per_axis: self.samples,
+            shade: ShadeOptions {
+                max_depth: self.depth,
+                min_weight: self.min_weight,
+                fresnel: self.fresnel,
+            },
+        };
+        options.check()?;
+        Ok(options)
+    }
+}
+
 impl Default for RenderArgs {
     /// The command line's defaults.
     fn default() -> Self {
@@ -221,18 +241,8 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
         pb.finish_and_clear();
     }
     adjust_camera(&mut scene, args)?;
-    let (width, height) = args.size.or(scene.resolution).unwrap_or((640, 480));
-    let options = RenderOptions {
-        width,
-        height,
-        samples_per_axis: args.samples,
-        shade: ShadeOptions {
-            max_depth: args.depth,
-            min_weight: args.min_weight,
-            fresnel: args.fresnel,
-        },
-    };
-    options.check()?;
+    let options = args.options(scene.resolution.unwrap_or((640, 480)))?;
+    let (width, height) = (options.width, options.height);
     let pool = pool(args.threads)?;
     if let Some(out) = &args.out {
         if out
@@ -372,6 +382,15 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
     })
 }
 
+/// The scene's instances as the two-level structure takes them.
+pub fn instances(objects: &SceneObjects) -> Vec<Instance> {
+    let to = |i: &rt_shade::SceneInstance| Instance {
+        object: i.object,
+        transform: i.transform,
+    };
+    objects.instances.iter().map(to).collect()
+}
+
 /// A two-level structure: each object built with `entry`, a top-level BVH over the instances.
 pub fn build_two_level(
     entry: &registry::AccelEntry,
@@ -385,15 +404,7 @@ pub fn build_two_level(
             Object::new(&o.shapes, accel).map_err(|e| e.to_string())
         })
         .collect::<Result<_, String>>()?;
-    let instances: Vec<Instance> = objects
-        .instances
-        .iter()
-        .map(|i| Instance {
-            object: i.object,
-            transform: i.transform,
-        })
-        .collect();
-    let top = InstanceBvh::build(built, &instances, BvhParams::balanced())
+    let top = InstanceBvh::build(built, &instances(objects), BvhParams::balanced())
         .map_err(|e| format!("top level: {e}"))?;
     Ok(Box::new(top))
 }

@@ -26,7 +26,7 @@
 use crate::refit::{Refit, check_moved, in_leaf_order, leaf_bounds};
 use crate::stats::check_leaf_primitive;
 use crate::wide::{
-    WideLanes, WideNode, WideTopology, WideTree, lane_entries, test_leaf, traverse_nodes,
+    WideLanes, WideNode, WideTopology, WideTree, lane_entries, leaves_of, test_leaf, traverse_nodes,
 };
 use crate::{Bvh8, BvhParams};
 use rt_geom::aabb::SlabRay;
@@ -280,7 +280,7 @@ impl WideTopology for CompressedTree {
     }
 
     fn leaves(&self) -> Vec<(u32, u32)> {
-        self.decompress().leaves()
+        leaves_of(&self.nodes, self.root_leaf)
     }
 
     /// Refits the full-precision topology and quantizes it again.

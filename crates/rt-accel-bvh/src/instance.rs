@@ -227,7 +227,7 @@ impl<O: Accel> InstanceBvh<O> {
             inst.transform = t;
         }
         let to_object = inverses(&instances)?;
-        self.update_top(&instances, update)?;
+        self.update_top(world_boxes(&self.objects, &instances), update)?;
         self.instances = instances;
         self.to_object = to_object;
         Ok(())
@@ -258,17 +258,15 @@ impl<O: Accel> InstanceBvh<O> {
         let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
         let old = o.bounds;
         o.bounds = bounds;
-        let instances = self.instances.clone();
-        if let Err(e) = self.update_top(&instances, update) {
+        if let Err(e) = self.update_top(world_boxes(&self.objects, &self.instances), update) {
             self.objects[object as usize].bounds = old;
             return Err(e);
         }
         self.objects[object as usize].accel.refit(prims)
     }
 
-    /// Refits or rebuilds the top level over the world boxes of `instances`.
-    fn update_top(&mut self, instances: &[Instance], update: TopUpdate) -> Result<(), BuildError> {
-        let boxes = world_boxes(&self.objects, instances);
+    /// Refits or rebuilds the top level over the instances' world boxes `boxes`.
+    fn update_top(&mut self, boxes: Vec<WorldBox>, update: TopUpdate) -> Result<(), BuildError> {
         match update {
             TopUpdate::Refit => self.top.refit(&boxes),
             TopUpdate::Rebuild => {

@@ -41,25 +41,30 @@ thread_local! {
 /// Counts `n` bounding-volume tests.
 #[inline(always)]
 pub fn nodes(n: u32) {
-    #[cfg(feature = "counters")]
-    COUNTS.with(|c| {
-        let mut v = c.get();
-        v.nodes += n as u64;
-        c.set(v);
+    add(Counts {
+        nodes: n as u64,
+        prims: 0,
     });
-    let _ = n;
 }
 
 /// Counts `n` primitive tests.
 #[inline(always)]
 pub fn prims(n: u32) {
+    add(Counts {
+        nodes: 0,
+        prims: n as u64,
+    });
+}
+
+#[inline(always)]
+fn add(counts: Counts) {
     #[cfg(feature = "counters")]
     COUNTS.with(|c| {
         let mut v = c.get();
-        v.prims += n as u64;
+        v += counts;
         c.set(v);
     });
-    let _ = n;
+    let _ = counts;
 }
 
 /// This thread's counts since the last call, and resets them (zeros without the feature).

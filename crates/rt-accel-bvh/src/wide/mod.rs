@@ -25,6 +25,19 @@ pub(crate) use traverse::{WideLanes, lane_entries, test_leaf, traverse_nodes};
 use crate::BvhParams;
 use rt_geom::{Aabb, AccelStats, Hit, Ray};
 
+/// Every leaf's `(first, count)` of a wide topology (any node layout), in node order.
+pub(crate) fn leaves_of<Node: WideLanes<N>, const N: usize>(
+    nodes: &[Node],
+    root_leaf: Option<(u32, u32)>,
+) -> Vec<(u32, u32)> {
+    let lanes = nodes.iter().flat_map(|n| {
+        (0..N)
+            .filter(|&l| n.child(l) != u32::MAX && n.count(l) > 0)
+            .map(|l| (n.child(l), n.count(l)))
+    });
+    root_leaf.into_iter().chain(lanes).collect()
+}
+
 /// The topology of a wide BVH: nodes, root box, depth. Leaves are ranges of a leaf-ordered
 /// primitive array kept by the owner ([`WideBvh`], or `TriBvh` with SIMD triangle leaves), which
 /// supplies the leaf test to [`WideTree::traverse`].
@@ -114,12 +127,7 @@ impl<const N: usize> WideTree<N> {
 
     /// Every leaf's `(first, count)`, in node order.
     pub fn leaves(&self) -> Vec<(u32, u32)> {
-        let lanes = self.nodes.iter().flat_map(|n| {
-            (0..N)
-                .filter(|&l| n.is_used(l) && n.count[l] > 0)
-                .map(|l| (n.child[l], n.count[l]))
-        });
-        self.root_leaf.into_iter().chain(lanes).collect()
+        leaves_of(&self.nodes, self.root_leaf)
     }
 
     /// Stack traversal; all children of a node are tested at once and pushed far to near.
