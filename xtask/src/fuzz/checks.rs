@@ -212,10 +212,10 @@ fn exact_domain<P: rt_geom::Primitive>(prims: &[P], rays: &[TestRay]) -> Vec<Tes
         .collect()
 }
 
-/// Whether a scene's rays (from a camera and lights at the scene's scale) stay within the
-/// exactness domain: no primitive narrower than [`FAR_HIT`]-th of the scene's size or of its
-/// largest coordinate.
-fn within_exact_domain(shapes: &[Shape]) -> bool {
+/// Whether a scene's rays stay within the exactness domain: no primitive narrower than
+/// [`FAR_HIT`]-th of the extent of the scene's shapes and `points` (the camera, the lights:
+/// where rays start), or of their largest coordinate.
+fn within_exact_domain(shapes: &[Shape], points: &[rt_geom::Vec3]) -> bool {
     use rt_geom::Primitive;
     let bounds = shapes
         .iter()
@@ -223,6 +223,7 @@ fn within_exact_domain(shapes: &[Shape]) -> bool {
     if bounds.is_empty() {
         return true;
     }
+    let bounds = points.iter().fold(bounds, |b, &p| b.grow(p));
     let reach = bounds
         .extent()
         .max_element()
@@ -320,7 +321,9 @@ fn mismatches(name: &str, report: &Report) -> Result<(), String> {
 /// force and with a BVH (scenes of up to [`TRACE_MAX_PRIMS`] shapes within the exactness
 /// domain, [`within_exact_domain`]).
 fn render_agrees(scene: &Scene) -> Result<(), String> {
-    if scene.shapes.len() > TRACE_MAX_PRIMS || !within_exact_domain(&scene.shapes) {
+    let mut starts: Vec<rt_geom::Vec3> = scene.lights.iter().map(|l| l.position).collect();
+    starts.push(scene.camera.eye);
+    if scene.shapes.len() > TRACE_MAX_PRIMS || !within_exact_domain(&scene.shapes, &starts) {
         return Ok(());
     }
     let options = RenderOptions {
