@@ -1,8 +1,8 @@
 //! Intel Embree 3 behind the `Accel` trait (Cargo feature `embree`; Debian's `libembree-dev`).
 //!
 //! A small FFI module of our own, of the few calls rt needs: a device with `threads=N`, one
-//! triangle geometry with shared vertex and index buffers, a scene built at high quality with
-//! the robust flag, `rtcIntersect1` and `rtcOccluded1`. Struct layouts follow Embree 3.13's
+//! triangle geometry with shared vertex and index buffers, a scene built at a chosen quality
+//! with or without the robust flag, `rtcIntersect1` / `rtcOccluded1` and the 8-ray packets. Struct layouts follow Embree 3.13's
 //! headers (`RTC_MAX_INSTANCE_LEVEL_COUNT` 1, `RTC_MIN_WIDTH` 0) and are checked at compile time.
 
 use rt_geom::{Accel, AccelStats, BuildError, Hit, Ray, Triangle, check_primitives};
@@ -98,6 +98,7 @@ const BUFFER_TYPE_INDEX: c_uint = 0;
 const BUFFER_TYPE_VERTEX: c_uint = 1;
 const FORMAT_UINT3: c_uint = 0x5003;
 const FORMAT_FLOAT3: c_uint = 0x9003;
+const BUILD_QUALITY_MEDIUM: c_uint = 1;
 const BUILD_QUALITY_HIGH: c_uint = 2;
 const SCENE_FLAG_ROBUST: c_uint = 1 << 2;
 
@@ -173,20 +174,26 @@ fn error(what: &str) -> BuildError {
     }
 }
 
+/// How an Embree scene is built: its scene flags and build quality.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EmbreeMode {
+    /// High quality with `RTC_SCENE_FLAG_ROBUST`: the mode held to rt's answers.
+    Robust,
+    /// High quality with Embree's default scene flags: the faster mode most of its users run.
+    Default,
+    /// Medium quality (Embree's default build) with its default scene flags: the build-time
+    /// reference.
+    Medium,
+}
+
 impl EmbreeScene {
-    /// Builds at high quality with `threads` build threads (0: rayon's current pool size) and
-    /// `RTC_SCENE_FLAG_ROBUST`, the mode held to rt's answers.
-    pub fn build(tris: &[Triangle], threads: usize) -> Result<Self, BuildError> {
-        Self::build_with(tris, threads, true)
-    }
-
-    /// [`Self::build`] with Embree's default scene flags (no `RTC_SCENE_FLAG_ROBUST`): the
-    /// faster mode most of its users run.
-    pub fn build_default_flags(tris: &[Triangle], threads: usize) -> Result<Self, BuildError> {
-        Self::build_with(tris, threads, false)
-    }
-
-    fn build_with(tris: &[Triangle], threads: usize, robust: bool) -> Result<Self, BuildError> {
+    /// Builds in `mode` with `threads` build threads (0: rayon's current pool size).
+    pub fn build(tris: &[Triangle], threads: usize, mode: EmbreeMode) -> Result<Self, BuildError> {
+        let (robust, quality) = match mode {
+            EmbreeMode::Robust => (true, BUILD_QUALITY_HIGH),
+            EmbreeMode::Default => (false, BUILD_QUALITY_HIGH),
+            EmbreeMode::Medium => (false, BUILD_QUALITY_MEDIUM),
+        };
         check_primitives(tris, u32::MAX as usize)?;
         let threads = if threads == 0 {
             rayon::current_num_threads()
@@ -212,7 +219,7 @@ impl EmbreeScene {
                 prims: tris.len(),
                 threads,
             };
-            rtcSetSceneBuildQuality(scene.as_ptr(), BUILD_QUALITY_HIGH);
+            rtcSetSceneBuildQuality(scene.as_ptr(), quality);
             if robust {
                 rtcSetSceneFlags(scene.as_ptr(), SCENE_FLAG_ROBUST);
             }
@@ -221,7 +228,7 @@ impl EmbreeScene {
                 if geometry.is_null() {
                     return Err(error("rtcNewGeometry failed"));
                 }
-                rtcSetGeometryBuildQuality(geometry, BUILD_QUALITY_HIGH);
+                rtcSetGeometryBuildQuality(geometry, quality);
                 let n = tris.len();
                 let vertices = rtcSetNewGeometryBuffer(
                     geometry,
@@ -433,9 +440,11 @@ mod tests {
     #[test]
     fn embree_hits_what_rt_hits() {
         let tris = rt_testkit::scenes::random_soup(500, 3);
-        let scene = EmbreeScene::build(&tris, 1).unwrap();
+        let scene = EmbreeScene::build(&tris, 1, EmbreeMode::Robust).unwrap();
         agrees_with_brute_force(&tris, &scene);
-        agrees_with_brute_force(&tris, &EmbreeScene::build_default_flags(&tris, 1).unwrap());
+        for mode in [EmbreeMode::Default, EmbreeMode::Medium] {
+            agrees_with_brute_force(&tris, &EmbreeScene::build(&tris, 1, mode).unwrap());
+        }
         // Embree's 8-wide packets answer as its single rays.
         let rays: Vec<Ray> = (0..101)
             .map(|i| {
@@ -458,9 +467,10 @@ mod tests {
             assert_eq!(hits[k], scene.intersect(r), "ray {k}");
             assert_eq!(blocked[k], scene.occluded(r), "ray {k}");
         }
-        let empty = EmbreeScene::build(&[], 1).unwrap();
+        let empty = EmbreeScene::build(&[], 1, EmbreeMode::Robust).unwrap();
         assert!(empty.intersect(&Ray::new(Vec3::ZERO, Vec3::X)).is_none());
-        assert!(EmbreeScene::build(&[Triangle::new(Vec3::NAN, Vec3::X, Vec3::Y)], 1).is_err());
+        let nan = [Triangle::new(Vec3::NAN, Vec3::X, Vec3::Y)];
+        assert!(EmbreeScene::build(&nan, 1, EmbreeMode::Robust).is_err());
     }
 
     /// Camera-like rays through a random soup: Embree's closest `t` within 1e-4 relative of

@@ -195,10 +195,13 @@ const fn concat<const N: usize>(a: &[AccelEntry], b: &[AccelEntry]) -> [AccelEnt
 /// Intel Embree 3 (`--features embree`, Debian's `libembree-dev`): high-quality build,
 /// `rtcIntersect1` / `rtcOccluded1`, as many build threads as the pool it is built in.
 #[cfg(feature = "embree")]
+use crate::embree::{EmbreeMode, EmbreeScene};
+
+#[cfg(feature = "embree")]
 const EMBREE: AccelEntry = AccelEntry {
     name: "embree",
     about: "Intel Embree 3 (system library), high-quality robust build, rtcIntersect1/rtcOccluded1",
-    build: |p| boxed(crate::embree::EmbreeScene::build(p, 0)),
+    build: |p| boxed(EmbreeScene::build(p, 0, EmbreeMode::Robust)),
     build_shapes: None,
     tolerance: EMBREE_TOLERANCE,
     external: true,
@@ -217,17 +220,26 @@ const OPTIONAL: &[AccelEntry] = &[
     AccelEntry {
         name: "embree-fast",
         about: "Intel Embree 3 (system library), high-quality build, default scene flags (not robust), rtcIntersect1/rtcOccluded1",
-        build: |p| boxed(crate::embree::EmbreeScene::build_default_flags(p, 0)),
+        build: |p| boxed(EmbreeScene::build(p, 0, EmbreeMode::Default)),
         ..EMBREE
     },
-    // Embree's packet path for the packet comparisons; its single rays are `embree`'s, so bench
-    // and verify do not run them twice.
+    // Embree's own default build quality: the reference for build times.
+    AccelEntry {
+        name: "embree-medium",
+        about: "Intel Embree 3 (system library), medium-quality build (its default), default scene flags, rtcIntersect1/rtcOccluded1",
+        build: |p| boxed(EmbreeScene::build(p, 0, EmbreeMode::Medium)),
+        ..EMBREE
+    },
+    // Embree's packet path for the packet comparisons, in its default mode; its single rays
+    // are `embree-fast`'s, so bench and verify do not run them twice.
     AccelEntry {
         name: "embree-packet8",
-        about: "the Embree scene traced by rtcIntersect8/rtcOccluded8, 8 rays per packet (trace --packet 4x2)",
+        about: "the default-flags Embree scene traced by rtcIntersect8/rtcOccluded8, 8 rays per packet (trace --packet 4x2)",
+        build: |p| boxed(EmbreeScene::build(p, 0, EmbreeMode::Default)),
         bench_max_prims: 0,
         packets: Some(|p| {
-            crate::embree::EmbreeScene::build(p, 0).map(|s| Box::new(s) as Box<dyn PacketAccel>)
+            EmbreeScene::build(p, 0, EmbreeMode::Default)
+                .map(|s| Box::new(s) as Box<dyn PacketAccel>)
         }),
         ..EMBREE
     },

@@ -27,6 +27,11 @@ pub const LANES: usize = 4;
 pub struct TriangleSoa {
     data: Vec<f32>,
     len: usize,
+    /// Bit `i` set where triangle `i` (leaf order) has zero area ([`Triangle::is_degenerate`]):
+    /// never hit, but one of its edge functions is exactly zero for every ray (two coincident
+    /// vertices, common in scanned meshes), which sends its lane to the scalar path each
+    /// time. Empty when no triangle is degenerate; else one spare word at the end.
+    degenerate: Vec<u64>,
 }
 
 impl TriangleSoa {
@@ -42,10 +47,29 @@ impl TriangleSoa {
                 }
             }
         }
+        let mut degenerate = vec![0u64; tris.len() / 64 + 2];
+        for (i, t) in tris.iter().enumerate() {
+            degenerate[i / 64] |= (t.is_degenerate() as u64) << (i % 64);
+        }
+        if degenerate.iter().all(|&w| w == 0) {
+            degenerate = Vec::new();
+        }
         Self {
             data,
             len: tris.len(),
+            degenerate,
         }
+    }
+
+    /// Bits of the degenerate triangles among `i .. i + 32` (leaf order; bits past the end
+    /// are zero).
+    #[inline(always)]
+    fn degenerate_bits(&self, i: usize) -> u32 {
+        let (w, s) = (i / 64, i % 64);
+        let lo = self.degenerate[w] >> s;
+        // `<< 1 << (63 - s)`: no shift by 64 when `s` is 0.
+        let hi = (self.degenerate[w + 1] << 1) << (63 - s);
+        (lo | hi) as u32
     }
 
     /// Number of triangles.
@@ -71,7 +95,7 @@ impl TriangleSoa {
 
     /// Bytes of the triangle data.
     pub fn bytes(&self) -> usize {
-        self.data.len() * 4
+        self.data.len() * 4 + self.degenerate.len() * 8
     }
 
     /// Tests triangles `first .. first + count` against the ray, in order: the edge functions
@@ -133,6 +157,10 @@ impl TriangleSoa {
         let row = |j: usize| L::load(&leaf[j * count + k..]);
         let (may_hit, sheared) = watertight_rows(row, r);
         let mut may_hit = may_hit & lanes;
+        if may_hit != 0 && !self.degenerate.is_empty() {
+            // `finish_watertight` returns `None` for them: not asked.
+            may_hit &= !self.degenerate_bits(first + k);
+        }
         while may_hit != 0 {
             let l = may_hit.trailing_zeros() as usize;
             may_hit &= may_hit - 1;
@@ -359,6 +387,39 @@ mod tests {
         assert!(leaf.check_list(&tris, &indices, (0, 2)).is_ok());
         assert!(leaf.check_list(&tris, &[3, 2, 4, 1], (0, 2)).is_err());
         assert!(leaf.check_list(&tris, &indices, (3, 2)).is_err());
+    }
+
+    /// Zero-area triangles (two coincident vertices, or three in a line) among the others:
+    /// their bits found across word boundaries, and the leaf tests, which skip them, answer
+    /// as the scalar kernel does.
+    #[test]
+    fn degenerate_triangles_answer_as_by_id() {
+        let mut seed = 11;
+        let v = |s: &mut u64| Vec3::new(lcg(s), lcg(s), lcg(s));
+        let tris: Vec<Triangle> = (0..150)
+            .map(|i| {
+                let a = v(&mut seed) * 2.0 - 1.0;
+                let (b, c) = (a + v(&mut seed) * 0.8, a + v(&mut seed) * 0.8);
+                match i % 5 {
+                    0 => Triangle::new(a, b, b),
+                    1 => Triangle::new(a, b, a + (b - a) * 0.5),
+                    _ => Triangle::new(a, b, c),
+                }
+            })
+            .collect();
+        let soa = TriangleSoa::new(&tris, [(0, 150)]);
+        for i in 0..150 {
+            for l in 0..32 {
+                let expected = tris.get(i + l).is_some_and(Triangle::is_degenerate);
+                assert_eq!(soa.degenerate_bits(i) >> l & 1 == 1, expected, "{i} + {l}");
+            }
+        }
+        assert!(
+            TriangleSoa::new(&tris[2..5], [(0, 3)])
+                .degenerate
+                .is_empty()
+        );
+        same_as_by_id(&tris, &mut seed);
     }
 
     #[test]
