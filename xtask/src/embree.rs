@@ -2,8 +2,9 @@
 //!
 //! A small FFI module of our own, of the few calls rt needs: a device with `threads=N`, one
 //! triangle geometry with shared vertex and index buffers, a scene built at a chosen quality
-//! with or without the robust flag, `rtcIntersect1` / `rtcOccluded1` and the 8-ray packets. Struct layouts follow Embree 3.13's
-//! headers (`RTC_MAX_INSTANCE_LEVEL_COUNT` 1, `RTC_MIN_WIDTH` 0) and are checked at compile time.
+//! with or without the robust flag ([`EmbreeMode`]), `rtcIntersect1` / `rtcOccluded1` and the
+//! 8-ray packets. Struct layouts follow Embree 3.13's headers (`RTC_MAX_INSTANCE_LEVEL_COUNT`
+//! 1, `RTC_MIN_WIDTH` 0) and are checked at compile time.
 
 use rt_geom::{Accel, AccelStats, BuildError, Hit, Ray, Triangle, check_primitives};
 use std::ffi::{CStr, c_char, c_uint, c_void};

@@ -82,7 +82,7 @@ fn replay<const ANY_HIT: bool>(bvh: &TriBvh8, ray: &Ray, leaves: &[(u32, u32)]) 
 }
 
 /// The walk with free leaves, told the answer: the ray ends at its hit (closest hit), or the
-/// walk stops at the leaf that answered (any hit). Returns the inner nodes it visited.
+/// walk stops at the leaf that answered (any hit). Returns that answer.
 fn walk<const ANY_HIT: bool>(
     bvh: &TriBvh8,
     ray: &Ray,
@@ -112,7 +112,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 fn race<const ANY_HIT: bool>(bvh: &TriBvh8, rays: &[Ray]) -> Result<(), String> {
     let mut recorded = Vec::with_capacity(rays.len());
-    let (mut leaves, mut prims, mut nodes) = (0usize, 0usize, 0usize);
+    let (mut leaves, mut prims) = (0usize, 0usize);
     for (k, ray) in rays.iter().enumerate() {
         let (tested, answer) = record::<ANY_HIT>(bvh, ray);
         if replay::<ANY_HIT>(bvh, ray, &tested) != answer {
@@ -135,7 +135,7 @@ fn race<const ANY_HIT: bool>(bvh: &TriBvh8, rays: &[Ray]) -> Result<(), String> 
             bvh.intersect(ray).is_some() as u8
         });
     }
-    nodes += rt_geom::counters::take().nodes as usize;
+    let nodes = rt_geom::counters::take().nodes as usize;
     let (mut whole, mut alone, mut walked) = (Vec::new(), Vec::new(), Vec::new());
     for _ in 0..ROUNDS {
         let t = Instant::now();
