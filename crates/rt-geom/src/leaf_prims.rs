@@ -14,6 +14,7 @@
 //! the [`LANES`] floats of padding at the end) and are masked off. Eight-lane windows are
 //! taken only while more than four triangles remain, so they stay inside the same bounds.
 
+use crate::triangle::proven_hit;
 use crate::{
     Hit, PrimHit, Primitive, Ray, SimdLanes, Triangle, Vec3, keep_hit, lane_edges, watertight_rows,
 };
@@ -105,8 +106,13 @@ impl TriangleSoa {
     /// `keep(hit, id, ray)` (ids from `ids[first..]`), which records it and says whether the
     /// search is over. Triangles whose id `skip` names (mailboxes: asked in order, before
     /// their window is tested) are not tested. Returns true when `keep` did.
+    ///
+    /// With `ANY_HIT` (queries that stop at the first hit, whose `keep` always says so), a
+    /// triangle whose hit [`proven_hit`] proves inside the ray's interval is handed over
+    /// with Woop's `f32` estimates of `t`, `u`, `v` instead of the refined ones: the same
+    /// answer, without the `f64` refinement.
     #[inline(always)]
-    pub fn test_range(
+    pub fn test_range<const ANY_HIT: bool>(
         &self,
         (first, count): (usize, usize),
         ids: &[u32],
@@ -119,9 +125,9 @@ impl TriangleSoa {
         let mut k = 0;
         while k < count {
             let over = if count - k > LANES {
-                self.test_window::<f32x8>(leaf, k, ids, r, &mut skip, &mut keep)
+                self.test_window::<f32x8, ANY_HIT>(leaf, k, ids, r, &mut skip, &mut keep)
             } else {
-                self.test_window::<f32x4>(leaf, k, ids, r, &mut skip, &mut keep)
+                self.test_window::<f32x4, ANY_HIT>(leaf, k, ids, r, &mut skip, &mut keep)
             };
             if over {
                 return true;
@@ -135,7 +141,7 @@ impl TriangleSoa {
     /// [`Self::test_range`] tests them. Windows of eight stay inside the leaf's rows and the
     /// padding (they are taken only while more than four triangles remain).
     #[inline(always)]
-    fn test_window<L: SimdLanes>(
+    fn test_window<L: SimdLanes, const ANY_HIT: bool>(
         &self,
         (first, count): (usize, usize),
         k: usize,
@@ -165,6 +171,20 @@ impl TriangleSoa {
             let l = may_hit.trailing_zeros() as usize;
             may_hit &= may_hit - 1;
             let edges = lane_edges(&sheared, l);
+            if ANY_HIT && r.tmin > 0.0 {
+                let [_, _, kz] = r.watertight_axes();
+                let oz = r.origin().to_array()[kz];
+                let dz = |v: usize| leaf[(3 * v + kz) * count + k + l] - oz;
+                let [ax, ay, bx, by, cx, cy] = &sheared;
+                let x = [ax[l], bx[l], cx[l]];
+                let y = [ay[l], by[l], cy[l]];
+                if let Some(h) = proven_hit(x, y, [dz(0), dz(1), dz(2)], edges, r) {
+                    if keep(h, ids[k + l], r) {
+                        return true;
+                    }
+                    continue;
+                }
+            }
             if let Some(h) = self.get(first, count, k + l).finish_watertight(r, edges) {
                 if keep(h, ids[k + l], r) {
                     return true;
@@ -185,7 +205,7 @@ impl TriangleSoa {
         ids: &[u32],
         best: &mut Option<Hit>,
     ) -> bool {
-        self.test_range(
+        self.test_range::<ANY_HIT>(
             (first, count),
             ids,
             r,
@@ -240,7 +260,7 @@ impl<P: Primitive> LeafPrims<P> {
     ) -> bool {
         let keep = |h, id, r: &mut Ray| keep_hit::<ANY_HIT>(h, id, &mut r.tmax, best);
         if let Some(soa) = &self.soa {
-            return soa.test_range((first, count), indices, ray, skip, keep);
+            return soa.test_range::<ANY_HIT>((first, count), indices, ray, skip, keep);
         }
         let mut keep = keep;
         let ids = &indices[first..first + count];

@@ -491,6 +491,48 @@ macro_rules! simd_lanes {
     };
 }
 simd_lanes!(f32x4, 4);
+
+/// One lane: the scalar form of the lane kernels' bounds ([`proven_hit`]).
+impl SimdLanes for f32 {
+    const WIDTH: usize = 1;
+    type Array = [f32; 1];
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        x
+    }
+    #[inline(always)]
+    fn load(src: &[f32]) -> Self {
+        src[0]
+    }
+    #[inline(always)]
+    fn to_lanes(self) -> [f32; 1] {
+        [self]
+    }
+    #[inline(always)]
+    fn sign_bits(a: Self, b: Self, c: Self) -> (u32, u32, u32) {
+        (
+            (a < 0.0 || b < 0.0 || c < 0.0) as u32,
+            (a > 0.0 || b > 0.0 || c > 0.0) as u32,
+            (a == 0.0 || b == 0.0 || c == 0.0) as u32,
+        )
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        f32::abs(self)
+    }
+    #[inline(always)]
+    fn max(self, other: Self) -> Self {
+        f32::max(self, other)
+    }
+    #[inline(always)]
+    fn min(self, other: Self) -> Self {
+        f32::min(self, other)
+    }
+    #[inline(always)]
+    fn less_bits(a: Self, b: Self) -> u32 {
+        (a < b) as u32
+    }
+}
 simd_lanes!(wide::f32x8, 8);
 
 /// Triangles in SIMD lanes (four by default): coordinate `j` of `[v0.x, v0.y, v0.z, v1.x,
@@ -542,25 +584,97 @@ pub struct ShearedLanes<L> {
 /// more than it saved.
 #[inline(never)]
 pub fn hits_before_tmin<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32) -> u32 {
-    use crate::aabb::gamma;
-    let abs_max = |v: &[L; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
-    let (x_max, y_max) = (abs_max(&t.x), abs_max(&t.y));
-    let (dz_max, z_max) = (abs_max(&t.dz), abs_max(&t.z));
-    let g = |n| L::splat(gamma(n));
-    let dx = g(8) * (x_max + dz_max);
-    let dy = g(8) * (y_max + dz_max);
-    let de = L::splat(4.0) * (g(2) * x_max * y_max + dy * x_max + dx * y_max);
-    let e = &t.edges;
-    let e_max = e[0].max(e[1]).max(e[2]);
-    let e_min = e[0].min(e[1]).min(e[2]);
-    let dzz = g(4) * z_max;
-    let three = L::splat(3.0);
-    let dt = three * (g(3) * e_max * z_max + de * z_max + dzz * e_max);
-    let dd = three * g(2) * e_max + three * de;
-    let (num, den) = (t.num, t.den);
+    let b = EstimateBounds::of(t);
     let two = L::splat(2.0);
-    let bound = L::splat(tmin) * (den - two * dd) * L::splat(1.0 - 1.0 / (1 << 20) as f32);
-    L::less_bits(de, e_min) & L::less_bits(num + two * dt, bound)
+    let bound = L::splat(tmin) * (t.den - two * b.dd) * L::splat(1.0 - ROUNDING);
+    L::less_bits(b.de, b.e_min) & L::less_bits(t.num + two * b.dt, bound)
+}
+
+/// How far the `f32` numbers of the depth estimate may lie from the exact ones, in
+/// [`refine`](Triangle::refine)'s relative rounding to `f32` (`2^-20`, generous).
+const ROUNDING: f32 = 1.0 / (1 << 20) as f32;
+
+/// The error bounds of [`hits_before_tmin`] for Woop's depth estimate `T / D` of sheared
+/// triangles: each edge function's `dE`, the smallest `|e|`, `dT` for `T`, `dD` for `D`.
+struct EstimateBounds<L> {
+    de: L,
+    e_min: L,
+    dt: L,
+    dd: L,
+}
+
+impl<L: SimdLanes> EstimateBounds<L> {
+    #[inline(always)]
+    fn of(t: &ShearedLanes<L>) -> Self {
+        use crate::aabb::gamma;
+        let abs_max = |v: &[L; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
+        let (x_max, y_max) = (abs_max(&t.x), abs_max(&t.y));
+        let (dz_max, z_max) = (abs_max(&t.dz), abs_max(&t.z));
+        let g = |n| L::splat(gamma(n));
+        let dx = g(8) * (x_max + dz_max);
+        let dy = g(8) * (y_max + dz_max);
+        let de = L::splat(4.0) * (g(2) * x_max * y_max + dy * x_max + dx * y_max);
+        let e = &t.edges;
+        let e_max = e[0].max(e[1]).max(e[2]);
+        let e_min = e[0].min(e[1]).min(e[2]);
+        let dzz = g(4) * z_max;
+        let three = L::splat(3.0);
+        let dt = three * (g(3) * e_max * z_max + de * z_max + dzz * e_max);
+        let dd = three * g(2) * e_max + three * de;
+        Self { de, e_min, dt, dd }
+    }
+}
+
+/// An any-hit query's shortcut for one triangle that passed the sign test: `Some` when the
+/// error bounds of [`hits_before_tmin`], mirrored, prove that [`Triangle::finish_watertight`]
+/// would report a hit inside `[tmin, tmax]` (`tmin > 0`), so that the query can stop without
+/// the `f64` refinement. Every edge function exceeds its bound (the exact ones agree in sign,
+/// so `refine` interpolates) and `T - 2 dT > tmin (D + 2 dD) (1 + 2^-20)`, `T + 2 dT < tmax
+/// (D - 2 dD) (1 - 2^-20)`. The hit returned carries Woop's `f32` estimates of `t`, `u`, `v`
+/// (an any-hit query answers only whether something is hit); `None` sends the caller to the
+/// refinement.
+///
+/// Inputs as [`watertight_lanes`] computes them for the triangle's lane: the sheared `x`, `y`
+/// and the unscaled depth `v[kz] - o[kz]` per vertex, and its edge functions ([`lane_edges`]).
+#[inline]
+pub fn proven_hit(
+    x: [f32; 3],
+    y: [f32; 3],
+    dz: [f32; 3],
+    (u, v, w): (f32, f32, f32),
+    ray: &Ray,
+) -> Option<PrimHit> {
+    let (tmin, tmax) = (ray.tmin, ray.tmax);
+    if !(tmin > 0.0) {
+        return None;
+    }
+    let sz = ray.watertight_shear().z;
+    let z = dz.map(|d| d * sz);
+    let edges = [u.abs(), v.abs(), w.abs()];
+    let num = edges[0] * z[0] + edges[1] * z[1] + edges[2] * z[2];
+    let den = edges[0] + edges[1] + edges[2];
+    let t = ShearedLanes {
+        x,
+        y,
+        dz,
+        z,
+        edges,
+        num,
+        den,
+    };
+    let b = EstimateBounds::of(&t);
+    let after_tmin = (num - 2.0 * b.dt) > tmin * (den + 2.0 * b.dd) * (1.0 + ROUNDING);
+    let before_tmax = (num + 2.0 * b.dt) < tmax * (den - 2.0 * b.dd) * (1.0 - ROUNDING);
+    if !(b.de < b.e_min && 2.0 * b.dd < den && after_tmin && before_tmax) {
+        return None;
+    }
+    let rcp = 1.0 / (u + v + w);
+    let (bu, bv) = (v * rcp, w * rcp);
+    (bu.is_finite() && bv.is_finite()).then(|| PrimHit {
+        t: (num / den).clamp(tmin, tmax),
+        u: bu,
+        v: bv,
+    })
 }
 
 /// [`watertight_edges`] of lane `l` of [`watertight_lanes`]' sheared coordinates. Reads the
@@ -1003,6 +1117,107 @@ mod tests {
             assert_eq!((a1, b1), (a2, b2), "case {case} (any hit)");
         }
         assert!(hits > 500, "{hits} hits: the rays must meet the triangles");
+    }
+
+    /// [`proven_hit`] proves only hits that [`Triangle::finish_watertight`] reports inside the
+    /// interval: rays from near and far at points inside triangles, on their edges and
+    /// vertices, grazing ones, slivers, coordinates far from the origin, intervals ending
+    /// a hair before or after the hit; and it proves most clear hits.
+    #[test]
+    fn proves_only_hits_that_refine_keeps() {
+        let mut uniform = crate::test_uniform(77);
+        let mut rnd = move || uniform();
+        let (mut clear, mut clear_proven, mut proven) = (0, 0, 0);
+        for case in 0..40_000 {
+            let scale = [1e-3, 1.0, 1e3][case % 3];
+            let centre = Vec3::new(rnd(), rnd(), rnd()) * [0.0, 10.0, 1e4][case / 3 % 3];
+            let mut v = || centre + (Vec3::new(rnd(), rnd(), rnd()) - 0.5) * scale;
+            let tris: Vec<Triangle> = (0..8)
+                .map(|k| {
+                    let (a, b) = (v(), v());
+                    let c = if k == 0 && case % 4 == 0 {
+                        a + (b - a) * 0.37 + Vec3::splat(1e-6 * scale)
+                    } else {
+                        v()
+                    };
+                    Triangle::new(a, b, c)
+                })
+                .collect();
+            let target = &tris[case % 8];
+            let (mut u, mut w) = (rnd(), rnd());
+            if u + w > 1.0 {
+                (u, w) = (1.0 - u, 1.0 - w);
+            }
+            match case % 5 {
+                0 => w = 0.0,
+                1 => (u, w) = (0.0, 0.0),
+                _ => {}
+            }
+            let aim = target.point(u, w);
+            let n = target.normal();
+            let dir = match case % 4 {
+                0 => (target.v[1] - target.v[0]).normalize_or_zero() + n * (rnd() - 0.5) * 1e-3,
+                _ => Vec3::new(rnd(), rnd(), rnd()) - 0.5,
+            };
+            let dist = [1e-4, 1.0, 30.0][case / 9 % 3] * scale;
+            let origin = aim - dir.normalize_or_zero() * dist;
+            let t_aim = (aim - origin).length() / dir.length();
+            let tmax = match case / 27 % 4 {
+                0 => f32::INFINITY,
+                1 => t_aim * 2.0,
+                2 => t_aim * (1.0 + 1e-6),
+                _ => t_aim * (1.0 - 1e-6),
+            };
+            // `tmin` far before the hit, or a hair before or after it.
+            let tmin = match case / 108 % 3 {
+                0 => [1e-7, 1e-5, 1e-3][case % 3] * t_aim,
+                1 => t_aim * (1.0 - 1e-6),
+                _ => t_aim * (1.0 + 1e-6),
+            };
+            let ray = Ray::segment(origin, dir, tmin, tmax);
+            let w8: TriangleLanes<wide::f32x8> = std::array::from_fn(|j| {
+                wide::f32x8::from(std::array::from_fn(|l| tris[l].v[j / 3][j % 3]))
+            });
+            let (mut lanes, sheared) = watertight_lanes(&w8, &ray);
+            let [_, _, kz] = ray.watertight_axes();
+            let oz = ray.origin().to_array()[kz];
+            while lanes != 0 {
+                let l = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                let edges = lane_edges(&sheared, l);
+                let [ax, ay, bx, by, cx, cy] = &sheared;
+                let dz = tris[l].v.map(|p| p.to_array()[kz] - oz);
+                let got = proven_hit(
+                    [ax[l], bx[l], cx[l]],
+                    [ay[l], by[l], cy[l]],
+                    dz,
+                    edges,
+                    &ray,
+                );
+                let refined = tris[l].finish_watertight(&ray, edges);
+                if let Some(h) = got {
+                    proven += 1;
+                    let r = refined.unwrap_or_else(|| {
+                        panic!("case {case} lane {l}: {h:?} proved, not refined: {ray:?}")
+                    });
+                    assert!((ray.tmin..=ray.tmax).contains(&h.t) && ray.in_range(r.t));
+                }
+                // A clear hit: inside, not grazing, well within the interval, coordinates
+                // within 1e4 of the triangle's size.
+                let near_origin = case / 3 % 3 < 2;
+                let inside = case % 5 >= 2 && case % 4 != 0;
+                let interval = case / 27 % 4 < 2 && case / 108 % 3 == 0;
+                if l == case % 8 && inside && interval && near_origin {
+                    clear += 1;
+                    clear_proven += got.is_some() as u32;
+                }
+            }
+        }
+        assert!(
+            clear > 1_000 && clear_proven * 100 > clear * 90,
+            "clear hits proven {clear_proven} of {clear}"
+        );
+        assert!(proven > 3_000, "{proven}");
     }
 
     /// [`hits_before_tmin`] culls only lanes whose hit [`Triangle::finish_watertight`] rejects:
