@@ -4,11 +4,11 @@
 //! `.hits`: per ray, little-endian `f32 t` (+inf on a miss) then `u32 prim` (`0xFFFFFFFF` on a
 //! miss).
 
-use rt_geom::{Hit, Ray, Vec3};
+use rt_geom::{Hit, Ray};
 use std::io::Write;
 use std::path::Path;
 
-pub const RAY_BYTES: usize = 32;
+pub const RAY_BYTES: usize = rt_testkit::rays::RAY_FILE_BYTES;
 pub const HIT_BYTES: usize = 8;
 pub const MISS_PRIM: u32 = u32::MAX;
 
@@ -19,24 +19,7 @@ pub fn read_rays(path: &Path) -> Result<Vec<Ray>, String> {
 }
 
 pub fn parse_rays(bytes: &[u8]) -> Result<Vec<Ray>, String> {
-    if bytes.len() % RAY_BYTES != 0 {
-        return Err(format!(
-            "size {} is not a multiple of {RAY_BYTES} bytes (8 f32 per ray): truncated or not a ray file",
-            bytes.len()
-        ));
-    }
-    Ok(bytes
-        .chunks_exact(RAY_BYTES)
-        .map(|c| {
-            let f = |i: usize| f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap());
-            Ray::segment(
-                Vec3::new(f(0), f(1), f(2)),
-                Vec3::new(f(4), f(5), f(6)),
-                f(3),
-                f(7),
-            )
-        })
-        .collect())
+    rt_testkit::rays::parse_ray_file(bytes)
 }
 
 pub fn encode_rays(rays: &[Ray]) -> Vec<u8> {
@@ -126,6 +109,7 @@ fn write_file(path: &Path, bytes: &[u8]) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rt_geom::Vec3;
 
     #[test]
     fn round_trip_and_truncation() {

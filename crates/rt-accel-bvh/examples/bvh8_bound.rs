@@ -17,32 +17,16 @@
 //! (`cargo xtask rays` writes the ray files).
 
 use rt_accel_bvh::TriBvh8;
-use rt_geom::{Accel, Hit, Ray, Vec3};
+use rt_geom::{Accel, Hit, Ray};
 use std::hint::black_box;
 use std::time::Instant;
 
 const ROUNDS: usize = 5;
 
-/// Reads a `.rays` file: little-endian `f32`, `ox oy oz tmin dx dy dz tmax` per ray.
+/// Reads a `.rays` file.
 fn read_rays(path: &str) -> Result<Vec<Ray>, String> {
     let bytes = std::fs::read(path).map_err(|e| format!("{path}: {e}"))?;
-    if bytes.len() % 32 != 0 {
-        return Err(format!(
-            "{path}: not a ray file (size not a multiple of 32)"
-        ));
-    }
-    Ok(bytes
-        .chunks_exact(32)
-        .map(|c| {
-            let f = |i: usize| f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap());
-            Ray::segment(
-                Vec3::new(f(0), f(1), f(2)),
-                Vec3::new(f(4), f(5), f(6)),
-                f(3),
-                f(7),
-            )
-        })
-        .collect())
+    rt_testkit::rays::parse_ray_file(&bytes).map_err(|e| format!("{path}: {e}"))
 }
 
 /// The leaves one ray's walk tests, in order, and its answer.

@@ -1119,6 +1119,38 @@ mod tests {
         assert!(hits > 500, "{hits} hits: the rays must meet the triangles");
     }
 
+    /// Eight triangles for lane tests (lane 0 a sliver in every fourth case), `1e-3`, 1 or
+    /// `1e3` across (`case % 3`), centred at the origin, 10 or `1e4` away (`case / 3 % 3`),
+    /// and a point of triangle `case % 8`: inside, on an edge (`case % 5 == 0`) or a vertex
+    /// (`case % 5 == 1`).
+    fn triangles_and_point(case: usize, rnd: &mut impl FnMut() -> f32) -> (Vec<Triangle>, Vec3) {
+        let scale = [1e-3, 1.0, 1e3][case % 3];
+        let centre = Vec3::new(rnd(), rnd(), rnd()) * [0.0, 10.0, 1e4][case / 3 % 3];
+        let mut v = || centre + (Vec3::new(rnd(), rnd(), rnd()) - 0.5) * scale;
+        let tris: Vec<Triangle> = (0..8)
+            .map(|k| {
+                let (a, b) = (v(), v());
+                let c = if k == 0 && case % 4 == 0 {
+                    a + (b - a) * 0.37 + Vec3::splat(1e-6 * scale)
+                } else {
+                    v()
+                };
+                Triangle::new(a, b, c)
+            })
+            .collect();
+        let (mut u, mut w) = (rnd(), rnd());
+        if u + w > 1.0 {
+            (u, w) = (1.0 - u, 1.0 - w);
+        }
+        match case % 5 {
+            0 => w = 0.0,
+            1 => (u, w) = (0.0, 0.0),
+            _ => {}
+        }
+        let point = tris[case % 8].point(u, w);
+        (tris, point)
+    }
+
     /// [`proven_hit`] proves only hits that [`Triangle::finish_watertight`] reports inside the
     /// interval: rays from near and far at points inside triangles, on their edges and
     /// vertices, grazing ones, slivers, coordinates far from the origin, intervals ending
@@ -1130,30 +1162,8 @@ mod tests {
         let (mut clear, mut clear_proven, mut proven) = (0, 0, 0);
         for case in 0..40_000 {
             let scale = [1e-3, 1.0, 1e3][case % 3];
-            let centre = Vec3::new(rnd(), rnd(), rnd()) * [0.0, 10.0, 1e4][case / 3 % 3];
-            let mut v = || centre + (Vec3::new(rnd(), rnd(), rnd()) - 0.5) * scale;
-            let tris: Vec<Triangle> = (0..8)
-                .map(|k| {
-                    let (a, b) = (v(), v());
-                    let c = if k == 0 && case % 4 == 0 {
-                        a + (b - a) * 0.37 + Vec3::splat(1e-6 * scale)
-                    } else {
-                        v()
-                    };
-                    Triangle::new(a, b, c)
-                })
-                .collect();
+            let (tris, aim) = triangles_and_point(case, &mut rnd);
             let target = &tris[case % 8];
-            let (mut u, mut w) = (rnd(), rnd());
-            if u + w > 1.0 {
-                (u, w) = (1.0 - u, 1.0 - w);
-            }
-            match case % 5 {
-                0 => w = 0.0,
-                1 => (u, w) = (0.0, 0.0),
-                _ => {}
-            }
-            let aim = target.point(u, w);
             let n = target.normal();
             let dir = match case % 4 {
                 0 => (target.v[1] - target.v[0]).normalize_or_zero() + n * (rnd() - 0.5) * 1e-3,
@@ -1231,34 +1241,11 @@ mod tests {
         let (mut own, mut own_culled, mut culled) = (0, 0, 0);
         for case in 0..20_000 {
             let scale = [1e-3, 1.0, 1e3][case % 3];
-            let centre = Vec3::new(rnd(), rnd(), rnd()) * [0.0, 10.0, 1e4][case / 3 % 3];
-            let mut v = || centre + (Vec3::new(rnd(), rnd(), rnd()) - 0.5) * scale;
-            let tris: Vec<Triangle> = (0..8)
-                .map(|k| {
-                    let (a, b) = (v(), v());
-                    // Lane 0 a sliver, now and then.
-                    let c = if k == 0 && case % 4 == 0 {
-                        a + (b - a) * 0.37 + Vec3::splat(1e-6 * scale)
-                    } else {
-                        v()
-                    };
-                    Triangle::new(a, b, c)
-                })
-                .collect();
+            let (tris, point) = triangles_and_point(case, &mut rnd);
             let t = &tris[case % 8];
-            // A point of triangle `case % 8`: inside, on an edge, or a vertex.
-            let (mut u, mut w) = (rnd(), rnd());
-            if u + w > 1.0 {
-                (u, w) = (1.0 - u, 1.0 - w);
-            }
-            match case % 5 {
-                0 => w = 0.0,
-                1 => (u, w) = (0.0, 0.0),
-                _ => {}
-            }
             let n = (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).normalize_or_zero();
             let off = [0.0, 1e-6, -1e-6][case % 3] * scale;
-            let origin = t.point(u, w) + n * off;
+            let origin = point + n * off;
             let dir = match case % 4 {
                 // Grazing: in the plane, tilted by a hair.
                 0 => (t.v[1] - t.v[0]).normalize_or_zero() + n * (rnd() - 0.5) * 1e-3,

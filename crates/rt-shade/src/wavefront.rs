@@ -201,32 +201,27 @@ impl Whitted<'_> {
                             }
                         }
                     }
-                    if m.spawns_reflection() {
-                        let w = p.weight * kr;
-                        if w.max_element() >= options.min_weight {
-                            stats.reflected += 1;
-                            let r = mirror(d, &s);
-                            out.reflected = Some((kr, usize::MAX));
-                            let pending = Pending {
-                                depth: p.depth + 1,
-                                weight: w,
-                                parent: Some((node, false)),
-                            };
-                            reflected.push(Ray::new(self.leave(&s, r), r), pending);
-                        }
-                    }
-                    if let Some(t) = transmitted {
-                        let w = p.weight * kt;
-                        if w.max_element() >= options.min_weight {
-                            stats.refracted += 1;
-                            out.refracted = Some((kt, usize::MAX));
-                            let pending = Pending {
-                                depth: p.depth + 1,
-                                weight: w,
-                                parent: Some((node, true)),
-                            };
-                            refracted.push(Ray::new(self.leave(&s, t), t), pending);
-                        }
+                    // The reflected ray, then the refracted one, each where its weight counts.
+                    let reflected_dir = m.spawns_reflection().then(|| mirror(d, &s));
+                    for (dir, k, refr) in [(reflected_dir, kr, false), (transmitted, kt, true)] {
+                        let w = p.weight * k;
+                        let Some(dir) = dir.filter(|_| w.max_element() >= options.min_weight)
+                        else {
+                            continue;
+                        };
+                        let (count, slot, next) = if refr {
+                            (&mut stats.refracted, &mut out.refracted, &mut refracted)
+                        } else {
+                            (&mut stats.reflected, &mut out.reflected, &mut reflected)
+                        };
+                        *count += 1;
+                        *slot = Some((k, usize::MAX));
+                        let pending = Pending {
+                            depth: p.depth + 1,
+                            weight: w,
+                            parent: Some((node, refr)),
+                        };
+                        next.push(Ray::new(self.leave(&s, dir), dir), pending);
                     }
                 }
                 nodes.push(out);
