@@ -15,7 +15,7 @@
 //! | [`sweep`] | the scaling sweep: build time and time per ray against N (`bench --sweep`) |
 //! | [`render`] | Whitted renders of the chess, OBJ and NFF scenes with any structure (rt-shade) |
 //! | [`trace`] | ray files in, hit files out; standard ray sets out |
-//! | [`rayfile`] | the `.rays` / `.hits` formats |
+//! | [`rayfile`] | the `.rays` / `.hits` formats (re-exported from rt-testkit, which reads and writes them) |
 //! | [`run`] | timed parallel tracing, medians, progress bars |
 //! | `embree` | Intel Embree 3 behind `Accel` (feature `embree`, system `libembree-dev`) |
 //! | [`fuzz`] | the fuzz targets' properties ([`fuzz::checks`]) and `cargo xtask fuzz`, which runs them |
@@ -28,7 +28,6 @@ pub mod embree;
 pub mod fuzz;
 pub mod native;
 pub mod obvhs_accel;
-pub mod rayfile;
 pub mod registry;
 pub mod render;
 pub mod report;
@@ -38,3 +37,6 @@ pub mod sweep;
 pub mod table;
 pub mod trace;
 pub mod verify;
+
+/// `.rays` and `.hits` files (the one module, in rt-testkit).
+pub use rt_testkit::rayfile;

@@ -25,8 +25,7 @@ const ROUNDS: usize = 5;
 
 /// Reads a `.rays` file.
 fn read_rays(path: &str) -> Result<Vec<Ray>, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{path}: {e}"))?;
-    rt_testkit::rays::parse_ray_file(&bytes).map_err(|e| format!("{path}: {e}"))
+    rt_testkit::rayfile::read_rays(std::path::Path::new(path))
 }
 
 /// The leaves one ray's walk tests, in order, and its answer.

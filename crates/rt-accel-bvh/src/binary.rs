@@ -3,7 +3,7 @@
 //! `traverse`.
 
 use crate::{BvhBuilder, BvhNode, BvhParams, build};
-use rt_geom::{Accel, AccelStats, BuildError, Hit, Primitive, Ray, check_primitives};
+use rt_geom::{Accel, AccelStats, BuildError, Primitive, check_primitives};
 
 /// A binary BVH over primitives `P`, flattened depth-first, primitives stored in leaf order.
 #[derive(Clone, Debug)]
@@ -89,15 +89,7 @@ impl<P: Primitive> Bvh<P> {
 }
 
 impl<P: Primitive> Accel for Bvh<P> {
-    #[inline]
-    fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        self.traverse::<false>(ray)
-    }
-
-    #[inline]
-    fn occluded(&self, ray: &Ray) -> bool {
-        self.traverse::<true>(ray).is_some()
-    }
+    rt_geom::queries_from_walk!();
 
     fn stats(&self) -> AccelStats {
         self.compute_stats()
@@ -112,7 +104,7 @@ impl<P: Primitive> Accel for Bvh<P> {
 mod tests {
     use super::*;
     use crate::{BvList, BvListParams, MAX_DEPTH};
-    use rt_geom::{Sphere, Triangle, Vec3};
+    use rt_geom::{Ray, Sphere, Triangle, Vec3};
     use rt_testkit::scenes;
 
     rt_testkit::conformance_per_params!(Bvh::build {

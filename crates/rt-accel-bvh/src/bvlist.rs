@@ -262,13 +262,7 @@ fn morton_order<P: Primitive>(prims: &[P]) -> Vec<u32> {
 }
 
 impl<P: Primitive, V: BoundingVolume> Accel for BvList<P, V> {
-    fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        self.traverse::<false>(ray)
-    }
-
-    fn occluded(&self, ray: &Ray) -> bool {
-        self.traverse::<true>(ray).is_some()
-    }
+    rt_geom::queries_from_walk!();
 
     fn stats(&self) -> AccelStats {
         AccelStats {

@@ -19,18 +19,13 @@
 //! The step is a power of two, so `q * step` is exact and `origin + q * step` rounds once; the
 //! build picks the step so that `origin + 255 * step` reaches the node's maximum, then rounds
 //! each child's codes outward, checking them with that same expression (the one the traversal
-//! evaluates), so every dequantized box holds its child's box. The traversal (the shared
-//! wide-BVH stack loop) then visits a superset of the nodes the exact boxes would give, and
+//! evaluates), so every dequantized box holds its child's box. The walk (the one wide-BVH
+//! stack loop, over [`NodeLayout`]) then visits a superset of the nodes the exact boxes would give, and
 //! returns exactly their hits.
 
-use crate::refit::{Refit, check_moved, in_leaf_order, leaf_bounds};
-use crate::stats::check_leaf_primitive;
-use crate::wide::{
-    WideLanes, WideNode, WideTopology, WideTree, lane_entries, leaves_of, test_leaf, traverse_nodes,
-};
-use crate::{Bvh8, BvhParams};
+use crate::wide::{NodeLayout, WideBvh, WideNode, WideTree, lane_entries};
 use rt_geom::aabb::SlabRay;
-use rt_geom::{Aabb, Accel, AccelStats, BuildError, Hit, Primitive, Ray, Vec3, all_referenced};
+use rt_geom::{Aabb, Vec3};
 
 /// A node of [`CompressedBvh8`] (layout in the module documentation).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -71,7 +66,7 @@ impl CompressedNode {
     }
 
     /// The dequantized box of `lane`.
-    pub fn bounds(&self, lane: usize) -> Aabb {
+    fn dequantized(&self, lane: usize) -> Aabb {
         let corner = |q: &[[u8; 8]; 3]| {
             Vec3::new(
                 self.at(0, q[0][lane]),
@@ -83,7 +78,7 @@ impl CompressedNode {
     }
 
     /// Quantizes `wide`: same children, boxes rounded outward.
-    pub fn compress(wide: &WideNode<8>) -> Self {
+    fn compress(wide: &WideNode<8>) -> Self {
         let used: Vec<usize> = (0..8).filter(|&l| wide.is_used(l)).collect();
         let node_box = used
             .iter()
@@ -131,7 +126,13 @@ impl CompressedNode {
     }
 }
 
-impl WideLanes<8> for CompressedNode {
+impl NodeLayout<8> for CompressedNode {
+    const EXACT: bool = false;
+
+    fn from_exact(node: &WideNode<8>) -> Self {
+        Self::compress(node)
+    }
+
     #[inline(always)]
     fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; 8]) {
         let dequantize = |q: &[[u8; 8]; 3]| -> [[f32; 8]; 3] {
@@ -159,241 +160,28 @@ impl WideLanes<8> for CompressedNode {
         self.count[lane]
     }
 
+    fn bounds(&self, lane: usize) -> Aabb {
+        self.dequantized(lane)
+    }
+
     #[inline(always)]
     fn used_mask(&self) -> u32 {
         self.used as u32
     }
 }
 
-/// The topology of a compressed 8-wide BVH: nodes, root box, depth (the counterpart of
-/// [`WideTree`]). Leaves are ranges of a leaf-ordered primitive array kept by the owner
-/// ([`CompressedBvh8`], or [`CompressedTriBvh8`](crate::CompressedTriBvh8) with SIMD triangle
-/// leaves), which supplies the leaf test to [`CompressedTree::traverse`].
-#[derive(Clone, Debug)]
-pub struct CompressedTree {
-    nodes: Vec<CompressedNode>,
-    root_bounds: Aabb,
-    root_leaf: Option<(u32, u32)>,
-    depth: usize,
-}
+/// The topology of a compressed 8-wide BVH: [`WideTree`] over [`CompressedNode`].
+pub type CompressedTree = WideTree<8, CompressedNode>;
 
-impl CompressedTree {
-    /// Compresses every node of `tree`.
-    pub fn compress(tree: &WideTree<8>) -> Self {
-        Self {
-            nodes: tree.nodes().iter().map(CompressedNode::compress).collect(),
-            root_bounds: tree.root_bounds(),
-            root_leaf: tree.root_leaf(),
-            depth: tree.depth(),
-        }
-    }
-
-    /// The quantized nodes, root first.
-    pub fn nodes(&self) -> &[CompressedNode] {
-        &self.nodes
-    }
-
-    /// The same topology with full-precision nodes holding the dequantized boxes.
-    pub fn decompress(&self) -> WideTree<8> {
-        let node = |c: &CompressedNode| {
-            let mut w = WideNode::EMPTY;
-            w.child = c.child;
-            w.count = c.count;
-            for lane in (0..8).filter(|&l| c.child[l] != u32::MAX) {
-                w.set_bounds(lane, c.bounds(lane));
-            }
-            w
-        };
-        WideTree {
-            nodes: self.nodes.iter().map(node).collect(),
-            root_bounds: self.root_bounds,
-            root_leaf: self.root_leaf,
-            depth: self.depth,
-        }
-    }
-
-    /// Statistics of `tree` (the same topology) with this layout's node bytes plus
-    /// `leaf_bytes` (primitives and ids).
-    pub(crate) fn stats(
-        &self,
-        tree: &WideTree<8>,
-        prims: usize,
-        params: &BvhParams,
-        leaf_bytes: usize,
-    ) -> AccelStats {
-        let mut stats = tree.stats(prims, params);
-        stats.bytes = std::mem::size_of_val(self.nodes.as_slice()) + leaf_bytes;
-        stats
-    }
-}
-
-impl WideTopology for CompressedTree {
-    /// The shared wide-BVH stack traversal (see [`WideTree::traverse`]).
-    #[inline(always)]
-    fn traverse<const ANY_HIT: bool>(
-        &self,
-        ray: &Ray,
-        leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<Hit>) -> bool,
-    ) -> Option<Hit> {
-        traverse_nodes::<_, 8, ANY_HIT>(
-            &self.nodes,
-            &self.root_bounds,
-            self.root_leaf,
-            self.depth,
-            ray,
-            leaf,
-        )
-    }
-
-    /// Checks the topology: children after their parents, depth bounded, and
-    /// `leaf(first, count, bounds)` for each leaf, with `bounds` the intersection of the
-    /// dequantized boxes on the way down (what the traversal relies on).
-    fn check(
-        &self,
-        mut leaf: impl FnMut(u32, u32, &Aabb) -> Result<(), String>,
-    ) -> Result<(), String> {
-        if let Some((first, count)) = self.root_leaf {
-            return leaf(first, count, &self.root_bounds);
-        }
-        if self.nodes.is_empty() {
-            return Ok(());
-        }
-        // (node, the intersection of the dequantized boxes above it, depth)
-        let mut stack = vec![(0usize, self.root_bounds, 0usize)];
-        while let Some((i, above, depth)) = stack.pop() {
-            if depth > crate::MAX_DEPTH {
-                return Err(format!("node {i} deeper than {}", crate::MAX_DEPTH));
-            }
-            let n = self.nodes.get(i).ok_or(format!("node {i} out of range"))?;
-            for lane in (0..8).filter(|&l| n.child[l] != u32::MAX) {
-                let b = n.bounds(lane).intersection(above);
-                if n.count[lane] > 0 {
-                    leaf(n.child[lane], n.count[lane], &b)?;
-                } else if n.child[lane] as usize <= i {
-                    return Err(format!("node {i} lane {lane} points backwards"));
-                } else {
-                    stack.push((n.child[lane] as usize, b, depth + 1));
-                }
-            }
-        }
-        Ok(())
-    }
-
-    fn leaves(&self) -> Vec<(u32, u32)> {
-        leaves_of(&self.nodes, self.root_leaf)
-    }
-
-    /// Refits the full-precision topology and quantizes it again.
-    fn refit_boxes(
-        &mut self,
-        leaf_bounds: &dyn Fn(u32, u32) -> Aabb,
-        prims: usize,
-        params: &BvhParams,
-    ) -> AccelStats {
-        let mut wide = self.decompress();
-        wide.refit(leaf_bounds);
-        *self = Self::compress(&wide);
-        self.stats(&wide, prims, params, 0)
-    }
-}
-
-/// An 8-wide BVH with quantized child boxes ([`CompressedNode`]), compressed from a [`Bvh8`];
-/// the same leaves and primitives.
-#[derive(Clone, Debug)]
-pub struct CompressedBvh8<P> {
-    tree: CompressedTree,
-    prims: Vec<P>,
-    ids: Vec<u32>,
-    count: usize,
-    params: BvhParams,
-    /// Statistics of the uncompressed tree (same topology), with this layout's bytes.
-    stats: AccelStats,
-}
-
-impl<P: Primitive> CompressedBvh8<P> {
-    /// Builds a binary BVH with `params`, collapses it to 8 wide and compresses it.
-    pub fn build(prims: &[P], params: BvhParams) -> Result<Self, BuildError> {
-        Ok(Self::from_wide(Bvh8::build(prims, params)?))
-    }
-
-    /// Compresses every node of `wide`.
-    pub fn from_wide(wide: Bvh8<P>) -> Self {
-        let (wide, prims, ids, count, params): (WideTree<8>, _, _, _, _) = wide.into_parts();
-        let tree = CompressedTree::compress(&wide);
-        let leaf_bytes =
-            std::mem::size_of_val(prims.as_slice()) + std::mem::size_of_val(ids.as_slice());
-        let stats = tree.stats(&wide, count, &params, leaf_bytes);
-        Self {
-            tree,
-            prims,
-            ids,
-            count,
-            params,
-            stats,
-        }
-    }
-
-    /// The quantized nodes, root first.
-    pub fn nodes(&self) -> &[CompressedNode] {
-        self.tree.nodes()
-    }
-
-    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        self.tree.traverse::<ANY_HIT>(ray, |first, count, r, best| {
-            test_leaf::<P, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
-        })
-    }
-}
-
-impl<P: Primitive> Refit<P> for CompressedBvh8<P> {
-    fn refit(&mut self, prims: &[P]) -> Result<(), BuildError> {
-        check_moved(prims, self.count)?;
-        self.prims = in_leaf_order(prims, &self.ids);
-        let leaves = &self.prims;
-        let bounds = |first, count| leaf_bounds(leaves, first, count);
-        let mut stats = self.tree.refit_boxes(&bounds, self.count, &self.params);
-        stats.bytes += self.stats.bytes - std::mem::size_of_val(self.tree.nodes.as_slice());
-        self.stats = stats;
-        Ok(())
-    }
-}
-
-impl<P: Primitive> Accel for CompressedBvh8<P> {
-    #[inline]
-    fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        self.traverse::<false>(ray)
-    }
-
-    #[inline]
-    fn occluded(&self, ray: &Ray) -> bool {
-        self.traverse::<true>(ray).is_some()
-    }
-
-    fn stats(&self) -> AccelStats {
-        self.stats.clone()
-    }
-
-    /// Every primitive lies in the dequantized box of its leaf and of every lane on the way
-    /// down (what the traversal relies on); children after their parents; every primitive
-    /// referenced.
-    fn validate(&self) -> Result<(), String> {
-        let mut seen = vec![false; self.count];
-        let split = self.params.splits_primitives();
-        self.tree.check(|first, count, b| {
-            for k in first as usize..(first + count) as usize {
-                let p = self.prims.get(k).ok_or("leaf points past the primitives")?;
-                check_leaf_primitive(p, self.ids[k], b, &mut seen, split)?;
-            }
-            Ok(())
-        })?;
-        all_referenced(&seen)
-    }
-}
+/// An 8-wide BVH with quantized child boxes ([`CompressedNode`]): [`WideBvh`] over that
+/// layout, the same leaves and primitives as [`Bvh8`](crate::Bvh8) built alike.
+pub type CompressedBvh8<P> = WideBvh<P, 8, CompressedNode>;
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rt_geom::{Sphere, Triangle};
+    use crate::{Bvh8, BvhParams};
+    use rt_geom::{Accel, Sphere, Triangle};
 
     rt_testkit::conformance_tests!(
         triangles: |p: &[Triangle]| CompressedBvh8::build(p, BvhParams::balanced()),
@@ -455,9 +243,10 @@ mod tests {
     fn half_the_bytes_of_bvh8() {
         let tris = rt_testkit::scenes::random_soup(5000, 3);
         let wide = Bvh8::build(&tris, BvhParams::balanced()).unwrap();
-        let node_bytes = std::mem::size_of_val(wide.tree().nodes());
-        let c = CompressedBvh8::from_wide(wide);
+        let c = CompressedBvh8::build(&tris, BvhParams::balanced()).unwrap();
         c.validate().unwrap();
-        assert_eq!(std::mem::size_of_val(c.nodes()) * 2, node_bytes);
+        assert_eq!(c.tree().leaves(), wide.tree().leaves());
+        let bytes = std::mem::size_of_val(c.tree().nodes());
+        assert_eq!(bytes * 2, std::mem::size_of_val(wide.tree().nodes()));
     }
 }

@@ -352,16 +352,8 @@ impl<O: Accel> fmt::Debug for InstanceBvh<O> {
 }
 
 impl<O: Accel> Accel for InstanceBvh<O> {
-    /// The closest hit; `prim` is the global id (see the module documentation).
-    #[inline]
-    fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        self.traverse::<false>(ray)
-    }
-
-    #[inline]
-    fn occluded(&self, ray: &Ray) -> bool {
-        self.traverse::<true>(ray).is_some()
-    }
+    // `prim` of a hit is the global id (see the module documentation).
+    rt_geom::queries_from_walk!();
 
     /// `primitives` counts every instance's primitives; nodes, leaves, references and bytes
     /// count the top level, the instances, and each object once.

@@ -16,7 +16,7 @@
 //! | `refit` | [`Refit`]: new vertex positions, same topology, for every BVH layout |
 //! | `collapse` | binary → wide: the greedy largest-area rule and the SAH-optimal plan ([`WideCollapse`]) |
 //! | [`wide`] | [`Bvh4`], [`Bvh8`]: collapsed wide BVHs, all children tested at once ([`WideTree`]); node, build, traverse and stats in files of those names |
-//! | [`compressed`] | [`CompressedBvh8`]: the 8-wide BVH with child boxes quantized to 8 bits per plane, 128-byte nodes ([`CompressedNode`], topology [`CompressedTree`]) |
+//! | [`compressed`] | [`CompressedNode`]: child boxes quantized to 8 bits per plane, 128-byte nodes; [`CompressedBvh8`] and [`CompressedTree`] are the wide BVH and its topology over that layout |
 //! | [`instance`] | [`InstanceBvh`]: two-level ray tracing, a top-level BVH over [`Instance`]s (affine transforms) of [`Object`]s with their own structures; moving instances and refit objects |
 //! | [`tri`] | [`TriBvh4`], [`TriBvh8`], [`CompressedTriBvh8`]: wide BVHs over triangles stored leaf by leaf as SoA ([`TriangleSoa`], from rt-geom), four tested at once |
 //!
@@ -63,4 +63,4 @@ pub use params::{BvhBuilder, BvhParams, MAX_DEPTH, WideCollapse};
 pub use refit::Refit;
 pub use rt_geom::TriangleSoa;
 pub use tri::{CompressedTriBvh8, TriBvh, TriBvh4, TriBvh8};
-pub use wide::{Bvh4, Bvh8, WideBvh, WideNode, WideTopology, WideTree};
+pub use wide::{Bvh4, Bvh8, NodeLayout, WideBvh, WideNode, WideTree};

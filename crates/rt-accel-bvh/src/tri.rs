@@ -3,10 +3,10 @@
 //! of four triangles are one SIMD operation each), with exactly the answers of the scalar
 //! kernel.
 
-use crate::compressed::CompressedTree;
+use crate::compressed::CompressedNode;
 use crate::refit::{Refit, check_moved, in_leaf_order, leaf_bounds};
 use crate::stats::check_leaf_primitive;
-use crate::wide::{WideTopology, WideTree};
+use crate::wide::{NodeLayout, WideNode, WideTree};
 use crate::{Bvh, BvhParams};
 use rt_geom::{
     Aabb, Accel, AccelStats, BuildError, Hit, Ray, Triangle, TriangleSoa, all_referenced,
@@ -33,11 +33,11 @@ fn check_leaf(
     Ok(())
 }
 
-/// A wide BVH over triangles with four-lane leaf tests, over a topology `T`: [`WideTree<N>`]
-/// (`N` = 4 or 8 children per node) or the quantized [`CompressedTree`].
+/// A wide BVH over triangles with four-lane leaf tests: `N` children per node (4 or 8) in
+/// the layout `Node` (exact boxes by default, or the quantized [`CompressedNode`]).
 #[derive(Clone, Debug)]
-pub struct TriBvh<T> {
-    tree: T,
+pub struct TriBvh<const N: usize, Node = WideNode<N>> {
+    tree: WideTree<N, Node>,
     tris: TriangleSoa,
     ids: Vec<u32>,
     count: usize,
@@ -46,15 +46,15 @@ pub struct TriBvh<T> {
 }
 
 /// A 4-wide BVH over triangles stored leaf by leaf as SoA (one SSE-width node test).
-pub type TriBvh4 = TriBvh<WideTree<4>>;
+pub type TriBvh4 = TriBvh<4>;
 /// An 8-wide BVH over triangles stored leaf by leaf as SoA: rt's fastest single-ray
 /// structure; [`TriBvh8::build_for_tracing`] builds it with the preset that traces fastest.
-pub type TriBvh8 = TriBvh<WideTree<8>>;
+pub type TriBvh8 = TriBvh<8>;
 /// [`TriBvh8`] with child boxes quantized to 8 bits per plane: the SIMD triangle leaves and
 /// half-size nodes.
-pub type CompressedTriBvh8 = TriBvh<CompressedTree>;
+pub type CompressedTriBvh8 = TriBvh<8, CompressedNode>;
 
-impl<const N: usize> TriBvh<WideTree<N>> {
+impl<const N: usize, Node: NodeLayout<N>> TriBvh<N, Node> {
     /// Builds a binary BVH with `params` and collapses it to `N`-wide nodes.
     pub fn build(tris: &[Triangle], params: BvhParams) -> Result<Self, BuildError> {
         Ok(Self::from_binary(Bvh::build(tris, params)?))
@@ -68,7 +68,7 @@ impl<const N: usize> TriBvh<WideTree<N>> {
 
     /// Collapses a binary BVH and converts its leaf-ordered triangles.
     pub fn from_binary(bvh: Bvh<Triangle>) -> Self {
-        let tree = WideTree::<N>::collapse(&bvh.nodes, &bvh.params);
+        let tree = WideTree::<N, Node>::collapse(&bvh.nodes, &bvh.params);
         let tris = TriangleSoa::new(&bvh.prims, tree.leaves());
         let mut stats = tree.stats(bvh.count, &bvh.params);
         stats.bytes += tris.bytes() + std::mem::size_of_val(bvh.ids.as_slice());
@@ -81,33 +81,9 @@ impl<const N: usize> TriBvh<WideTree<N>> {
             stats,
         }
     }
-}
 
-impl TriBvh<CompressedTree> {
-    /// Builds a binary BVH with `params` and collapses it to quantized 8-wide nodes.
-    pub fn build(tris: &[Triangle], params: BvhParams) -> Result<Self, BuildError> {
-        Ok(Self::from_tri_bvh(TriBvh8::build(tris, params)?))
-    }
-
-    /// Compresses the nodes of `bvh`, keeping its triangles.
-    pub fn from_tri_bvh(bvh: TriBvh8) -> Self {
-        let tree = CompressedTree::compress(&bvh.tree);
-        let leaf_bytes = bvh.tris.bytes() + std::mem::size_of_val(bvh.ids.as_slice());
-        let stats = tree.stats(&bvh.tree, bvh.count, &bvh.params, leaf_bytes);
-        Self {
-            tree,
-            tris: bvh.tris,
-            ids: bvh.ids,
-            count: bvh.count,
-            params: bvh.params,
-            stats,
-        }
-    }
-}
-
-impl<T: WideTopology> TriBvh<T> {
     /// The wide topology.
-    pub fn tree(&self) -> &T {
+    pub fn tree(&self) -> &WideTree<N, Node> {
         &self.tree
     }
 
@@ -130,29 +106,22 @@ impl<T: WideTopology> TriBvh<T> {
     }
 }
 
-impl<T: WideTopology> Refit<Triangle> for TriBvh<T> {
+impl<const N: usize, Node: NodeLayout<N>> Refit<Triangle> for TriBvh<N, Node> {
     fn refit(&mut self, tris: &[Triangle]) -> Result<(), BuildError> {
         check_moved(tris, self.count)?;
         let leaf_tris = in_leaf_order(tris, &self.ids);
         self.tris = TriangleSoa::new(&leaf_tris, self.tree.leaves());
-        let bounds = |first, count| leaf_bounds(&leaf_tris, first, count);
-        let mut stats = self.tree.refit_boxes(&bounds, self.count, &self.params);
+        self.tree
+            .refit(&|first, count| leaf_bounds(&leaf_tris, first, count));
+        let mut stats = self.tree.stats(self.count, &self.params);
         stats.bytes += self.tris.bytes() + std::mem::size_of_val(self.ids.as_slice());
         self.stats = stats;
         Ok(())
     }
 }
 
-impl<T: WideTopology> Accel for TriBvh<T> {
-    #[inline]
-    fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        self.traverse::<false>(ray)
-    }
-
-    #[inline]
-    fn occluded(&self, ray: &Ray) -> bool {
-        self.traverse::<true>(ray).is_some()
-    }
+impl<const N: usize, Node: NodeLayout<N>> Accel for TriBvh<N, Node> {
+    rt_geom::queries_from_walk!();
 
     fn stats(&self) -> AccelStats {
         self.stats.clone()

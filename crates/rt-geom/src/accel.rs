@@ -25,6 +25,32 @@ pub trait Accel: Send + Sync {
     fn validate(&self) -> Result<(), String>;
 }
 
+/// Writes the two queries of an [`Accel`] impl from one walk written for both (a method
+/// `traverse::<const ANY_HIT: bool>(&self, &Ray) -> Option<Hit>`): `intersect` is the walk
+/// for the closest hit, `occluded` the walk that stops at any hit.
+///
+/// ```ignore
+/// impl Accel for MyTree {
+///     rt_geom::queries_from_walk!();
+///     fn stats(&self) -> AccelStats { ... }
+///     fn validate(&self) -> Result<(), String> { ... }
+/// }
+/// ```
+#[macro_export]
+macro_rules! queries_from_walk {
+    () => {
+        #[inline]
+        fn intersect(&self, ray: &$crate::Ray) -> Option<$crate::Hit> {
+            self.traverse::<false>(ray)
+        }
+
+        #[inline]
+        fn occluded(&self, ray: &$crate::Ray) -> bool {
+            self.traverse::<true>(ray).is_some()
+        }
+    };
+}
+
 /// Boxed and shared structures answer as the structure they hold.
 macro_rules! forward_accel {
     ($($ptr:ident)::+) => {

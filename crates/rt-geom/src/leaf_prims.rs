@@ -1,5 +1,5 @@
 //! Primitives stored leaf by leaf for the leaf test: [`TriangleSoa`], triangles as structure
-//! of arrays tested four or eight at a time ([`watertight_rows`]) with exactly the answers of the
+//! of arrays tested four or eight at a time ([`watertight_rows`](crate::triangle::watertight_rows)) with exactly the answers of the
 //! scalar kernel (the leaves of rt's wide BVHs over triangles), and [`LeafPrims`], the same
 //! for structures whose leaves list primitives by id (kd-trees, BSP trees, octrees, grids):
 //! a copy of each listed primitive in listing order, so that a leaf test reads its leaf's
@@ -14,10 +14,8 @@
 //! the [`LANES`] floats of padding at the end) and are masked off. Eight-lane windows are
 //! taken only while more than four triangles remain, so they stay inside the same bounds.
 
-use crate::triangle::proven_hit;
-use crate::{
-    Hit, PrimHit, Primitive, Ray, SimdLanes, Triangle, Vec3, keep_hit, lane_edges, watertight_rows,
-};
+use crate::triangle::{SimdLanes, lane_edges, proven_hit, watertight_rows};
+use crate::{Hit, PrimHit, Primitive, Ray, Triangle, Vec3, keep_hit};
 use wide::{f32x4, f32x8};
 
 /// Triangles tested together in the narrow window (and the floats of padding at the end).

@@ -8,7 +8,7 @@
 //! |---|---|
 //! | [`ray`] | [`Ray`] (one 64-byte cache line, with the watertight shear cached), [`Hit`], [`PrimHit`] |
 //! | [`aabb`] | [`Aabb`] and its robust slab test ([`Aabb::clip_ray`], Ize 2013) |
-//! | [`triangle`] | [`Triangle`]: watertight test (Woop, Benthin & Wald 2013), Möller–Trumbore, clipping |
+//! | [`triangle`] | [`Triangle`]: watertight test (Woop, Benthin & Wald 2013), Möller–Trumbore, clipping; the lane kernel and its error bounds |
 //! | [`sphere`] | [`Sphere`], solved in the stable form of Ray Tracing Gems ch. 7 |
 //! | [`cone`] | [`Cone`]: open cones and cylinders (NFF's `c`), solved in `f64` |
 //! | [`shape`] | [`Shape`]: a triangle, sphere or cone, for scenes that mix them |
@@ -57,13 +57,10 @@ pub use glam::{self, Vec3};
 pub use leaf_prims::{LeafPrims, TriangleSoa};
 pub use mesh::{Mesh, MeshError, MeshGroup, load_obj, parse_obj};
 pub use primitive::Primitive;
-pub use ray::{Hit, MIN_DIRECTION, PrimHit, Ray, keep_hit, replaces, test_each, test_primitives};
+pub use ray::{Hit, MIN_DIRECTION, PrimHit, Ray, keep_hit, replaces, test_primitives};
 pub use shape::Shape;
 pub use sphere::Sphere;
-pub use triangle::{
-    SimdLanes, Triangle, TriangleKernel, TriangleLanes, lane_edges, watertight_edges,
-    watertight_lanes, watertight_rows,
-};
+pub use triangle::{Triangle, TriangleKernel};
 pub use volume::{BoundingSphere, BoundingVolume, KDOP7_NORMALS, Kdop7};
 
 /// Test input: a xorshift32 sequence from `seed` (non-zero), uniform in `[0, 1]`.

@@ -8,7 +8,8 @@
 //! | [`beam`] | [`Beam`]: a packet bounded by interval arithmetic, for culling and entry points |
 //! | [`bvh`] | packets through rt's [`Bvh`](rt_accel_bvh::Bvh): first-active-ray descent, beam culling (Wald, Boulos & Shirley 2007) |
 //! | [`wide`] | packets through the wide BVHs ([`Bvh4`](rt_accel_bvh::Bvh4), [`Bvh8`](rt_accel_bvh::Bvh8)): the same descent over all children of a node |
-//! | [`kd`] | packets through [`KdTree`](rt_accel_kd::KdTree) split by direction octant (Wald, Slusallek, Benthin & Wagner 2001); [`MlrtaKdTree`], multi-level ray tracing (Reshetov, Soupikov & Hurley 2005) |
+//! | [`kd`] | packets through [`KdTree`](rt_accel_kd::KdTree) split by direction octant (Wald, Slusallek, Benthin & Wagner 2001) |
+//! | [`mlrta`] | [`MlrtaKdTree`]: multi-level ray tracing (Reshetov, Soupikov & Hurley 2005), packets started at the entry point of their beam |
 //!
 //! Every lane's answer equals the single-ray answer of its ray, bit for bit (same box test,
 //! same kernel, same tie rule).
@@ -52,11 +53,12 @@ pub mod bvh;
 mod check;
 pub mod kd;
 pub mod lanes;
+pub mod mlrta;
 pub mod packet;
 pub mod wide;
 
 pub use api::{COHERENT_COS, MAX_GROUP, PacketAccel, PacketTraversal, WithSingleRays, is_coherent};
 pub use beam::Beam;
-pub use kd::{EntryPoint, MlrtaKdTree};
 pub use lanes::PacketPrimitive;
+pub use mlrta::{EntryPoint, MlrtaKdTree};
 pub use packet::{Lanes, RayPacket, TILE_SIDES, tiles};

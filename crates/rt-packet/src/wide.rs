@@ -10,7 +10,7 @@ use crate::bvh::{Culling, lane_entry, narrow_range, test_leaf};
 use crate::lanes::PacketPrimitive;
 use crate::lanes::{pad, select};
 use crate::{PacketTraversal, RayPacket};
-use rt_accel_bvh::{WideBvh, WideNode};
+use rt_accel_bvh::{NodeLayout, WideBvh, WideNode};
 use rt_geom::{Accel, Hit};
 
 /// A pending child: `(parent node, child slot, first lane, last lane)`, the lanes those in the

@@ -48,7 +48,7 @@ pub use chess::{ChessForm, chess, chess_moving, chess_objects};
 pub use material::Material;
 pub use nff::{load_nff, parse_nff, parse_nff_bytes};
 pub use obj::{load_obj_scene, parse_mtl, parse_obj_scene};
-pub use render::{Image, Packets, RenderOptions, Rendered, render, render_with_packets};
+pub use render::{Image, Packets, RenderOptions, Rendered, render, render_with_packets, write_png};
 pub use scene::{ObjectShapes, PointLight, Scene, SceneError, SceneInstance, SceneObjects};
 pub use triangulate::triangulate;
 pub use wavefront::{Queries, SingleRays};

@@ -84,25 +84,39 @@ pub struct Image {
 }
 
 impl Image {
-    /// 8 bits per channel, clamped to [0, 1] (no gamma: the classic model's linear output).
-    pub fn to_rgb8(&self) -> image::RgbImage {
-        let mut out = image::RgbImage::new(self.width, self.height);
-        for (px, c) in out.pixels_mut().zip(&self.pixels) {
-            let q = |x: f32| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
-            *px = image::Rgb([q(c.x), q(c.y), q(c.z)]);
-        }
-        out
+    /// 8 bits per channel (RGB, row by row), clamped to [0, 1] (no gamma: the classic
+    /// model's linear output).
+    pub fn to_rgb8(&self) -> Vec<u8> {
+        let q = |x: f32| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+        self.pixels
+            .iter()
+            .flat_map(|c| [q(c.x), q(c.y), q(c.z)])
+            .collect()
     }
 
-    /// Writes the image as an 8-bit sRGB PNG.
+    /// Writes the image as an 8-bit PNG.
     pub fn save_png(&self, path: &Path) -> Result<(), String> {
-        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-        }
-        self.to_rgb8()
-            .save_with_format(path, image::ImageFormat::Png)
-            .map_err(|e| format!("{}: {e}", path.display()))
+        write_png(path, self.width, self.height, &self.to_rgb8())
     }
+}
+
+/// Writes 8-bit RGB pixels (row by row, `3 * width * height` bytes) as a PNG, creating missing
+/// folders.
+pub fn write_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), String> {
+    let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    if rgb.len() != 3 * width as usize * height as usize {
+        return Err(err(&"pixel buffer does not match the image size"));
+    }
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| err(&e))?;
+    }
+    let file = std::fs::File::create(path).map_err(|e| err(&e))?;
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header().map_err(|e| err(&e))?;
+    writer.write_image_data(rgb).map_err(|e| err(&e))?;
+    writer.finish().map_err(|e| err(&e))
 }
 
 /// A finished render.

@@ -6,6 +6,7 @@
 //! | [`scenes`] | procedural and adversarial scenes ([`Scene`]): soups, tessellated spheres and tori, planar and sliver scenes, duplicates, teapot in a stadium, huge and tiny coordinates, spheres, one primitive, nothing |
 //! | [`rays`] | conformance ray families ([`RayKind`]), the standard camera ([`View`]) and the primary / shadow / diffuse sets ([`RaySets`]) |
 //! | [`conformance`] | the one generic check against brute force, and [`conformance_tests!`] |
+//! | [`rayfile`] | `.rays` and `.hits` files, read and written (exchanging rays and answers with other engines) |
 //! | [`models`] | where `../shared/models` is, and loading its meshes (tests skip with a message when it is absent) |
 //!
 //! ```
@@ -19,6 +20,7 @@
 
 pub mod conformance;
 pub mod models;
+pub mod rayfile;
 pub mod rays;
 pub mod rng;
 pub mod scenes;

@@ -513,32 +513,6 @@ pub fn light_position(scene: &str, bounds: &Aabb) -> Vec3 {
     }
 }
 
-/// Bytes per ray in a `.rays` file: little-endian `f32`, `ox oy oz tmin dx dy dz tmax`.
-pub const RAY_FILE_BYTES: usize = 32;
-
-/// The rays of a `.rays` file's bytes (`cargo xtask rays` writes them); a size that is not a
-/// multiple of [`RAY_FILE_BYTES`] is an error.
-pub fn parse_ray_file(bytes: &[u8]) -> Result<Vec<Ray>, String> {
-    if bytes.len() % RAY_FILE_BYTES != 0 {
-        return Err(format!(
-            "size {} is not a multiple of {RAY_FILE_BYTES} bytes (8 f32 per ray): truncated or not a ray file",
-            bytes.len()
-        ));
-    }
-    Ok(bytes
-        .chunks_exact(RAY_FILE_BYTES)
-        .map(|c| {
-            let f = |i: usize| f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap());
-            Ray::segment(
-                Vec3::new(f(0), f(1), f(2)),
-                Vec3::new(f(4), f(5), f(6)),
-                f(3),
-                f(7),
-            )
-        })
-        .collect())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

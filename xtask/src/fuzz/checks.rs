@@ -349,7 +349,7 @@ fn render_agrees(scene: &Scene) -> Result<(), String> {
         }
     };
     let image = |accel: &dyn Accel| {
-        rt_shade::render(scene, accel, &options, &|_| {}).map(|r| r.image.to_rgb8().into_raw())
+        rt_shade::render(scene, accel, &options, &|_| {}).map(|r| r.image.to_rgb8())
     };
     match (image(&brute), image(&bvh)) {
         (Ok(a), Ok(b)) if a == b => Ok(()),

@@ -12,7 +12,7 @@ const PLOT_FONT: &[u8] = include_bytes!("../../assets/DejaVuSans-subset.ttf");
 
 /// Registers [`PLOT_FONT`] as plotters' "sans-serif" (once per process is enough; again is
 /// harmless).
-pub(super) fn register_font() -> bool {
+pub fn register_font() -> bool {
     plotters::style::register_font("sans-serif", FontStyle::Normal, PLOT_FONT).is_ok()
 }
 
@@ -34,7 +34,7 @@ pub(super) fn trim(v: f64) -> String {
     s.trim_end_matches('0').trim_end_matches('.').to_string()
 }
 
-/// Draws into an RGB buffer with plotters and writes it as PNG with `image`.
+/// Draws into an RGB buffer with plotters and writes it as PNG.
 pub(super) fn png(
     path: &Path,
     draw: impl FnOnce(DrawingArea<BitMapBackend, plotters::coord::Shift>) -> Result<(), String>,
@@ -46,10 +46,7 @@ pub(super) fn png(
         draw(root.clone())?;
         root.present().map_err(|e| e.to_string())?;
     }
-    image::RgbImage::from_raw(SIZE.0, SIZE.1, buf)
-        .ok_or("plot buffer size")?
-        .save_with_format(path, image::ImageFormat::Png)
-        .map_err(|e| format!("{}: {e}", path.display()))
+    rt_shade::write_png(path, SIZE.0, SIZE.1, &buf)
 }
 
 pub(super) fn colour(i: usize) -> RGBColor {

@@ -3,14 +3,14 @@
 use super::SPD_ACCELS;
 
 /// One SPD scene rendered with one structure.
-pub(super) struct SpdRow {
-    pub(super) scene: String,
-    pub(super) prims: usize,
-    pub(super) accel: String,
-    pub(super) size: u32,
-    pub(super) build_ms: f64,
-    pub(super) seconds: f64,
-    pub(super) rays: u64,
+pub struct SpdRow {
+    pub scene: String,
+    pub prims: usize,
+    pub accel: String,
+    pub size: u32,
+    pub build_ms: f64,
+    pub seconds: f64,
+    pub rays: u64,
 }
 
 /// Renders every SPD scene present with each of [`SPD_ACCELS`] (on all cores).

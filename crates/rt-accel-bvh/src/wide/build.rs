@@ -1,17 +1,18 @@
 //! Writing the wide nodes: each inner binary node that heads a wide node becomes one, its lanes
 //! the cut of its subtree that the collapse plan chose.
 
-use super::{WideNode, WideTree};
+use super::{NodeLayout, WideNode, WideTree};
 use crate::collapse::{Lane, SahCollapse, greedy_lanes};
 use crate::node::BvhNode;
 use crate::{BvhParams, WideCollapse};
 use rt_geom::Aabb;
 
-impl<const N: usize> WideTree<N> {
+impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
     /// Collapses a binary BVH built with `params` as `params.collapse` says: every wide node
     /// replaces an inner binary node, its lanes are a cut of that node's subtree (binary
     /// leaves, whole subtrees made one leaf, or inner nodes that head wide nodes of their
-    /// own); see the `collapse` module. Leaves keep their primitive ranges.
+    /// own); see the `collapse` module. Leaves keep their primitive ranges. Each node is
+    /// written in the layout `Node` from its exact boxes.
     pub fn collapse(bin: &[BvhNode], params: &BvhParams) -> Self {
         assert!((2..=32).contains(&N), "2..=32 lanes");
         let mut tree = Self {
@@ -54,15 +55,15 @@ impl<const N: usize> WideTree<N> {
 
 /// Writes the wide node for inner binary node `b` with the lanes `lanes(b)` and its subtree;
 /// returns the depth of the subtree.
-fn write_nodes<const N: usize>(
+fn write_nodes<const N: usize, Node: NodeLayout<N>>(
     bin: &[BvhNode],
     b: usize,
-    out: &mut Vec<WideNode<N>>,
+    out: &mut Vec<Node>,
     depth: usize,
     lanes: &impl Fn(usize) -> Vec<Lane>,
 ) -> usize {
     let index = out.len();
-    out.push(WideNode::EMPTY);
+    out.push(Node::from_exact(&WideNode::EMPTY));
     let mut node = WideNode::EMPTY;
     let mut deepest = depth;
     for (lane, kid) in lanes(b).into_iter().enumerate() {
@@ -78,6 +79,6 @@ fn write_nodes<const N: usize>(
             }
         }
     }
-    out[index] = node;
+    out[index] = Node::from_exact(&node);
     deepest
 }

@@ -1,17 +1,17 @@
 //! [`WideBvh`]: a wide topology that owns its leaf-ordered primitives.
 
-use super::{WideTree, test_leaf};
+use super::{NodeLayout, WideNode, WideTree, test_leaf};
 use crate::refit::{Refit, check_moved, in_leaf_order, leaf_bounds};
 use crate::stats::check_leaf_primitive;
 use crate::{Bvh, BvhParams};
 use rt_geom::all_referenced;
 use rt_geom::{Accel, AccelStats, BuildError, Hit, Primitive, Ray};
 
-/// A BVH with `N` children per node (`N` = 4 or 8), sharing the leaf-ordered primitives of the
-/// binary tree it was collapsed from.
+/// A BVH with `N` children per node (`N` = 4 or 8) in the layout `Node` (exact boxes by
+/// default), sharing the leaf-ordered primitives of the binary tree it was collapsed from.
 #[derive(Clone, Debug)]
-pub struct WideBvh<P, const N: usize> {
-    tree: WideTree<N>,
+pub struct WideBvh<P, const N: usize, Node = WideNode<N>> {
+    tree: WideTree<N, Node>,
     prims: Vec<P>,
     ids: Vec<u32>,
     count: usize,
@@ -23,7 +23,7 @@ pub type Bvh4<P> = WideBvh<P, 4>;
 /// An 8-wide BVH over primitives `P`.
 pub type Bvh8<P> = WideBvh<P, 8>;
 
-impl<P: Primitive, const N: usize> WideBvh<P, N> {
+impl<P: Primitive, const N: usize, Node: NodeLayout<N>> WideBvh<P, N, Node> {
     /// Builds a binary BVH with `params` and collapses it.
     pub fn build(prims: &[P], params: BvhParams) -> Result<Self, BuildError> {
         Ok(Self::from_binary(Bvh::build(prims, params)?))
@@ -31,7 +31,7 @@ impl<P: Primitive, const N: usize> WideBvh<P, N> {
 
     /// Collapses a binary BVH (see [`WideTree::collapse`]).
     pub fn from_binary(bvh: Bvh<P>) -> Self {
-        let tree = WideTree::collapse(&bvh.nodes, &bvh.params);
+        let tree = WideTree::<N, Node>::collapse(&bvh.nodes, &bvh.params);
         let Bvh {
             prims,
             ids,
@@ -49,7 +49,7 @@ impl<P: Primitive, const N: usize> WideBvh<P, N> {
     }
 
     /// The wide topology.
-    pub fn tree(&self) -> &WideTree<N> {
+    pub fn tree(&self) -> &WideTree<N, Node> {
         &self.tree
     }
 
@@ -68,14 +68,9 @@ impl<P: Primitive, const N: usize> WideBvh<P, N> {
             test_leaf::<P, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
         })
     }
-
-    /// The parts: topology, leaf-ordered primitives, their ids, the primitive count, params.
-    pub(crate) fn into_parts(self) -> (WideTree<N>, Vec<P>, Vec<u32>, usize, BvhParams) {
-        (self.tree, self.prims, self.ids, self.count, self.params)
-    }
 }
 
-impl<P: Primitive, const N: usize> Refit<P> for WideBvh<P, N> {
+impl<P: Primitive, const N: usize, Node: NodeLayout<N>> Refit<P> for WideBvh<P, N, Node> {
     fn refit(&mut self, prims: &[P]) -> Result<(), BuildError> {
         check_moved(prims, self.count)?;
         self.prims = in_leaf_order(prims, &self.ids);
@@ -86,16 +81,8 @@ impl<P: Primitive, const N: usize> Refit<P> for WideBvh<P, N> {
     }
 }
 
-impl<P: Primitive, const N: usize> Accel for WideBvh<P, N> {
-    #[inline]
-    fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        self.traverse::<false>(ray)
-    }
-
-    #[inline]
-    fn occluded(&self, ray: &Ray) -> bool {
-        self.traverse::<true>(ray).is_some()
-    }
+impl<P: Primitive, const N: usize, Node: NodeLayout<N>> Accel for WideBvh<P, N, Node> {
+    rt_geom::queries_from_walk!();
 
     fn stats(&self) -> AccelStats {
         let mut s = self.tree.stats(self.count, &self.params);

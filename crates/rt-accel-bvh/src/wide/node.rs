@@ -12,7 +12,42 @@
 //! the `-C target-cpu=native` build of `cargo xtask bench`), with no `unsafe` and a portable
 //! fallback on any target.
 
+use super::traverse::lane_entries;
 use rt_geom::Aabb;
+use rt_geom::aabb::SlabRay;
+
+/// A wide node layout as build, walk, check, stats and refit see it: one entry distance per
+/// lane, each lane's child, its box. [`WideNode`] stores boxes exactly;
+/// [`CompressedNode`](crate::CompressedNode) quantizes them.
+pub trait NodeLayout<const N: usize>: Copy + Send + Sync + std::fmt::Debug {
+    /// Whether the stored boxes are the children's exact boxes (a child's box then lies in
+    /// its parent's); quantized layouts round outward and only promise to hold their child.
+    const EXACT: bool;
+    /// The node holding `node`'s children, its boxes rounded outward if the layout must.
+    fn from_exact(node: &WideNode<N>) -> Self;
+    /// The lanes the ray enters within `[tmin, tmax]` (bit `lane`), and the entry distance
+    /// per lane (meaningful for those).
+    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; N]);
+    /// Inner child: node index; leaf: first primitive; `u32::MAX` for an empty lane.
+    fn child(&self, lane: usize) -> u32;
+    /// 0 for an inner child, else the leaf's primitive count.
+    fn count(&self, lane: usize) -> u32;
+    /// The box of `lane` as the walk sees it.
+    fn bounds(&self, lane: usize) -> Aabb;
+    /// Bit `lane` set for the lanes the walk must mask (those that hold a child).
+    fn used_mask(&self) -> u32;
+    /// Whether the lane holds a child (inner or leaf).
+    #[inline(always)]
+    fn is_used(&self, lane: usize) -> bool {
+        self.child(lane) != u32::MAX
+    }
+    /// Bit `lane` set for the lanes that hold a leaf (a count above 0): one compare of all
+    /// lanes where the counts are an array.
+    #[inline(always)]
+    fn leaf_mask(&self) -> u32 {
+        (0..N).fold(0, |m, l| m | ((self.count(l) > 0) as u32) << l)
+    }
+}
 
 /// A node of a `N`-wide BVH.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -45,17 +80,42 @@ impl<const N: usize> WideNode<N> {
             self.max[a][lane] = b.max[a];
         }
     }
+}
 
-    /// Child `lane`'s box.
-    pub fn bounds(&self, lane: usize) -> Aabb {
+impl<const N: usize> NodeLayout<N> for WideNode<N> {
+    const EXACT: bool = true;
+
+    #[inline(always)]
+    fn from_exact(node: &WideNode<N>) -> Self {
+        *node
+    }
+
+    #[inline(always)]
+    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; N]) {
+        lane_entries(&self.min, &self.max, ray, tmin, tmax)
+    }
+
+    #[inline(always)]
+    fn child(&self, lane: usize) -> u32 {
+        self.child[lane]
+    }
+
+    #[inline(always)]
+    fn count(&self, lane: usize) -> u32 {
+        self.count[lane]
+    }
+
+    fn bounds(&self, lane: usize) -> Aabb {
         Aabb::new(
             rt_geom::Vec3::new(self.min[0][lane], self.min[1][lane], self.min[2][lane]),
             rt_geom::Vec3::new(self.max[0][lane], self.max[1][lane], self.max[2][lane]),
         )
     }
 
-    /// Whether the lane holds a child (inner or leaf).
-    pub fn is_used(&self, lane: usize) -> bool {
-        self.child[lane] != u32::MAX
+    /// Every lane: an empty lane's box (min = +inf, max = -inf) gives NaN for every valid ray
+    /// (a near plane at +-inf puts the entry at +inf, the far one puts the exit at -inf).
+    #[inline(always)]
+    fn used_mask(&self) -> u32 {
+        u32::MAX
     }
 }

@@ -1,12 +1,13 @@
 //! Statistics and invariants of a wide topology.
 
-use super::WideTree;
+use super::{NodeLayout, WideTree};
 use crate::BvhParams;
 use crate::params::MAX_DEPTH;
 use rt_geom::{Aabb, AccelStats};
 
-impl<const N: usize> WideTree<N> {
-    /// Statistics of the topology; `bytes` counts the nodes only.
+impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
+    /// Statistics of the topology (boxes as the walk sees them); `bytes` counts the nodes
+    /// only.
     pub fn stats(&self, prims: usize, params: &BvhParams) -> AccelStats {
         let mut s = AccelStats {
             primitives: prims,
@@ -29,11 +30,11 @@ impl<const N: usize> WideTree<N> {
             }
             for lane in (0..N).filter(|&l| n.is_used(l)) {
                 let area = n.bounds(lane).half_area_f64();
-                if n.count[lane] > 0 {
+                if n.count(lane) > 0 {
                     s.leaves += 1;
-                    s.references += n.count[lane] as usize;
+                    s.references += n.count(lane) as usize;
                     sah += area
-                        * params.tests(n.count[lane] as usize) as f64
+                        * params.tests(n.count(lane) as usize) as f64
                         * params.intersection_cost as f64;
                 } else {
                     sah += area * params.traversal_cost as f64;
@@ -49,7 +50,9 @@ impl<const N: usize> WideTree<N> {
         s
     }
 
-    /// Checks the topology; `leaf(first, count, bounds)` checks each leaf's primitives.
+    /// Checks the topology: children after their parents, depth bounded, exact boxes inside
+    /// their parents, and `leaf(first, count, bounds)` for each leaf, with `bounds` the
+    /// intersection of the boxes on the way down (what the walk relies on).
     pub fn check(
         &self,
         mut leaf: impl FnMut(u32, u32, &Aabb) -> Result<(), String>,
@@ -71,16 +74,17 @@ impl<const N: usize> WideTree<N> {
                 .ok_or(format!("child index {i} out of range"))?;
             for lane in (0..N).filter(|&l| n.is_used(l)) {
                 let b = n.bounds(lane);
-                if !parent.contains(&b) {
+                if Node::EXACT && !parent.contains(&b) {
                     return Err(format!("node {i} lane {lane} pokes out of its parent"));
                 }
-                if n.count[lane] > 0 {
-                    leaf(n.child[lane], n.count[lane], &b)?;
+                let b = b.intersection(parent);
+                let child = n.child(lane);
+                if n.count(lane) > 0 {
+                    leaf(child, n.count(lane), &b)?;
+                } else if child as usize <= i {
+                    return Err(format!("node {i} lane {lane} points backwards"));
                 } else {
-                    if n.child[lane] as usize <= i {
-                        return Err(format!("node {i} lane {lane} points backwards"));
-                    }
-                    stack.push((n.child[lane] as usize, b, depth + 1));
+                    stack.push((child as usize, b, depth + 1));
                 }
             }
         }

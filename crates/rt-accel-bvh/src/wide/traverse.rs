@@ -1,8 +1,8 @@
-//! The walk: one stack loop over any wide node layout ([`WideLanes`]), all of a node's children
+//! The walk: one stack loop over any wide node layout ([`NodeLayout`]), all of a node's children
 //! tested at once, the hit lanes taken as one bit mask; the leaf test of primitives kept in
 //! leaf order.
 
-use super::WideNode;
+use super::NodeLayout;
 use rt_geom::aabb::{SlabRay, pad_interval};
 use rt_geom::{Aabb, Hit, Primitive, Ray, keep_hit};
 
@@ -28,25 +28,6 @@ pub(crate) fn test_leaf<P: Primitive, const ANY_HIT: bool>(
     false
 }
 
-/// A wide node as the traversal sees it: one entry distance per lane, and each lane's child.
-pub(crate) trait WideLanes<const N: usize> {
-    /// The lanes the ray enters within `[tmin, tmax]` (bit `lane`), and the entry distance
-    /// per lane (meaningful for those).
-    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; N]);
-    /// Inner child: node index; leaf: first primitive; `u32::MAX` for an empty lane.
-    fn child(&self, lane: usize) -> u32;
-    /// 0 for an inner child, else the leaf's primitive count.
-    fn count(&self, lane: usize) -> u32;
-    /// Bit `lane` set for the lanes that hold a child.
-    fn used_mask(&self) -> u32;
-    /// Bit `lane` set for the lanes that hold a leaf (a count above 0): one compare of all
-    /// lanes where the counts are an array.
-    #[inline(always)]
-    fn leaf_mask(&self) -> u32 {
-        (0..N).fold(0, |m, l| m | ((self.count(l) > 0) as u32) << l)
-    }
-}
-
 /// Bit `lane` set where `t0 <= t1` (false for NaN): one SIMD compare and mask extraction for
 /// 4 and 8 lanes.
 #[inline(always)]
@@ -62,30 +43,6 @@ fn le_lanes<const N: usize>(t0: &[f32; N], t1: &[f32; N]) -> u32 {
     (0..N).fold(0, |m, l| m | ((t0[l] <= t1[l]) as u32) << l)
 }
 
-impl<const N: usize> WideLanes<N> for WideNode<N> {
-    #[inline(always)]
-    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; N]) {
-        lane_entries(&self.min, &self.max, ray, tmin, tmax)
-    }
-
-    #[inline(always)]
-    fn child(&self, lane: usize) -> u32 {
-        self.child[lane]
-    }
-
-    #[inline(always)]
-    fn count(&self, lane: usize) -> u32 {
-        self.count[lane]
-    }
-
-    /// Every lane: an empty lane's box (min = +inf, max = -inf) gives NaN for every valid ray
-    /// (a near plane at +-inf puts the entry at +inf, the far one puts the exit at -inf).
-    #[inline(always)]
-    fn used_mask(&self) -> u32 {
-        u32::MAX
-    }
-}
-
 /// The stack traversal of every wide layout (see [`WideTree::traverse`]).
 ///
 /// Per inner node: one SIMD slab test of all lanes, a bit mask of the lanes hit, and then
@@ -96,7 +53,7 @@ impl<const N: usize> WideLanes<N> for WideNode<N> {
 ///
 /// Popped entries whose entry distance lies beyond the closest hit found since are skipped.
 #[inline(always)]
-pub(crate) fn traverse_nodes<Node: WideLanes<N>, const N: usize, const ANY_HIT: bool>(
+pub(crate) fn traverse_nodes<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool>(
     nodes: &[Node],
     root_bounds: &Aabb,
     root_leaf: Option<(u32, u32)>,

@@ -286,17 +286,17 @@ impl<P: Primitive> SplitPlanes for BspTree<P> {
     }
 }
 
-impl<P: Primitive> Accel for BspTree<P> {
-    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+impl<P: Primitive> BspTree<P> {
+    /// The walk, for the closest hit or any hit.
+    #[inline]
+    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
         let t = self.params.traversal;
-        traverse::query::<_, _, false>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
+        traverse::query::<_, _, ANY_HIT>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
     }
+}
 
-    fn occluded(&self, ray: &Ray) -> bool {
-        let t = self.params.traversal;
-        traverse::query::<_, _, true>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
-            .is_some()
-    }
+impl<P: Primitive> Accel for BspTree<P> {
+    rt_geom::queries_from_walk!();
 
     fn stats(&self) -> AccelStats {
         let s = AccelStats {

@@ -1,15 +1,19 @@
-//! Ray and hit files, for exchanging rays and answers with other engines.
+//! Ray and hit files, for exchanging rays and answers with other engines: the one module that
+//! reads and writes them.
 //!
 //! `.rays`: little-endian `f32`, 8 per ray: `ox oy oz tmin dx dy dz tmax` (`tmax` may be +inf).
 //! `.hits`: per ray, little-endian `f32 t` (+inf on a miss) then `u32 prim` (`0xFFFFFFFF` on a
 //! miss).
 
-use rt_geom::{Hit, Ray};
+use rt_geom::{Hit, Ray, Vec3};
 use std::io::Write;
 use std::path::Path;
 
-pub const RAY_BYTES: usize = rt_testkit::rays::RAY_FILE_BYTES;
+/// Bytes per ray in a `.rays` file: little-endian `f32`, `ox oy oz tmin dx dy dz tmax`.
+pub const RAY_BYTES: usize = 32;
+/// Bytes per hit in a `.hits` file: little-endian `f32 t`, `u32 prim`.
 pub const HIT_BYTES: usize = 8;
+/// The `prim` of a miss.
 pub const MISS_PRIM: u32 = u32::MAX;
 
 /// Reads a ray file. A size that is not a multiple of 32 bytes is an error naming the file.
@@ -18,10 +22,30 @@ pub fn read_rays(path: &Path) -> Result<Vec<Ray>, String> {
     parse_rays(&bytes).map_err(|e| format!("{}: {e}", path.display()))
 }
 
+/// The rays of a `.rays` file's bytes; a size that is not a multiple of [`RAY_BYTES`] is an
+/// error.
 pub fn parse_rays(bytes: &[u8]) -> Result<Vec<Ray>, String> {
-    rt_testkit::rays::parse_ray_file(bytes)
+    if bytes.len() % RAY_BYTES != 0 {
+        return Err(format!(
+            "size {} is not a multiple of {RAY_BYTES} bytes (8 f32 per ray): truncated or not a ray file",
+            bytes.len()
+        ));
+    }
+    Ok(bytes
+        .chunks_exact(RAY_BYTES)
+        .map(|c| {
+            let f = |i: usize| f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap());
+            Ray::segment(
+                Vec3::new(f(0), f(1), f(2)),
+                Vec3::new(f(4), f(5), f(6)),
+                f(3),
+                f(7),
+            )
+        })
+        .collect())
 }
 
+/// The bytes of a `.rays` file.
 pub fn encode_rays(rays: &[Ray]) -> Vec<u8> {
     let mut out = Vec::with_capacity(rays.len() * RAY_BYTES);
     for r in rays {
@@ -33,6 +57,7 @@ pub fn encode_rays(rays: &[Ray]) -> Vec<u8> {
     out
 }
 
+/// Writes a `.rays` file.
 pub fn write_rays(path: &Path, rays: &[Ray]) -> Result<(), String> {
     write_file(path, &encode_rays(rays))
 }
@@ -40,16 +65,20 @@ pub fn write_rays(path: &Path, rays: &[Ray]) -> Result<(), String> {
 /// One record of a hit file.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HitRecord {
+    /// The hit's `t` (+inf on a miss).
     pub t: f32,
+    /// The primitive hit ([`MISS_PRIM`] on a miss).
     pub prim: u32,
 }
 
 impl HitRecord {
+    /// A miss.
     pub const MISS: HitRecord = HitRecord {
         t: f32::INFINITY,
         prim: MISS_PRIM,
     };
 
+    /// The record of a closest-hit answer.
     pub fn from_hit(h: Option<Hit>) -> Self {
         h.map_or(Self::MISS, |h| HitRecord {
             t: h.t,
@@ -66,11 +95,13 @@ impl HitRecord {
         }
     }
 
+    /// Whether the record is a hit.
     pub fn is_hit(&self) -> bool {
         self.prim != MISS_PRIM
     }
 }
 
+/// The bytes of a `.hits` file.
 pub fn encode_hits(hits: &[HitRecord]) -> Vec<u8> {
     let mut out = Vec::with_capacity(hits.len() * HIT_BYTES);
     for h in hits {
@@ -80,6 +111,7 @@ pub fn encode_hits(hits: &[HitRecord]) -> Vec<u8> {
     out
 }
 
+/// The records of a `.hits` file's bytes.
 pub fn parse_hits(bytes: &[u8]) -> Result<Vec<HitRecord>, String> {
     if bytes.len() % HIT_BYTES != 0 {
         return Err(format!(
@@ -96,6 +128,7 @@ pub fn parse_hits(bytes: &[u8]) -> Result<Vec<HitRecord>, String> {
         .collect())
 }
 
+/// Writes a `.hits` file.
 pub fn write_hits(path: &Path, hits: &[HitRecord]) -> Result<(), String> {
     write_file(path, &encode_hits(hits))
 }

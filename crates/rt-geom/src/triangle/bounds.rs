@@ -1,0 +1,299 @@
+//! The error bounds that decide a lane of the lane kernel without the `f64` refinement:
+//! a hit that surely lies before `tmin` ([`hits_before_tmin`]) and one that surely lies inside
+//! the interval ([`proven_hit`]), from pbrt-v4's bounds on the watertight test.
+
+use super::lanes::{ShearedLanes, SimdLanes};
+use crate::{PrimHit, Ray};
+
+/// The lanes whose hit, if [`Triangle::refine`] found one, would certainly lie before `tmin`
+/// (`tmin > 0`), so that it returns `None`: decided from the `f32` numbers with the error
+/// bounds of Pharr, Jakob & Humphreys (pbrt-v4, `IntersectTriangle`, the bounds that keep
+/// `t > 0`), each taken twice over.
+///
+/// - A lane qualifies only when every edge function exceeds its error bound `dE`: the exact
+///   edge functions then agree in sign, `refine` takes its interpolating branch, and its `t`
+///   is the exact `T / D` to `f64` rounding, `T = |U| za + |V| zb + |W| zc` and `D = |U| +
+///   |V| + |W|` (the absolute values flip both by the common sign).
+/// - The bounds: sheared `x`, `y` off by `gamma(8) (max |x| + max |dz|)` (the subtraction,
+///   the shear product, the `f32` rounding of the shear constant, `|sx| <= 1`), the depths
+///   `z = dz sz` by `gamma(4) max |z|`, each edge function (two products, a difference) by
+///   `dE = 4 (gamma(2) max|x| max|y| + dY max|x| + dX max|y|)`, `T` by
+///   `dT = 3 (gamma(3) max|e| max|z| + dE max|z| + dZ max|e|)`, `D` by `3 gamma(2) max|e| + 3 dE`.
+/// - Culled when `T + 2 dT < tmin (D - 2 dD) (1 - 2^-20)`: the exact `T / D` lies below `tmin`
+///   by more than the `f64` evaluation and its rounding to `f32` can move it.
+///
+/// NaN or infinite inputs fail the comparisons: such lanes are never culled. Out of line:
+/// [`watertight_lanes`] asks only for rays with `tmin > 0` and lanes whose `f32` estimate
+/// lies before `tmin`: inlined, or asked for every lane that passed the sign test, it cost
+/// more than it saved.
+#[inline(never)]
+pub fn hits_before_tmin<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32) -> u32 {
+    let b = EstimateBounds::of(t);
+    let two = L::splat(2.0);
+    let bound = L::splat(tmin) * (t.den - two * b.dd) * L::splat(1.0 - ROUNDING);
+    L::less_bits(b.de, b.e_min) & L::less_bits(t.num + two * b.dt, bound)
+}
+
+/// How far the `f32` numbers of the depth estimate may lie from the exact ones, in
+/// [`refine`](Triangle::refine)'s relative rounding to `f32` (`2^-20`, generous).
+const ROUNDING: f32 = 1.0 / (1 << 20) as f32;
+
+/// The error bounds of [`hits_before_tmin`] for Woop's depth estimate `T / D` of sheared
+/// triangles: each edge function's `dE`, the smallest `|e|`, `dT` for `T`, `dD` for `D`.
+struct EstimateBounds<L> {
+    de: L,
+    e_min: L,
+    dt: L,
+    dd: L,
+}
+
+impl<L: SimdLanes> EstimateBounds<L> {
+    #[inline(always)]
+    fn of(t: &ShearedLanes<L>) -> Self {
+        use crate::aabb::gamma;
+        let abs_max = |v: &[L; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
+        let (x_max, y_max) = (abs_max(&t.x), abs_max(&t.y));
+        let (dz_max, z_max) = (abs_max(&t.dz), abs_max(&t.z));
+        let g = |n| L::splat(gamma(n));
+        let dx = g(8) * (x_max + dz_max);
+        let dy = g(8) * (y_max + dz_max);
+        let de = L::splat(4.0) * (g(2) * x_max * y_max + dy * x_max + dx * y_max);
+        let e = &t.edges;
+        let e_max = e[0].max(e[1]).max(e[2]);
+        let e_min = e[0].min(e[1]).min(e[2]);
+        let dzz = g(4) * z_max;
+        let three = L::splat(3.0);
+        let dt = three * (g(3) * e_max * z_max + de * z_max + dzz * e_max);
+        let dd = three * g(2) * e_max + three * de;
+        Self { de, e_min, dt, dd }
+    }
+}
+
+/// An any-hit query's shortcut for one triangle that passed the sign test: `Some` when the
+/// error bounds of [`hits_before_tmin`], mirrored, prove that [`Triangle::finish_watertight`]
+/// would report a hit inside `[tmin, tmax]` (`tmin > 0`), so that the query can stop without
+/// the `f64` refinement. Every edge function exceeds its bound (the exact ones agree in sign,
+/// so `refine` interpolates) and `T - 2 dT > tmin (D + 2 dD) (1 + 2^-20)`, `T + 2 dT < tmax
+/// (D - 2 dD) (1 - 2^-20)`. The hit returned carries Woop's `f32` estimates of `t`, `u`, `v`
+/// (an any-hit query answers only whether something is hit); `None` sends the caller to the
+/// refinement.
+///
+/// Inputs as [`watertight_lanes`] computes them for the triangle's lane: the sheared `x`, `y`
+/// and the unscaled depth `v[kz] - o[kz]` per vertex, and its edge functions ([`lane_edges`]).
+#[inline]
+pub fn proven_hit(
+    x: [f32; 3],
+    y: [f32; 3],
+    dz: [f32; 3],
+    (u, v, w): (f32, f32, f32),
+    ray: &Ray,
+) -> Option<PrimHit> {
+    let (tmin, tmax) = (ray.tmin, ray.tmax);
+    if !(tmin > 0.0) {
+        return None;
+    }
+    let sz = ray.watertight_shear().z;
+    let z = dz.map(|d| d * sz);
+    let edges = [u.abs(), v.abs(), w.abs()];
+    let num = edges[0] * z[0] + edges[1] * z[1] + edges[2] * z[2];
+    let den = edges[0] + edges[1] + edges[2];
+    let t = ShearedLanes {
+        x,
+        y,
+        dz,
+        z,
+        edges,
+        num,
+        den,
+    };
+    let b = EstimateBounds::of(&t);
+    let after_tmin = (num - 2.0 * b.dt) > tmin * (den + 2.0 * b.dd) * (1.0 + ROUNDING);
+    let before_tmax = (num + 2.0 * b.dt) < tmax * (den - 2.0 * b.dd) * (1.0 - ROUNDING);
+    if !(b.de < b.e_min && 2.0 * b.dd < den && after_tmin && before_tmax) {
+        return None;
+    }
+    let rcp = 1.0 / (u + v + w);
+    let (bu, bv) = (v * rcp, w * rcp);
+    (bu.is_finite() && bv.is_finite()).then(|| PrimHit {
+        t: (num / den).clamp(tmin, tmax),
+        u: bu,
+        v: bv,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::triangle::{Triangle, TriangleLanes, lane_edges, watertight_lanes};
+
+    use glam::Vec3;
+
+    /// Eight triangles for lane tests (lane 0 a sliver in every fourth case), `1e-3`, 1 or
+    /// `1e3` across (`case % 3`), centred at the origin, 10 or `1e4` away (`case / 3 % 3`),
+    /// and a point of triangle `case % 8`: inside, on an edge (`case % 5 == 0`) or a vertex
+    /// (`case % 5 == 1`).
+    fn triangles_and_point(case: usize, rnd: &mut impl FnMut() -> f32) -> (Vec<Triangle>, Vec3) {
+        let scale = [1e-3, 1.0, 1e3][case % 3];
+        let centre = Vec3::new(rnd(), rnd(), rnd()) * [0.0, 10.0, 1e4][case / 3 % 3];
+        let mut v = || centre + (Vec3::new(rnd(), rnd(), rnd()) - 0.5) * scale;
+        let tris: Vec<Triangle> = (0..8)
+            .map(|k| {
+                let (a, b) = (v(), v());
+                let c = if k == 0 && case % 4 == 0 {
+                    a + (b - a) * 0.37 + Vec3::splat(1e-6 * scale)
+                } else {
+                    v()
+                };
+                Triangle::new(a, b, c)
+            })
+            .collect();
+        let (mut u, mut w) = (rnd(), rnd());
+        if u + w > 1.0 {
+            (u, w) = (1.0 - u, 1.0 - w);
+        }
+        match case % 5 {
+            0 => w = 0.0,
+            1 => (u, w) = (0.0, 0.0),
+            _ => {}
+        }
+        let point = tris[case % 8].point(u, w);
+        (tris, point)
+    }
+
+    /// [`proven_hit`] proves only hits that [`Triangle::finish_watertight`] reports inside the
+    /// interval: rays from near and far at points inside triangles, on their edges and
+    /// vertices, grazing ones, slivers, coordinates far from the origin, intervals ending
+    /// a hair before or after the hit; and it proves most clear hits.
+    #[test]
+    fn proves_only_hits_that_refine_keeps() {
+        let mut uniform = crate::test_uniform(77);
+        let mut rnd = move || uniform();
+        let (mut clear, mut clear_proven, mut proven) = (0, 0, 0);
+        for case in 0..40_000 {
+            let scale = [1e-3, 1.0, 1e3][case % 3];
+            let (tris, aim) = triangles_and_point(case, &mut rnd);
+            let target = &tris[case % 8];
+            let n = target.normal();
+            let dir = match case % 4 {
+                0 => (target.v[1] - target.v[0]).normalize_or_zero() + n * (rnd() - 0.5) * 1e-3,
+                _ => Vec3::new(rnd(), rnd(), rnd()) - 0.5,
+            };
+            let dist = [1e-4, 1.0, 30.0][case / 9 % 3] * scale;
+            let origin = aim - dir.normalize_or_zero() * dist;
+            let t_aim = (aim - origin).length() / dir.length();
+            let tmax = match case / 27 % 4 {
+                0 => f32::INFINITY,
+                1 => t_aim * 2.0,
+                2 => t_aim * (1.0 + 1e-6),
+                _ => t_aim * (1.0 - 1e-6),
+            };
+            // `tmin` far before the hit, or a hair before or after it.
+            let tmin = match case / 108 % 3 {
+                0 => [1e-7, 1e-5, 1e-3][case % 3] * t_aim,
+                1 => t_aim * (1.0 - 1e-6),
+                _ => t_aim * (1.0 + 1e-6),
+            };
+            let ray = Ray::segment(origin, dir, tmin, tmax);
+            let w8: TriangleLanes<wide::f32x8> = std::array::from_fn(|j| {
+                wide::f32x8::from(std::array::from_fn(|l| tris[l].v[j / 3][j % 3]))
+            });
+            let (mut lanes, sheared) = watertight_lanes(&w8, &ray);
+            let [_, _, kz] = ray.watertight_axes();
+            let oz = ray.origin().to_array()[kz];
+            while lanes != 0 {
+                let l = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                let edges = lane_edges(&sheared, l);
+                let [ax, ay, bx, by, cx, cy] = &sheared;
+                let dz = tris[l].v.map(|p| p.to_array()[kz] - oz);
+                let got = proven_hit(
+                    [ax[l], bx[l], cx[l]],
+                    [ay[l], by[l], cy[l]],
+                    dz,
+                    edges,
+                    &ray,
+                );
+                let refined = tris[l].finish_watertight(&ray, edges);
+                if let Some(h) = got {
+                    proven += 1;
+                    let r = refined.unwrap_or_else(|| {
+                        panic!("case {case} lane {l}: {h:?} proved, not refined: {ray:?}")
+                    });
+                    assert!((ray.tmin..=ray.tmax).contains(&h.t) && ray.in_range(r.t));
+                }
+                // A clear hit: inside, not grazing, well within the interval, coordinates
+                // within 1e4 of the triangle's size.
+                let near_origin = case / 3 % 3 < 2;
+                let inside = case % 5 >= 2 && case % 4 != 0;
+                let interval = case / 27 % 4 < 2 && case / 108 % 3 == 0;
+                if l == case % 8 && inside && interval && near_origin {
+                    clear += 1;
+                    clear_proven += got.is_some() as u32;
+                }
+            }
+        }
+        assert!(
+            clear > 1_000 && clear_proven * 100 > clear * 90,
+            "clear hits proven {clear_proven} of {clear}"
+        );
+        assert!(proven > 3_000, "{proven}");
+    }
+
+    /// [`hits_before_tmin`] culls only lanes whose hit [`Triangle::finish_watertight`] rejects:
+    /// rays leaving a triangle (origins inside it, on its edges and vertices, a hair off its
+    /// plane), grazing and steep, slivers, far from the world origin, every scale of `tmin`;
+    /// and it does cull most rays' own triangle.
+    #[test]
+    fn culls_before_tmin_only_what_refine_rejects() {
+        let mut uniform = crate::test_uniform(2024);
+        let mut rnd = move || uniform();
+        let (mut own, mut own_culled, mut culled) = (0, 0, 0);
+        for case in 0..20_000 {
+            let scale = [1e-3, 1.0, 1e3][case % 3];
+            let (tris, point) = triangles_and_point(case, &mut rnd);
+            let t = &tris[case % 8];
+            let n = (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).normalize_or_zero();
+            let off = [0.0, 1e-6, -1e-6][case % 3] * scale;
+            let origin = point + n * off;
+            let dir = match case % 4 {
+                // Grazing: in the plane, tilted by a hair.
+                0 => (t.v[1] - t.v[0]).normalize_or_zero() + n * (rnd() - 0.5) * 1e-3,
+                _ => Vec3::new(rnd(), rnd(), rnd()) - 0.5,
+            };
+            let tmin = [1e-7, 1e-5, 1e-3, 1e-1][case % 4] * scale;
+            let ray = Ray::segment(origin, dir, tmin, f32::INFINITY);
+            let w8: TriangleLanes<wide::f32x8> = std::array::from_fn(|j| {
+                wide::f32x8::from(std::array::from_fn(|l| tris[l].v[j / 3][j % 3]))
+            });
+            let (all, sheared) = watertight_lanes(&w8, &ray.with_range(0.0, f32::INFINITY));
+            let (kept, _) = watertight_lanes(&w8, &ray);
+            assert_eq!(kept & !all, 0);
+            let mut cut = all & !kept;
+            culled += cut.count_ones();
+            // The usual case: an inside point, coordinates no larger than the triangle's
+            // scale, `tmin` at least 1e-3 of it (shadow rays and bounces off a mesh start
+            // `1e-4` of the way to the light, or `1e-5` of the scene's size, beyond their
+            // triangle; the bounds cull from about 1e-3 of the triangle's size).
+            let usual = case % 5 >= 2 && case / 3 % 3 < 2 && case % 4 >= 2;
+            if usual && all >> (case % 8) & 1 == 1 {
+                own += 1;
+                own_culled += cut >> (case % 8) & 1;
+            }
+            while cut != 0 {
+                let l = cut.trailing_zeros() as usize;
+                cut &= cut - 1;
+                let h = tris[l].finish_watertight(&ray, lane_edges(&sheared, l));
+                assert!(
+                    h.is_none(),
+                    "case {case} lane {l}: {:?} {ray:?} -> {h:?}",
+                    tris[l]
+                );
+            }
+        }
+        assert!(
+            own > 2_000 && own_culled * 100 > own * 95,
+            "own triangle culled {own_culled} of {own}"
+        );
+        assert!(culled > 5_000, "{culled}");
+    }
+}

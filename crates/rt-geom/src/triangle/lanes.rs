@@ -1,0 +1,380 @@
+//! The lane kernel: the watertight test's edge functions and sign test for four or eight
+//! triangles at once, with exactly the scalar kernel's numbers, and the batched leaf test.
+
+use super::bounds::hits_before_tmin;
+use super::{Triangle, watertight_edges};
+use crate::{Hit, Ray, keep_hit};
+use wide::f32x4;
+
+/// The SIMD vectors the triangle lane kernel runs on: four lanes (`wide::f32x4`, SSE) or
+/// eight (`wide::f32x8`: one AVX register in builds for such CPUs, two SSE registers
+/// elsewhere). Only what [`watertight_lanes`] needs.
+pub trait SimdLanes:
+    Copy + std::ops::Add<Output = Self> + std::ops::Sub<Output = Self> + std::ops::Mul<Output = Self>
+{
+    /// Number of lanes.
+    const WIDTH: usize;
+    /// The lanes as an array.
+    type Array: Copy + std::ops::Index<usize, Output = f32>;
+    /// Every lane `x`.
+    fn splat(x: f32) -> Self;
+    /// Lanes from `WIDTH` consecutive floats.
+    fn load(src: &[f32]) -> Self;
+    /// The lanes as an array.
+    fn to_lanes(self) -> Self::Array;
+    /// Bits of the lanes where some of `a`, `b`, `c` is below zero, above zero, zero.
+    fn sign_bits(a: Self, b: Self, c: Self) -> (u32, u32, u32);
+    /// Lane-wise absolute value.
+    fn abs(self) -> Self;
+    /// Lane-wise maximum (either lane when one is NaN).
+    fn max(self, other: Self) -> Self;
+    /// Lane-wise minimum (either lane when one is NaN).
+    fn min(self, other: Self) -> Self;
+    /// Bits of the lanes where `a < b` (false for NaN).
+    fn less_bits(a: Self, b: Self) -> u32;
+}
+
+macro_rules! simd_lanes {
+    ($t:ty, $n:expr) => {
+        impl SimdLanes for $t {
+            const WIDTH: usize = $n;
+            type Array = [f32; $n];
+            #[inline(always)]
+            fn splat(x: f32) -> Self {
+                <$t>::splat(x)
+            }
+            #[inline(always)]
+            fn load(src: &[f32]) -> Self {
+                let a: [f32; $n] = src[..$n].try_into().expect("WIDTH floats");
+                <$t>::from(a)
+            }
+            #[inline(always)]
+            fn to_lanes(self) -> [f32; $n] {
+                self.to_array()
+            }
+            #[inline(always)]
+            fn sign_bits(a: Self, b: Self, c: Self) -> (u32, u32, u32) {
+                use wide::{CmpEq, CmpGt, CmpLt};
+                let z = <$t>::ZERO;
+                (
+                    (a.cmp_lt(z) | b.cmp_lt(z) | c.cmp_lt(z)).move_mask() as u32,
+                    (a.cmp_gt(z) | b.cmp_gt(z) | c.cmp_gt(z)).move_mask() as u32,
+                    (a.cmp_eq(z) | b.cmp_eq(z) | c.cmp_eq(z)).move_mask() as u32,
+                )
+            }
+            #[inline(always)]
+            fn abs(self) -> Self {
+                <$t>::abs(self)
+            }
+            #[inline(always)]
+            fn max(self, other: Self) -> Self {
+                self.fast_max(other)
+            }
+            #[inline(always)]
+            fn min(self, other: Self) -> Self {
+                self.fast_min(other)
+            }
+            #[inline(always)]
+            fn less_bits(a: Self, b: Self) -> u32 {
+                use wide::CmpLt;
+                a.cmp_lt(b).move_mask() as u32
+            }
+        }
+    };
+}
+simd_lanes!(f32x4, 4);
+
+/// One lane: the scalar form of the lane kernels' bounds ([`proven_hit`]).
+impl SimdLanes for f32 {
+    const WIDTH: usize = 1;
+    type Array = [f32; 1];
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        x
+    }
+    #[inline(always)]
+    fn load(src: &[f32]) -> Self {
+        src[0]
+    }
+    #[inline(always)]
+    fn to_lanes(self) -> [f32; 1] {
+        [self]
+    }
+    #[inline(always)]
+    fn sign_bits(a: Self, b: Self, c: Self) -> (u32, u32, u32) {
+        (
+            (a < 0.0 || b < 0.0 || c < 0.0) as u32,
+            (a > 0.0 || b > 0.0 || c > 0.0) as u32,
+            (a == 0.0 || b == 0.0 || c == 0.0) as u32,
+        )
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        f32::abs(self)
+    }
+    #[inline(always)]
+    fn max(self, other: Self) -> Self {
+        f32::max(self, other)
+    }
+    #[inline(always)]
+    fn min(self, other: Self) -> Self {
+        f32::min(self, other)
+    }
+    #[inline(always)]
+    fn less_bits(a: Self, b: Self) -> u32 {
+        (a < b) as u32
+    }
+}
+simd_lanes!(wide::f32x8, 8);
+
+/// Triangles in SIMD lanes (four by default): coordinate `j` of `[v0.x, v0.y, v0.z, v1.x,
+/// .., v2.z]` in vector `j`, lane `l` holding triangle `l`.
+pub type TriangleLanes<L = f32x4> = [L; 9];
+
+/// A triangle per lane in the watertight test's sheared frame: per vertex the sheared `x`
+/// and `y`, the depth `v[kz] - o[kz]` before and after scaling by the shear's `sz` (`dz`,
+/// `z`), the absolute edge functions (`|U|`, `|V|`, `|W|`), and Woop's depth estimate
+/// `num / den` from them (`num = |U| za + |V| zb + |W| zc`, `den = |U| + |V| + |W|`), all as
+/// computed in `f32`.
+pub struct ShearedLanes<L> {
+    /// Sheared `x` per vertex.
+    pub x: [L; 3],
+    /// Sheared `y` per vertex.
+    pub y: [L; 3],
+    /// Depth `v[kz] - o[kz]` per vertex, before scaling.
+    pub dz: [L; 3],
+    /// Depth per vertex scaled by the shear's `sz`.
+    pub z: [L; 3],
+    /// Absolute edge functions `|U|`, `|V|`, `|W|`.
+    pub edges: [L; 3],
+    /// Numerator of Woop's depth estimate.
+    pub num: L,
+    /// Denominator of Woop's depth estimate.
+    pub den: L,
+}
+
+/// [`watertight_edges`] of lane `l` of [`watertight_lanes`]' sheared coordinates. Reads the
+/// six values in place (`sheared.map(|x| x[l])` copied all the lanes into a call that was not
+/// inlined).
+#[inline(always)]
+pub fn lane_edges<A: std::ops::Index<usize, Output = f32>>(
+    sheared: &[A; 6],
+    l: usize,
+) -> (f32, f32, f32) {
+    let [ax, ay, bx, by, cx, cy] = sheared;
+    watertight_edges([ax[l], ay[l], bx[l], by[l], cx[l], cy[l]])
+}
+
+/// The watertight test's edge functions for four (or eight) triangles at once
+/// ([`TriangleLanes`]), with the scalar kernel's numbers (vertex minus origin, sheared by the
+/// ray's [`Ray::watertight_shear`] along its [`Ray::watertight_axes`]), and their sign test.
+/// Returns the lanes the sign test cannot reject (signs that agree, or an edge function
+/// exactly zero, which [`watertight_edges`] recomputes in `f64`) and that
+/// [`hits_before_tmin`] does not prove to lie before `tmin`, as bits, and the sheared
+/// coordinates `[ax, ay, bx, by, cx, cy]` of every lane: for such a lane `l`,
+/// `tri.finish_watertight(ray, lane_edges(&sheared, l))` is exactly what
+/// [`Triangle::intersect_watertight`] returns, and for every other lane that is `None`.
+#[inline(always)]
+pub fn watertight_lanes<L: SimdLanes>(tris: &TriangleLanes<L>, ray: &Ray) -> (u32, [L::Array; 6]) {
+    watertight_rows(|j| tris[j], ray)
+}
+
+/// [`watertight_lanes`] with coordinate row `j` of the lanes (as in [`TriangleLanes`]) from
+/// `row(j)`: a leaf test loads the rows the ray's axes pick straight from its leaf's memory,
+/// instead of first storing all nine in an array that the axes index.
+#[inline(always)]
+pub fn watertight_rows<L: SimdLanes>(row: impl Fn(usize) -> L, ray: &Ray) -> (u32, [L::Array; 6]) {
+    // The lanes hold one coordinate per row, so the ray's axes pick rows (loads at a
+    // run-time offset) and the shear takes two products per vertex, not the six of the dot
+    // products with the shear rows that the scalar kernel computes: the same numbers, since
+    // the rows' other terms are exact zeros (up to the sign of a zero, which no comparison
+    // or later step sees).
+    let [kx, ky, kz] = ray.watertight_axes();
+    let o = ray.origin().to_array();
+    let (ox, oy, oz) = (L::splat(o[kx]), L::splat(o[ky]), L::splat(o[kz]));
+    let s = ray.watertight_shear();
+    let (sx, sy) = (L::splat(s.x), L::splat(s.y));
+    let dz = |v: usize| row(3 * v + kz) - oz;
+    let shear = |v: usize| {
+        let dz = dz(v);
+        (
+            row(3 * v + kx) - ox - sx * dz,
+            row(3 * v + ky) - oy - sy * dz,
+        )
+    };
+    let ((ax, ay), (bx, by), (cx, cy)) = (shear(0), shear(1), shear(2));
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    let (neg, pos, on_edge) = L::sign_bits(u, v, w);
+    let mut may_hit = (!(neg & pos) | on_edge) & ((1 << L::WIDTH) - 1);
+    // Rays that leave a surface (shadow rays, bounces, `tmin > 0`) pierce the triangle they
+    // start on at `t` near 0: rejected here in SIMD rather than one by one in `f64`.
+    if may_hit != 0 && ray.tmin > 0.0 {
+        // Woop's depth estimate `T / D` first (a few operations): only lanes it puts before
+        // `tmin` are worth the rigorous bounds, out of line; real hits skip them.
+        let sz = L::splat(s.z);
+        let dz = [dz(0), dz(1), dz(2)];
+        let z = [dz[0] * sz, dz[1] * sz, dz[2] * sz];
+        let e = [u.abs(), v.abs(), w.abs()];
+        let num = e[0] * z[0] + e[1] * z[1] + e[2] * z[2];
+        let den = e[0] + e[1] + e[2];
+        if L::less_bits(num, L::splat(ray.tmin) * den) & may_hit != 0 {
+            let sheared = ShearedLanes {
+                x: [ax, bx, cx],
+                y: [ay, by, cy],
+                dz,
+                z,
+                edges: e,
+                num,
+                den,
+            };
+            may_hit &= !hits_before_tmin(&sheared, ray.tmin);
+        }
+    }
+    // Spelled out: `.map(L::to_lanes)` compiled to a call that copies every lane.
+    let lanes = [
+        ax.to_lanes(),
+        ay.to_lanes(),
+        bx.to_lanes(),
+        by.to_lanes(),
+        cx.to_lanes(),
+        cy.to_lanes(),
+    ];
+    (may_hit, lanes)
+}
+
+/// The leaf test of [`crate::test_primitives`] for triangles: the ids that `skip` lets
+/// through, four at a time (gathered into [`TriangleLanes`], edge functions and sign test in
+/// SIMD lanes, the scalar kernel's own steps for the lanes that pass), the last one to three
+/// one by one. Same answers, same order, same `ray.tmax` updates as testing each in turn.
+///
+/// Lists of fewer than four ids (the leaves of kd-trees, mostly) take the scalar loop inline;
+/// longer ones the batched loop, out of line, so that it does not weigh on the callers'
+/// traversal loops.
+#[inline(always)]
+pub(crate) fn test_triangles<const ANY_HIT: bool>(
+    tris: &[Triangle],
+    ids: &[u32],
+    ray: &mut Ray,
+    best: &mut Option<Hit>,
+    skip: impl FnMut(u32) -> bool,
+) -> bool {
+    if ids.len() < 4 {
+        crate::ray::test_each::<Triangle, ANY_HIT>(tris, ids, ray, best, skip)
+    } else {
+        test_in_batches::<ANY_HIT>(tris, ids, ray, best, skip)
+    }
+}
+
+/// [`test_triangles`] four at a time.
+#[inline(never)]
+fn test_in_batches<const ANY_HIT: bool>(
+    tris: &[Triangle],
+    ids: &[u32],
+    ray: &mut Ray,
+    best: &mut Option<Hit>,
+    mut skip: impl FnMut(u32) -> bool,
+) -> bool {
+    if !ray.is_valid() {
+        return false;
+    }
+    let mut batch = [0u32; 4];
+    let mut n = 0;
+    for &p in ids {
+        if skip(p) {
+            continue;
+        }
+        batch[n] = p;
+        n += 1;
+        if n == 4 {
+            n = 0;
+            crate::counters::prims(4);
+            let lanes: [&Triangle; 4] = batch.map(|p| &tris[p as usize]);
+            let w: TriangleLanes =
+                std::array::from_fn(|j| f32x4::from(lanes.map(|t| t.v[j / 3][j % 3])));
+            let (mut may_hit, sheared) = watertight_lanes(&w, ray);
+            while may_hit != 0 {
+                let l = may_hit.trailing_zeros() as usize;
+                may_hit &= may_hit - 1;
+                let edges = lane_edges(&sheared, l);
+                if let Some(h) = lanes[l].finish_watertight(ray, edges) {
+                    if keep_hit::<ANY_HIT>(h, batch[l], &mut ray.tmax, best) {
+                        return true;
+                    }
+                }
+            }
+        }
+    }
+    crate::counters::prims(n as u32);
+    for &p in &batch[..n] {
+        if let Some(h) = tris[p as usize].intersect_watertight(ray) {
+            if keep_hit::<ANY_HIT>(h, p, &mut ray.tmax, best) {
+                return true;
+            }
+        }
+    }
+    false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    /// The four-lane leaf test against the scalar one: same hit, same `tmax`, same any-hit
+    /// answer, on a grid of triangles sharing edges and vertices (rays through them), with
+    /// degenerate and duplicated triangles, skipped ids, and every batch remainder.
+    #[test]
+    fn lanes_test_equals_one_at_a_time() {
+        let mut tris = Vec::new();
+        for i in 0..6 {
+            for j in 0..6 {
+                let p = Vec3::new(i as f32, j as f32, 0.25 * ((i + j) % 3) as f32);
+                let (px, py) = (p + Vec3::X, p + Vec3::Y);
+                tris.push(Triangle::new(p, px, py));
+                tris.push(Triangle::new(px, px + Vec3::Y, py));
+            }
+        }
+        tris.push(Triangle::new(Vec3::ONE, Vec3::ONE, Vec3::ONE)); // a point
+        tris.push(Triangle::new(Vec3::ZERO, Vec3::X, Vec3::X * 2.0)); // a segment
+        tris.push(tris[7]); // a duplicate
+        let mut seed = 7u64;
+        let mut rnd = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut hits = 0;
+        for case in 0..4000 {
+            // Origins on a lattice (rays through shared vertices and edges) or anywhere.
+            let o = if case % 3 == 0 {
+                Vec3::new((rnd() * 6.0).floor(), (rnd() * 6.0).floor(), 2.0)
+            } else {
+                Vec3::new(rnd() * 7.0 - 0.5, rnd() * 7.0 - 0.5, rnd() * 4.0 - 1.0)
+            };
+            let d = Vec3::new(rnd() - 0.5, rnd() - 0.5, -rnd());
+            let d = if case % 5 == 0 { -Vec3::Z } else { d };
+            let mut ray = Ray::new(o, d);
+            if case % 7 == 0 {
+                ray.tmax = rnd() * 3.0;
+            }
+            let n = case % (tris.len() + 1);
+            let ids: Vec<u32> = (0..n as u32).rev().collect();
+            let skip = |p: u32| case % 4 == 0 && p % 5 == 1;
+            let (mut r1, mut r2) = (ray, ray);
+            let (mut b1, mut b2) = (None, None);
+            let a1 = test_triangles::<false>(&tris, &ids, &mut r1, &mut b1, skip);
+            let a2 = crate::ray::test_each::<Triangle, false>(&tris, &ids, &mut r2, &mut b2, skip);
+            assert_eq!((a1, b1, r1.tmax), (a2, b2, r2.tmax), "case {case}");
+            hits += b1.is_some() as usize;
+            let (mut r1, mut r2) = (ray, ray);
+            let (mut b1, mut b2) = (None, None);
+            let a1 = test_triangles::<true>(&tris, &ids, &mut r1, &mut b1, skip);
+            let a2 = crate::ray::test_each::<Triangle, true>(&tris, &ids, &mut r2, &mut b2, skip);
+            assert_eq!((a1, b1), (a2, b2), "case {case} (any hit)");
+        }
+        assert!(hits > 500, "{hits} hits: the rays must meet the triangles");
+    }
+}
