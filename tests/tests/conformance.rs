@@ -5,24 +5,62 @@ use rt_testkit::{conformance, scenes};
 use xtask::registry::REGISTRY;
 
 /// Every structure in the registry (so every structure `verify`, `bench` and `trace` know) on
-/// every conformance scene, held to its registered tolerance.
-#[test]
-fn every_registered_structure_conforms() {
+/// `scene`, held to its registered tolerance.
+fn every_registered_structure_conforms(scene: &str) {
+    let scene = scenes::triangle_scene(scene);
     let mut failures = Vec::new();
-    for scene in scenes::conformance_triangle_scenes() {
-        for entry in REGISTRY {
-            match conformance::check_scene(&scene, entry.build, entry.tolerance) {
-                Ok(r) if r.is_ok() => {}
-                Ok(r) => failures.push(format!(
-                    "{} on {}: {} mismatches, first: {}",
-                    entry.name, scene.name, r.mismatch_count, r.mismatches[0]
-                )),
-                Err(e) => failures.push(format!("{} on {}: {e}", entry.name, scene.name)),
-            }
+    for entry in REGISTRY {
+        match conformance::check_scene(&scene, entry.build, entry.tolerance) {
+            Ok(r) if r.is_ok() => {}
+            Ok(r) => failures.push(format!(
+                "{} on {}: {} mismatches, first: {}",
+                entry.name, scene.name, r.mismatch_count, r.mismatches[0]
+            )),
+            Err(e) => failures.push(format!("{} on {}: {e}", entry.name, scene.name)),
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// One test per conformance scene (the harness runs them in parallel), and a check that the
+/// list is the suite's.
+macro_rules! per_scene {
+    ($($scene:ident),* $(,)?) => {
+        mod every_registered_structure {
+            use super::*;
+            $(
+                #[test]
+                fn $scene() {
+                    every_registered_structure_conforms(stringify!($scene));
+                }
+            )*
+
+            #[test]
+            fn covers_every_conformance_scene() {
+                let names: Vec<String> =
+                    scenes::conformance_triangle_scenes().into_iter().map(|s| s.name).collect();
+                assert_eq!(names, [$(stringify!($scene)),*]);
+            }
+        }
+    };
+}
+
+per_scene!(
+    soup,
+    sphere_mesh,
+    torus,
+    planar_grid,
+    coplanar,
+    axis_slivers,
+    duplicates,
+    teapot_in_stadium,
+    overlapping_fan,
+    long_slivers,
+    huge_coords,
+    tiny_coords,
+    one_triangle,
+    empty,
+);
 
 mod brute {
     use super::*;

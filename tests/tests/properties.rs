@@ -8,30 +8,12 @@
 use proptest::prelude::*;
 use rt_geom::{Accel, BruteForce, Cone, Hit, Primitive, Ray, Shape, Sphere, Triangle, Vec3};
 use rt_testkit::conformance::{Tolerance, compare_with_expected};
+use rt_testkit::props::config;
 use rt_testkit::{RayKind, TestRay};
 use xtask::registry::REGISTRY;
 
-fn config(cases: u32) -> ProptestConfig {
-    let cases = std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(cases);
-    ProptestConfig {
-        cases,
-        failure_persistence: None,
-        ..ProptestConfig::default()
-    }
-}
-
-fn coord() -> impl Strategy<Value = f32> {
-    prop_oneof![
-        4 => (-4i32..=4).prop_map(|i| i as f32 * 0.5),
-        1 => -2.0f32..2.0,
-    ]
-}
-
 fn point() -> impl Strategy<Value = Vec3> {
-    (coord(), coord(), coord()).prop_map(|(x, y, z)| Vec3::new(x, y, z))
+    rt_testkit::props::point(4, 2.0)
 }
 
 fn triangle() -> impl Strategy<Value = Triangle> {

@@ -179,7 +179,7 @@ fn render_command_writes_png_and_stats() {
         ..Default::default()
     };
     let s = xtask::render::render(&args).unwrap();
-    assert_eq!(s.stats.eye_rays, 1200);
+    assert_eq!(s.stats.rays.eye_rays, 1200);
     let png = std::fs::read(dir.join("chess.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG");
     let json = std::fs::read_to_string(dir.join("stats.json")).unwrap();
@@ -206,7 +206,7 @@ fn render_command_writes_png_and_stats() {
             ..args.clone()
         };
         let s = xtask::render::render(&a).unwrap();
-        assert_eq!(s.stats.eye_rays, 1200 * (samples * samples) as u64);
+        assert_eq!(s.stats.rays.eye_rays, 1200 * (samples * samples) as u64);
     }
     // Bad input: clear errors.
     let bad = |a: xtask::render::RenderArgs| xtask::render::render(&a).err().unwrap();
@@ -349,30 +349,29 @@ fn chess_renders_alike_flat_per_piece_and_instanced() {
     for accel in ["bvh8-tri", "brute", "kd", "grid"] {
         let pieces = image(Objects::Pieces, accel);
         assert_eq!(pieces.image.pixels, flat.image.pixels, "{accel}");
-        assert_eq!(pieces.stats.shadow, flat.stats.shadow, "{accel}");
+        assert_eq!(pieces.stats.rays.shadow, flat.stats.rays.shadow, "{accel}");
         assert!(pieces.line().contains("per piece"));
     }
     // Instanced: rays carried into each piece's space round differently, so a few pixels on
-    // silhouettes and shadow edges may differ; the image is otherwise the same.
-    let instanced = image(Objects::Instanced, "bvh8-tri");
-    let px = flat.image.pixels.len();
-    let differ: Vec<f32> = flat
-        .image
-        .pixels
-        .iter()
-        .zip(&instanced.image.pixels)
-        .map(|(a, b)| (*a - *b).abs().max_element())
-        .filter(|&d| d > 0.0)
-        .collect();
-    let visible = differ.iter().filter(|&&d| d > 2.0 / 255.0).count();
-    eprintln!(
-        "instanced: {} of {px} pixels differ, {visible} by more than 2/255",
-        differ.len()
+    // silhouettes and shadow edges may differ; the image is otherwise the same. Checked at the
+    // size users render (640x480), where one pixel covers less of an edge than at test sizes.
+    let full = |objects: Objects| {
+        run(&RenderArgs {
+            size: Some((640, 480)),
+            out: Some(dir.join(format!("chess-640-{objects:?}.png"))),
+            accel: "bvh8-tri".into(),
+            objects,
+            quiet: true,
+            ..Default::default()
+        })
+        .unwrap_or_else(|e| panic!("{e}"))
+    };
+    let differ = xtask::render::Differences::between(
+        &full(Objects::Flat).image,
+        &full(Objects::Instanced).image,
     );
-    assert!(
-        visible * 100 <= px,
-        "{visible} of {px} pixels differ visibly"
-    );
+    eprintln!("instanced at 640x480: {differ:?}");
+    assert!(differ.within_instancing_tolerance(), "{differ:?}");
     // Other scenes have no objects to speak of.
     let err = run(&RenderArgs {
         scene: "scene.nff".into(),
@@ -400,7 +399,7 @@ fn render_counts_the_tests_per_ray() {
             ..Default::default()
         };
         let s = run(&args).unwrap_or_else(|e| panic!("{e}")).stats;
-        (s.node_tests.unwrap(), s.prim_tests.unwrap(), s.rays())
+        (s.node_tests.unwrap(), s.prim_tests.unwrap(), s.rays.total())
     };
     let (nodes, prims, rays) = counted(Objects::Flat, "brute");
     // Brute force tests no box; each closest-hit ray tests every triangle (shadow rays may
@@ -413,10 +412,11 @@ fn render_counts_the_tests_per_ray() {
     let (box_nodes, box_prims, _) = counted(Objects::Pieces, "brute");
     let (bvh_nodes, bvh_prims, _) = counted(Objects::Pieces, "bvh");
     let (flat_nodes, flat_prims, _) = counted(Objects::Flat, "bvh8-tri");
-    // One box per piece: some box tests, far fewer primitive tests; boxes inside the pieces
-    // fewer still.
+    // One box per piece: some box tests, far fewer primitive tests (about 20x fewer measured
+    // here; the lecture's figure is about 30x, for a board of larger pieces); boxes inside the
+    // pieces fewer still.
     assert!(
-        box_nodes > 0 && box_prims * 5 < prims,
+        box_nodes > 0 && box_prims * 15 < prims,
         "{box_prims} vs {prims}"
     );
     assert!(bvh_prims < box_prims && bvh_nodes > box_nodes);
@@ -440,7 +440,7 @@ fn moving_chess_renders_frames_and_times_each_update() {
     for t in &times {
         assert!(t.update.iter().chain(&t.trace).all(|&s| s > 0.0), "{t:?}");
         // Instanced: the same image up to the rounding of the transforms.
-        assert!(t.instanced_differ.1 <= 2.0 / 255.0, "{t:?}");
+        assert!(t.instanced_differ.within_instancing_tolerance(), "{t:?}");
         assert!(dir.join(format!("frame-{:03}.png", t.frame)).exists());
     }
     let table = xtask::animate::table(&times);

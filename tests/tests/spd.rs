@@ -3,7 +3,7 @@
 
 use rt_geom::Shape;
 use rt_shade::{RenderOptions, load_nff, render};
-use rt_testkit::models::{SPD_NAMES, spd_path};
+use rt_testkit::models::{SPD_NAMES, skip, spd_path};
 use xtask::registry;
 
 /// (name, spheres, cones and cylinders, lights, polygons + patches) from the SPD README.
@@ -24,9 +24,9 @@ fn spd_scenes_load_and_agree_across_structures() {
     let mut found = 0;
     for name in SPD_NAMES {
         let Some(path) = spd_path(name) else {
-            eprintln!(
-                "skipping: SPD scene {name} not found (looked in $RT_SPD and ../shared/scenes/spd)"
-            );
+            skip(&format!(
+                "SPD scene {name} not found (looked in $RT_SPD and ../shared/scenes/spd)"
+            ));
             continue;
         };
         found += 1;
@@ -80,7 +80,7 @@ fn spd_scenes_load_and_agree_across_structures() {
 #[test]
 fn gear_faces_are_triangulated_not_fanned() {
     let Some(path) = spd_path("gears") else {
-        eprintln!("skipping: SPD gears not found");
+        skip("SPD gears not found");
         return;
     };
     let scene = load_nff(&path).unwrap();

@@ -3,9 +3,9 @@
 
 use crate::registry::{self, AccelEntry};
 use crate::run;
+pub use crate::table::Record;
 use rt_geom::{Accel, Ray, Triangle, Vec3};
 use rt_testkit::{RaySets, models, scenes};
-use serde::Serialize;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -16,36 +16,6 @@ pub struct BenchOptions {
     pub scenes: Option<String>,
     pub json: Option<PathBuf>,
     pub threads: Vec<usize>,
-}
-
-/// One measurement: a structure on a scene with a ray set and a thread count.
-#[derive(Clone, Debug, Serialize)]
-pub struct Record {
-    pub accel: String,
-    pub scene: String,
-    /// The ray set: `primary`, `shadow` or `diffuse`.
-    pub rays: String,
-    pub threads: usize,
-    pub build_ms: f64,
-    /// Median over the repetitions.
-    pub mrays_s: f64,
-    pub bytes: usize,
-    /// `mrays_s` over the faster of `obvhs` and `obvhs-cwbvh` on the same scene, rays, threads.
-    pub ratio_vs_obvhs: Option<f64>,
-    /// `mrays_s` over Embree's on the same scene, rays, threads (with the `embree` feature).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub ratio_vs_embree: Option<f64>,
-    /// `mrays_s` over Embree's in its default (not robust) mode, `embree-fast`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub ratio_vs_embree_fast: Option<f64>,
-    pub ray_count: usize,
-    pub hits: usize,
-    /// Primitives in the scene.
-    pub prims: usize,
-    pub sah_cost: Option<f32>,
-    /// Box (node, cell) and primitive tests per ray, in a counting build (`bench --count`).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub tests_per_ray: Option<(f64, f64)>,
 }
 
 /// The scenes `bench` knows: the shared meshes and procedural ones.
@@ -80,7 +50,7 @@ fn load_scene(name: &str) -> Result<Option<Vec<Triangle>>, String> {
 fn default_scenes(quick: bool) -> Vec<&'static str> {
     let have_models = models::models_dir().is_some();
     match (quick, have_models) {
-        (true, true) => vec!["teapot", "bunny"],
+        (true, true) => vec!["teapot"],
         (true, false) => vec!["soup-20k"],
         (false, true) => vec!["teapot", "bunny", "sponza", "dragon"],
         (false, false) => vec!["soup-100k", "sphere-200k"],
@@ -103,7 +73,11 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
             .map(|s| s.to_string())
             .collect(),
     };
-    let (size, reps) = if opts.quick { (128, 3) } else { (1024, 5) };
+    let (size, reps) = if opts.quick {
+        (128, Reps::QUICK)
+    } else {
+        (1024, Reps::FULL)
+    };
     let pools: Vec<_> = opts
         .threads
         .iter()
@@ -120,10 +94,11 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
         }
     }
     eprintln!(
-        "bench: {} structures x {} scenes x 3 ray sets x threads {:?}; {size}x{size} camera, median of {reps}",
+        "bench: {} structures x {} scenes x 3 ray sets x threads {:?}; {size}x{size} camera, median of {}",
         measured.len(),
         scene_list.len(),
-        opts.threads
+        opts.threads,
+        reps.count
     );
     let mut records = Vec::new();
     for scene in &scene_list {
@@ -281,7 +256,7 @@ fn measure(
     rays: &[Ray],
     occluded: bool,
     pool: &rayon::ThreadPool,
-    reps: usize,
+    reps: Reps,
 ) -> (f64, usize, usize) {
     if rays.is_empty() {
         return (0.0, 0, 0);
@@ -302,18 +277,36 @@ fn measure(
     (run::mrays_per_s(rays.len(), time), hits, rays.len())
 }
 
-/// Shortest timed repetition: a small ray set (`--quick`) is traced several times per
-/// repetition, so that thread wake-up and timer resolution do not dominate its figure.
-const MIN_REP: Duration = Duration::from_millis(200);
+/// How a figure is timed: the median of `count` repetitions, each at least `min` long (a small
+/// ray set is traced several times per repetition, so that thread wake-up and timer
+/// resolution do not dominate its figure).
+#[derive(Clone, Copy, Debug)]
+struct Reps {
+    count: usize,
+    min: Duration,
+}
 
-/// Runs `pass` once to warm up, then `reps` timed repetitions of as many passes as fill
-/// [`MIN_REP`]; returns the median time of one pass and the warm-up's hit count.
-fn median_pass(reps: usize, mut pass: impl FnMut() -> (usize, Duration)) -> (Duration, usize) {
+impl Reps {
+    /// A measurement.
+    const FULL: Reps = Reps {
+        count: 5,
+        min: Duration::from_millis(200),
+    };
+    /// `--quick`, a smoke test: one short repetition.
+    const QUICK: Reps = Reps {
+        count: 1,
+        min: Duration::from_millis(20),
+    };
+}
+
+/// Runs `pass` once to warm up, then `reps.count` timed repetitions of as many passes as fill
+/// `reps.min`; returns the median time of one pass and the warm-up's hit count.
+fn median_pass(reps: Reps, mut pass: impl FnMut() -> (usize, Duration)) -> (Duration, usize) {
     let (hits, warm) = pass();
-    let passes = (MIN_REP.as_secs_f64() / warm.as_secs_f64().max(1e-9))
+    let passes = (reps.min.as_secs_f64() / warm.as_secs_f64().max(1e-9))
         .ceil()
         .clamp(1.0, 10_000.0) as u32;
-    let times = (0..reps)
+    let times = (0..reps.count)
         .map(|_| (0..passes).map(|_| pass().1).sum::<Duration>() / passes)
         .collect();
     (run::median(times), hits)
@@ -328,7 +321,7 @@ fn measure_packets(
     groups: &[Vec<usize>],
     occluded: bool,
     pool: &rayon::ThreadPool,
-    reps: usize,
+    reps: Reps,
 ) -> (f64, usize) {
     let grouped = run::GroupedRays::new(rays, groups);
     let (time, hits) = median_pass(reps, || {

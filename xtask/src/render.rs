@@ -11,6 +11,7 @@ use rt_shade::{
 };
 use serde::Serialize;
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// What `cargo xtask render` was asked for (its command-line options).
@@ -125,11 +126,9 @@ pub enum Objects {
 /// The `--stats` file.
 #[derive(Clone, Debug, Serialize)]
 pub struct RenderStats {
-    pub eye_rays: u64,
-    pub eye_hits: u64,
-    pub reflected: u64,
-    pub refracted: u64,
-    pub shadow: u64,
+    /// The rays cast, by kind.
+    #[serde(flatten)]
+    pub rays: RayStats,
     /// Tracing time (build excluded).
     pub seconds: f64,
     pub scene: String,
@@ -148,13 +147,6 @@ pub struct RenderStats {
     pub prim_tests: Option<u64>,
 }
 
-impl RenderStats {
-    /// Every ray traced: eye, reflected, refracted, shadow.
-    pub fn rays(&self) -> u64 {
-        self.eye_rays + self.reflected + self.refracted + self.shadow
-    }
-}
-
 /// A finished render: where the PNG went, and the statistics.
 pub struct RenderSummary {
     pub out: PathBuf,
@@ -167,7 +159,7 @@ impl RenderSummary {
     /// One line for the terminal.
     pub fn line(&self) -> String {
         let s = &self.stats;
-        let rays = s.rays();
+        let rays = s.rays.total();
         let counted = match (s.node_tests, s.prim_tests) {
             (Some(n), Some(p)) => format!(
                 "; per ray {:.1} box tests, {:.1} primitive tests",
@@ -189,17 +181,56 @@ impl RenderSummary {
                 Objects::Instanced => " per piece shape, 33 instances under a top level",
             },
             if s.packets { ", tiles as packets" } else { "" },
-            s.eye_rays,
-            s.eye_hits,
-            s.reflected,
-            s.refracted,
-            s.shadow,
+            s.rays.eye_rays,
+            s.rays.eye_hits,
+            s.rays.reflected,
+            s.rays.refracted,
+            s.rays.shadow,
             s.build_seconds,
             s.seconds,
             rays as f64 / s.seconds.max(1e-9) / 1e6,
             counted,
             self.out.display()
         )
+    }
+}
+
+/// How two renders of one scene differ: an instanced scene against its flattened form, where
+/// rays carried into each object's space round differently than the flattened vertices.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Differences {
+    /// Pixels that differ by more than [`Differences::VISIBLE`] in a channel.
+    pub pixels: usize,
+    /// The largest difference in any channel.
+    pub max: f32,
+    /// Pixels compared.
+    pub of: usize,
+}
+
+impl Differences {
+    /// A difference that shows: two steps of an 8-bit channel.
+    pub const VISIBLE: f32 = 2.0 / 255.0;
+
+    /// `a` against `b` (the same size).
+    pub fn between(a: &rt_shade::Image, b: &rt_shade::Image) -> Self {
+        let d: Vec<f32> = a
+            .pixels
+            .iter()
+            .zip(&b.pixels)
+            .map(|(p, q)| (*p - *q).abs().max_element())
+            .collect();
+        Differences {
+            pixels: d.iter().filter(|&&x| x > Self::VISIBLE).count(),
+            max: d.iter().copied().fold(0.0, f32::max),
+            of: d.len(),
+        }
+    }
+
+    /// What instancing is held to: at most 1% of the pixels differ visibly (silhouettes and
+    /// shadow edges, where the rounding of a transform moves a ray across an edge; how far a
+    /// single pixel may move depends on what it then sees, so no bound on `max`).
+    pub fn within_instancing_tolerance(&self) -> bool {
+        self.pixels * 100 <= self.of
     }
 }
 
@@ -213,10 +244,65 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
     ))
 }
 
-/// Loads, builds, renders and writes the PNG (and the statistics file).
+/// Loads, builds, renders and writes the PNG (and the statistics file): the phases below.
 pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
     let entry = registry::find(&args.accel).ok_or_else(|| registry::unknown(&args.accel))?;
-    let load = (!args.quiet).then(|| spinner(format!("loading {}", args.scene)));
+    let out = output_path(args)?;
+    let (scene, objects) = load(args)?;
+    let options = args.options(scene.resolution.unwrap_or((640, 480)))?;
+    let pool = pool(args.threads)?;
+    let built = pool.install(|| build(entry, &scene, objects.as_ref(), args))?;
+    let (rendered, counts) = trace(&scene, &built, &options, &pool, args.quiet)?;
+    let out =
+        out.unwrap_or_else(|| PathBuf::from("target/render").join(format!("{}.png", scene.name)));
+    rendered.image.save_png(&out)?;
+    let stats = RenderStats {
+        rays: rendered.stats,
+        seconds: rendered.seconds,
+        scene: scene.name.clone(),
+        accel: entry.name.to_string(),
+        width: options.width,
+        height: options.height,
+        primitives: scene.shapes.len(),
+        build_seconds: built.seconds,
+        packets: built.packets.is_some(),
+        objects: args.objects,
+        node_tests: built.counting.then_some(counts.nodes),
+        prim_tests: built.counting.then_some(counts.prims),
+    };
+    if let Some(path) = &args.stats {
+        let json = serde_json::to_string_pretty(&stats).map_err(|e| e.to_string())?;
+        std::fs::write(path, json + "\n").map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok(RenderSummary {
+        out,
+        stats,
+        image: rendered.image,
+        warnings: scene.render_warnings(),
+    })
+}
+
+/// `--out`, checked before any work: a PNG path, or `None` for the default.
+fn output_path(args: &RenderArgs) -> Result<Option<PathBuf>, String> {
+    match &args.out {
+        Some(out)
+            if out
+                .extension()
+                .is_none_or(|e| !e.eq_ignore_ascii_case("png")) =>
+        {
+            Err(format!(
+                "{}: the image is written as PNG; name it *.png (missing folders are created)",
+                out.display()
+            ))
+        }
+        out => Ok(out.clone()),
+    }
+}
+
+/// Load: the scene (with `--orthographic` and `--aperture` applied), and its objects and
+/// instances when `--objects` asks for two levels.
+fn load(args: &RenderArgs) -> Result<(Scene, Option<SceneObjects>), String> {
+    let spinner = (!args.quiet).then(|| spinner(format!("loading {}", args.scene)));
     let (mut scene, objects) = match (args.objects, args.scene.as_str()) {
         (Objects::Flat, _) => (
             rt_shade::load_scene(&args.scene).map_err(|e| e.to_string())?,
@@ -237,26 +323,33 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
             ));
         }
     };
-    if let Some(pb) = load {
+    if let Some(pb) = spinner {
         pb.finish_and_clear();
     }
     adjust_camera(&mut scene, args)?;
-    let options = args.options(scene.resolution.unwrap_or((640, 480)))?;
-    let (width, height) = (options.width, options.height);
-    let pool = pool(args.threads)?;
-    if let Some(out) = &args.out {
-        if out
-            .extension()
-            .is_none_or(|e| !e.eq_ignore_ascii_case("png"))
-        {
-            return Err(format!(
-                "{}: the image is written as PNG; name it *.png (missing folders are created)",
-                out.display()
-            ));
-        }
-    }
+    Ok((scene, objects))
+}
 
-    let building = (!args.quiet).then(|| {
+/// What the build phase made: the structure single rays go through, the packet path when
+/// the tiles go through one, and how long it took.
+struct Built {
+    single: Box<dyn Accel>,
+    packets: Option<Arc<dyn PacketAccel>>,
+    seconds: f64,
+    /// Whether tests are counted (`--count` in a counting build).
+    counting: bool,
+}
+
+/// Build: a two-level structure (`--objects`), or the entry's packet path over a triangle
+/// scene (its single rays the packet structure's own unless they belong to another entry),
+/// or the entry over the scene's shapes.
+fn build(
+    entry: &registry::AccelEntry,
+    scene: &Scene,
+    objects: Option<&SceneObjects>,
+    args: &RenderArgs,
+) -> Result<Built, String> {
+    let spinner = (!args.quiet).then(|| {
         spinner(format!(
             "building {} over {} primitives",
             entry.name,
@@ -265,57 +358,62 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
     });
     let start = Instant::now();
     let counting = args.count && rt_geom::counters::ENABLED;
-    // Eye rays go through the structure's packet path when it has one (triangle scenes).
-    let triangles: Option<Vec<Triangle>> = scene
-        .shapes
-        .iter()
-        .map(|s| s.as_triangle().copied())
-        .collect();
-    let (single, packets): (Option<Box<dyn Accel>>, Option<Box<dyn PacketAccel>>) =
-        match (entry.packets, triangles) {
-            _ if objects.is_some() => {
-                let objects = objects.as_ref().expect("two-level");
-                (
-                    Some(pool.install(|| build_two_level(entry, objects))?),
-                    None,
-                )
-            }
-            (Some(build), Some(tris)) if !args.no_packets && !counting => {
-                let packets = pool
-                    .install(|| build(&tris))
-                    .map_err(|e| format!("{}: {e}", entry.name))?;
-                // The packet path's structure answers single rays too, unless they belong to
-                // another entry.
-                let single = match entry.packet_only {
-                    Some(_) => Some(pool.install(|| entry.build_any(&scene.shapes))?),
-                    None => None,
-                };
-                (single, Some(packets))
-            }
-            _ => (Some(pool.install(|| entry.build_any(&scene.shapes))?), None),
-        };
-    let accel: &dyn Accel = match (&single, &packets) {
-        (Some(single), _) => single.as_ref(),
-        (None, Some(packets)) => packets.as_ref(),
-        (None, None) => unreachable!("one of the two is built"),
+    let packet_path = entry
+        .packets
+        .filter(|_| objects.is_none() && !args.no_packets && !counting);
+    let triangles: Option<Vec<Triangle>> = packet_path.and_then(|_| {
+        scene
+            .shapes
+            .iter()
+            .map(|s| s.as_triangle().copied())
+            .collect()
+    });
+    let (single, packets) = match (objects, packet_path.zip(triangles)) {
+        (Some(objects), _) => (build_two_level(entry, objects)?, None),
+        (None, Some((build, tris))) => {
+            let packets: Arc<dyn PacketAccel> = build(&tris)
+                .map_err(|e| format!("{}: {e}", entry.name))?
+                .into();
+            let single = match entry.packet_only {
+                Some(_) => entry.build_any(&scene.shapes)?,
+                None => Box::new(packets.clone()),
+            };
+            (single, Some(packets))
+        }
+        (None, None) => (entry.build_any(&scene.shapes)?, None),
     };
-    let build_seconds = start.elapsed().as_secs_f64();
-    if let Some(pb) = building {
+    if let Some(pb) = spinner {
         pb.finish_and_clear();
     }
+    Ok(Built {
+        single,
+        packets,
+        seconds: start.elapsed().as_secs_f64(),
+        counting,
+    })
+}
 
-    let progress = if args.quiet {
+/// Trace: the image tile by tile on the pool, a tile's rays through the packet path when
+/// there is one; the tests counted per thread when the build counts them.
+fn trace(
+    scene: &Scene,
+    built: &Built,
+    options: &RenderOptions,
+    pool: &rayon::ThreadPool,
+    quiet: bool,
+) -> Result<(rt_shade::Rendered, rt_geom::counters::Counts), String> {
+    let progress = if quiet {
         indicatif::ProgressBar::hidden()
     } else {
         bar(options.tiles(), format!("render {}", scene.name))
     };
     let intersect = |rays: &[Ray], out: &mut [Option<Hit>]| {
-        if let Some(p) = &packets {
+        if let Some(p) = &built.packets {
             p.intersect_group(rays, out);
         }
     };
     let occluded = |rays: &[Ray], out: &mut [bool]| {
-        if let Some(p) = &packets {
+        if let Some(p) = &built.packets {
             p.occluded_group(rays, out);
         }
     };
@@ -323,13 +421,13 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
     let rendered = pool
         .install(|| {
             rt_shade::render_with_packets(
-                &scene,
-                accel,
-                packets.is_some().then_some(Packets {
+                scene,
+                built.single.as_ref(),
+                built.packets.is_some().then_some(Packets {
                     intersect: &intersect,
                     occluded: &occluded,
                 }),
-                &options,
+                options,
                 &|n| progress.inc(n),
             )
         })
@@ -339,47 +437,7 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
     for c in pool.broadcast(|_| rt_geom::counters::take()) {
         counts += c;
     }
-
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("target/render").join(format!("{}.png", scene.name)));
-    rendered.image.save_png(&out)?;
-    let RayStats {
-        eye_rays,
-        eye_hits,
-        reflected,
-        refracted,
-        shadow,
-    } = rendered.stats;
-    let stats = RenderStats {
-        eye_rays,
-        eye_hits,
-        reflected,
-        refracted,
-        shadow,
-        seconds: rendered.seconds,
-        scene: scene.name.clone(),
-        accel: entry.name.to_string(),
-        width,
-        height,
-        primitives: scene.shapes.len(),
-        build_seconds,
-        packets: packets.is_some(),
-        objects: args.objects,
-        node_tests: counting.then_some(counts.nodes),
-        prim_tests: counting.then_some(counts.prims),
-    };
-    if let Some(path) = &args.stats {
-        let json = serde_json::to_string_pretty(&stats).map_err(|e| e.to_string())?;
-        std::fs::write(path, json + "\n").map_err(|e| format!("{}: {e}", path.display()))?;
-    }
-    Ok(RenderSummary {
-        out,
-        stats,
-        image: rendered.image,
-        warnings: scene.render_warnings(),
-    })
+    Ok((rendered, counts))
 }
 
 /// The scene's instances as the two-level structure takes them.

@@ -1,7 +1,37 @@
 //! One benchmark record, one table row: the columns `bench` prints and `bench --report` writes
 //! in `index.md`, formatted in one place.
 
-use crate::bench::Record;
+use serde::Serialize;
+
+/// One measurement: a structure on a scene with a ray set and a thread count.
+#[derive(Clone, Debug, Serialize)]
+pub struct Record {
+    pub accel: String,
+    pub scene: String,
+    /// The ray set: `primary`, `shadow` or `diffuse`.
+    pub rays: String,
+    pub threads: usize,
+    pub build_ms: f64,
+    /// Median over the repetitions.
+    pub mrays_s: f64,
+    pub bytes: usize,
+    /// `mrays_s` over the faster of `obvhs` and `obvhs-cwbvh` on the same scene, rays, threads.
+    pub ratio_vs_obvhs: Option<f64>,
+    /// `mrays_s` over Embree's on the same scene, rays, threads (with the `embree` feature).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ratio_vs_embree: Option<f64>,
+    /// `mrays_s` over Embree's in its default (not robust) mode, `embree-fast`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ratio_vs_embree_fast: Option<f64>,
+    pub ray_count: usize,
+    pub hits: usize,
+    /// Primitives in the scene.
+    pub prims: usize,
+    pub sah_cost: Option<f32>,
+    /// Box (node, cell) and primitive tests per ray, in a counting build (`bench --count`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tests_per_ray: Option<(f64, f64)>,
+}
 
 /// Column titles; with `embree`, two more columns: the ratios to Embree's robust and default
 /// modes; with `counted`, two more: box and primitive tests per ray.

@@ -58,6 +58,13 @@ pub fn verify(opts: &VerifyOptions) -> Result<bool, String> {
                 }
             }
         }
+        None if models::shared_required() => {
+            return Err(
+                "../shared/models not found (set RT_MODELS), and RT_REQUIRE_SHARED=1 \
+                        requires the meshes"
+                    .into(),
+            );
+        }
         None => {
             eprintln!(
                 "note: ../shared/models not found (set RT_MODELS): meshes skipped; camera, shadow \

@@ -1,7 +1,8 @@
 //! Generated properties of the kernels against straightforward `f64` references: ray/triangle
 //! (watertight), ray/box, ray/sphere, ray/cone. Inputs include lattice points (coincident and
 //! axis-aligned geometry), axis-parallel rays, zero and subnormal direction components, and
-//! scenes scaled to huge and tiny coordinates. A failure shrinks to a minimal case.
+//! scenes scaled to huge and tiny coordinates. A failure shrinks to a minimal case, saved in
+//! `kernel_properties.proptest-regressions` and replayed first on every later run.
 //!
 //! The reference decides only where it is well conditioned (a hit or miss by a margin); near
 //! an edge, where `f32` and `f64` may honestly differ, the watertight property decides instead.
@@ -10,32 +11,11 @@
 use glam::DVec3;
 use proptest::prelude::*;
 use rt_geom::{Aabb, Cone, Primitive, Ray, Sphere, Triangle, Vec3};
+use rt_testkit::props::config;
 
-/// `cases` generated cases, or `PROPTEST_CASES` when set (heavier runs); failures print
-/// their minimal input instead of being saved to files.
-fn config(cases: u32) -> ProptestConfig {
-    let cases = std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(cases);
-    ProptestConfig {
-        cases,
-        max_global_rejects: cases,
-        failure_persistence: None,
-        ..ProptestConfig::default()
-    }
-}
-
-/// Coordinates: lattice points most of the time, else any value in a range.
-fn coord() -> impl Strategy<Value = f64> {
-    prop_oneof![
-        3 => (-8i32..=8).prop_map(|i| i as f64 * 0.5),
-        2 => -10.0f64..10.0,
-    ]
-}
-
+/// A point of the half-unit lattice within 4 (or any within 10), in `f64`.
 fn point() -> impl Strategy<Value = DVec3> {
-    (coord(), coord(), coord()).prop_map(|(x, y, z)| DVec3::new(x, y, z))
+    rt_testkit::props::point(8, 10.0).prop_map(|p| p.as_dvec3())
 }
 
 /// Scene scales: ordinary, huge (coordinates up to `MAX_COORDINATE`, about 1e18) and tiny.

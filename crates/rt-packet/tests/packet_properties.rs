@@ -9,28 +9,10 @@ use rt_accel_bvh::{Bvh, Bvh4, Bvh8, BvhParams};
 use rt_accel_kd::{KdParams, KdTree};
 use rt_geom::{Accel, Ray, Triangle, Vec3};
 use rt_packet::{MlrtaKdTree, PacketTraversal, RayPacket};
-
-fn config(cases: u32) -> ProptestConfig {
-    let cases = std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(cases);
-    ProptestConfig {
-        cases,
-        failure_persistence: None,
-        ..ProptestConfig::default()
-    }
-}
-
-fn coord() -> impl Strategy<Value = f32> {
-    prop_oneof![
-        3 => (-6i32..=6).prop_map(|i| i as f32 * 0.5),
-        1 => -4.0f32..4.0,
-    ]
-}
+use rt_testkit::props::config;
 
 fn point() -> impl Strategy<Value = Vec3> {
-    (coord(), coord(), coord()).prop_map(|(x, y, z)| Vec3::new(x, y, z))
+    rt_testkit::props::point(6, 4.0)
 }
 
 /// Up to 40 triangles with shared lattice vertices, degenerate and duplicate ones among them.

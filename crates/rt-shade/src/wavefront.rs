@@ -88,6 +88,23 @@ struct Lit {
 }
 
 impl Whitted<'_> {
+    /// The colour seen along an eye ray.
+    pub fn eye(&self, ray: &Ray, stats: &mut RayStats) -> Vec3 {
+        self.shade_group(
+            std::slice::from_ref(ray),
+            None,
+            &SingleRays(self.accel()),
+            stats,
+        )[0]
+    }
+
+    /// The colour seen along an eye ray whose closest hit is known already (traced in a
+    /// packet): the same as [`Self::eye`] when `hit` is `accel.intersect(ray)`.
+    pub fn eye_with_hit(&self, ray: &Ray, hit: Option<Hit>, stats: &mut RayStats) -> Vec3 {
+        let queries = SingleRays(self.accel());
+        self.shade_group(std::slice::from_ref(ray), Some(vec![hit]), &queries, stats)[0]
+    }
+
     /// The colour along each eye ray of `rays` (closest hits in `hits` when already traced,
     /// for example as a packet: one per ray, else they are traced here), tracing every other
     /// ray as groups through `queries`.

@@ -1,5 +1,7 @@
-//! The Whitted integrator (traced level by level over groups of rays, [`crate::wavefront`]): local shading with shadow rays, perfect reflection,
-//! refraction by Snell's law, total internal reflection, cut-offs by depth and by weight.
+//! The Whitted integrator's rules: local shading with shadow rays, perfect reflection,
+//! refraction by Snell's law, total internal reflection, cut-offs by depth and by weight. The
+//! rays are traced level by level over groups of rays by [`crate::wavefront`], which holds
+//! the entry points ([`Whitted::eye`], [`Whitted::shade_group`]).
 //!
 //! Ray rules (what published Whitted statistics assume): the eye ray has depth 1; a shadow ray
 //! is cast only towards a light in front of the surface (on the side of the shading normal that
@@ -8,7 +10,6 @@
 //! its weight goes to the reflection ray; no ray is spawned beyond `max_depth`, nor when its
 //! weight is below `min_weight` in every channel.
 
-use crate::wavefront::SingleRays;
 use crate::{Material, Scene};
 use glam::Vec3;
 use rt_geom::{Accel, Hit, Ray};
@@ -16,6 +17,7 @@ use std::ops::AddAssign;
 
 /// Counts of the rays a render cast.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct RayStats {
     /// Eye (primary) rays.
     pub eye_rays: u64,
@@ -124,21 +126,9 @@ impl<'a> Whitted<'a> {
         }
     }
 
-    /// The colour seen along an eye ray.
-    pub fn eye(&self, ray: &Ray, stats: &mut RayStats) -> Vec3 {
-        self.shade_group(
-            std::slice::from_ref(ray),
-            None,
-            &SingleRays(self.accel),
-            stats,
-        )[0]
-    }
-
-    /// The colour seen along an eye ray whose closest hit is known already (traced in a
-    /// packet): the same as [`Self::eye`] when `hit` is `accel.intersect(ray)`.
-    pub fn eye_with_hit(&self, ray: &Ray, hit: Option<Hit>, stats: &mut RayStats) -> Vec3 {
-        let queries = SingleRays(self.accel);
-        self.shade_group(std::slice::from_ref(ray), Some(vec![hit]), &queries, stats)[0]
+    /// The structure the integrator traces through.
+    pub(crate) fn accel(&self) -> &'a dyn Accel {
+        self.accel
     }
 
     pub(crate) fn scene(&self) -> &'a Scene {

@@ -7,6 +7,7 @@
 //! | [`rays`] | conformance ray families ([`RayKind`]), the standard camera ([`View`]) and the primary / shadow / diffuse sets ([`RaySets`]) |
 //! | [`conformance`] | the one generic check against brute force, and [`conformance_tests!`] |
 //! | [`rayfile`] | `.rays` and `.hits` files, read and written (exchanging rays and answers with other engines) |
+//! | `props` | the generated-property suites' case count and lattice coordinates (feature `proptest`) |
 //! | [`models`] | where `../shared/models` is, and loading its meshes (tests skip with a message when it is absent) |
 //!
 //! ```
@@ -20,6 +21,8 @@
 
 pub mod conformance;
 pub mod models;
+#[cfg(feature = "proptest")]
+pub mod props;
 pub mod rayfile;
 pub mod rays;
 pub mod rng;

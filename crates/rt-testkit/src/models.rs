@@ -1,5 +1,6 @@
 //! The shared test meshes (`../shared/models`: bunny, dragon, sponza, teapot). They are never
-//! copied into the repository; tests that need them skip, saying so, when they are absent.
+//! copied into the repository; tests that need them skip, saying so, when they are absent,
+//! unless `RT_REQUIRE_SHARED=1` (CI sets it), which turns every such skip into a failure.
 
 use rt_geom::{Mesh, MeshError};
 use std::path::PathBuf;
@@ -30,14 +31,29 @@ pub fn model_path(name: &str) -> Option<PathBuf> {
     p.is_file().then_some(p)
 }
 
-/// Loads a standard model; `Ok(None)` (after printing why) when the shared models are absent.
+/// Whether `RT_REQUIRE_SHARED=1`: the shared meshes and scenes must be there.
+pub fn shared_required() -> bool {
+    std::env::var("RT_REQUIRE_SHARED").is_ok_and(|v| v == "1")
+}
+
+/// Says that a test skips `what` (shared data it did not find); panics instead when
+/// `RT_REQUIRE_SHARED=1`, so that a run that must have the data cannot pass without it.
+pub fn skip(what: &str) {
+    let message = format!("skipping: {what}");
+    if shared_required() {
+        panic!("{message}, and RT_REQUIRE_SHARED=1 requires it");
+    }
+    eprintln!("{message}");
+}
+
+/// Loads a standard model; `Ok(None)` (after [`skip`]) when the shared models are absent.
 pub fn load_model(name: &str) -> Result<Option<Mesh>, MeshError> {
     match model_path(name) {
         Some(p) => rt_geom::load_obj(p).map(Some),
         None => {
-            eprintln!(
-                "skipping: model {name} not found (looked in $RT_MODELS and ../shared/models)"
-            );
+            skip(&format!(
+                "model {name} not found (looked in $RT_MODELS and ../shared/models)"
+            ));
             Ok(None)
         }
     }

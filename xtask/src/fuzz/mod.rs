@@ -208,6 +208,7 @@ pub fn shared_seeds(name: &str) -> Vec<(String, Vec<u8>)> {
     match name {
         "obj" | "obj_scene" => {
             let Some(dir) = rt_testkit::models::models_dir() else {
+                rt_testkit::models::skip("the shared models' seeds (../shared/models not found)");
                 return out;
             };
             for model in rt_testkit::models::MODEL_NAMES {
@@ -221,7 +222,11 @@ pub fn shared_seeds(name: &str) -> Vec<(String, Vec<u8>)> {
         }
         "nff" => {
             for scene in rt_testkit::models::SPD_NAMES {
-                if let Some(path) = rt_testkit::models::spd_path(scene) {
+                let Some(path) = rt_testkit::models::spd_path(scene) else {
+                    rt_testkit::models::skip(&format!("the seed of SPD scene {scene} (not found)"));
+                    continue;
+                };
+                {
                     if let Ok(text) = std::fs::read_to_string(path) {
                         let head: Vec<&str> = text.lines().take(40).collect();
                         out.push((format!("shared-{scene}.nff"), head.join("\n").into_bytes()));

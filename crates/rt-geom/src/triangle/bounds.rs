@@ -2,7 +2,7 @@
 //! a hit that surely lies before `tmin` ([`hits_before_tmin`]) and one that surely lies inside
 //! the interval ([`proven_hit`]), from pbrt-v4's bounds on the watertight test.
 
-use super::lanes::{ShearedLanes, SimdLanes};
+use super::simd::{ShearedLanes, SimdLanes};
 use crate::{PrimHit, Ray};
 
 /// The lanes whose hit, if [`Triangle::refine`] found one, would certainly lie before `tmin`

@@ -4,18 +4,20 @@
 //! | file | what it holds |
 //! |---|---|
 //! | `clip.rs` | [`Triangle::clipped_bounds`]: the part of a triangle inside a box (perfect kd-tree splits) |
+//! | `simd.rs` | [`SimdLanes`]: the vectors of four or eight lanes the kernel runs on; the lanes' triangles and sheared frame |
+//! | `simd.rs` | [`SimdLanes`]: the vectors of four or eight lanes the kernel runs on; the lanes' triangles and sheared frame |
 //! | `lanes.rs` | the lane kernel: four or eight triangles' edge functions and sign test at once ([`watertight_lanes`]), the batched leaf test |
 //! | `bounds.rs` | the error bounds that decide a lane without the `f64` refinement: [`hits_before_tmin`], [`proven_hit`] |
 
 mod bounds;
 mod clip;
 mod lanes;
+mod simd;
 
 pub use bounds::{hits_before_tmin, proven_hit};
 pub(crate) use lanes::test_triangles;
-pub use lanes::{
-    ShearedLanes, SimdLanes, TriangleLanes, lane_edges, watertight_lanes, watertight_rows,
-};
+pub use lanes::{lane_edges, watertight_lanes, watertight_rows};
+pub use simd::{ShearedLanes, SimdLanes, TriangleLanes};
 
 use crate::{Aabb, PrimHit, Ray};
 use glam::{DVec3, Vec3};

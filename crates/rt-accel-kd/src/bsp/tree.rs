@@ -1,0 +1,241 @@
+//! [`BspTree`]: the type, its build entry point, and its statistics and invariants.
+
+use super::BspParams;
+use super::build::{self, Side, classify, clip_cell};
+use crate::build::{BuildNode, MAX_LOCAL, flatten, root_budget};
+use crate::params::MAX_DEPTH;
+use crate::{KdNode, KdParams};
+use rt_geom::{Aabb, Accel, AccelStats, BuildError, LeafPrims, Primitive, Vec3, check_primitives};
+
+/// A splitting plane `normal . p = d` (unit normal), with the band `|normal . p - d| <=
+/// margin` inside which rounding cannot tell the sides apart.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SplitPlane {
+    /// Unit normal of the plane.
+    pub normal: Vec3,
+    /// Offset: the plane is `normal . p = d`.
+    pub d: f32,
+    /// Primitives within this distance of the plane count as lying in it.
+    pub margin: f32,
+}
+
+/// A BSP tree over primitives `P`.
+#[derive(Clone, Debug)]
+pub struct BspTree<P> {
+    pub(super) nodes: Vec<KdNode>,
+    pub(super) planes: Vec<SplitPlane>,
+    pub(super) indices: Vec<u32>,
+    pub(super) prims: Vec<P>,
+    /// The primitives of the leaves of several, laid out for the leaf test ([`LeafPrims`]).
+    pub(super) listed: LeafPrims<P>,
+    pub(super) bounds: Aabb,
+    pub(super) params: BspParams,
+}
+
+impl<P: Primitive> BspTree<P> {
+    /// Builds over `prims` (copied). Empty input gives an empty tree.
+    pub fn build(prims: &[P], params: BspParams) -> Result<Self, BuildError> {
+        params.validate()?;
+        check_primitives(prims, MAX_LOCAL)?;
+        let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
+        let (mut nodes, mut planes, mut indices) = (Vec::new(), Vec::new(), Vec::new());
+        if !prims.is_empty() {
+            let n = prims.len();
+            let depth_cap = KdParams {
+                max_depth: params.max_depth,
+                ..KdParams::sah()
+            }
+            .depth_cap(n);
+            let ctx = build::Ctx {
+                prims,
+                params: &params,
+                depth_cap,
+                scale: bounds.min.abs().max(bounds.max.abs()).max_element(),
+            };
+            let root: BuildNode<SplitPlane> = build::build_node(
+                &ctx,
+                (0..n as u32).collect(),
+                bounds,
+                0,
+                root_budget(params.reference_budget, n),
+            );
+            flatten(&root, &mut nodes, &mut indices, &mut |plane, above| {
+                planes.push(*plane);
+                KdNode::inner_plane(planes.len() as u32 - 1, above)
+            });
+            if nodes.len() > crate::node::MAX_NODE_FIELD as usize {
+                return Err(BuildError::TooManyPrimitives {
+                    count: n,
+                    max: n / 2,
+                });
+            }
+        }
+        let listed = LeafPrims::new(prims, &indices, nodes.iter().filter_map(KdNode::list));
+        Ok(Self {
+            nodes,
+            planes,
+            indices,
+            prims: prims.to_vec(),
+            listed,
+            bounds,
+            params,
+        })
+    }
+
+    /// The flattened nodes; an inner node's `data()` indexes [`Self::planes`].
+    pub fn nodes(&self) -> &[KdNode] {
+        &self.nodes
+    }
+
+    /// The split planes, indexed by the inner nodes.
+    pub fn planes(&self) -> &[SplitPlane] {
+        &self.planes
+    }
+
+    /// Primitive indices, leaf by leaf.
+    pub fn indices(&self) -> &[u32] {
+        &self.indices
+    }
+
+    /// The parameters the tree was built with.
+    pub fn params(&self) -> &BspParams {
+        &self.params
+    }
+
+    /// Calls `f(node, cell box, planes above the node with the side taken, depth)` for every
+    /// node, parents first.
+    fn walk(&self, mut f: impl FnMut(usize, &Aabb, &[(usize, bool)])) {
+        fn go<P: Primitive>(
+            t: &BspTree<P>,
+            i: usize,
+            cell: Aabb,
+            path: &mut Vec<(usize, bool)>,
+            f: &mut impl FnMut(usize, &Aabb, &[(usize, bool)]),
+        ) {
+            f(i, &cell, path);
+            let n = &t.nodes[i];
+            let ok = n.above() < t.nodes.len() && (n.data() as usize) < t.planes.len();
+            if n.is_leaf() || !ok || path.len() > MAX_DEPTH as usize {
+                return;
+            }
+            let plane = &t.planes[n.data() as usize];
+            for (child, below) in [(i + 1, true), (n.above(), false)] {
+                path.push((n.data() as usize, below));
+                go(t, child, clip_cell(&cell, plane, below), path, f);
+                path.pop();
+            }
+        }
+        if !self.nodes.is_empty() {
+            go(self, 0, self.bounds, &mut Vec::new(), &mut f);
+        }
+    }
+}
+
+impl<P: Primitive> Accel for BspTree<P> {
+    rt_geom::queries_from_walk!();
+
+    fn stats(&self) -> AccelStats {
+        let s = AccelStats {
+            primitives: self.prims.len(),
+            nodes: self.nodes.len(),
+            bytes: std::mem::size_of_val(self.nodes.as_slice())
+                + std::mem::size_of_val(self.planes.as_slice())
+                + std::mem::size_of_val(self.indices.as_slice())
+                + std::mem::size_of_val(self.prims.as_slice())
+                + self.listed.bytes(),
+            ..AccelStats::default()
+        };
+        if self.nodes.is_empty() {
+            return s;
+        }
+        let mut acc = rt_geom::StatsSum::new(s, &self.bounds);
+        self.walk(|i, cell, path| {
+            let n = &self.nodes[i];
+            acc.add(cell, path.len(), n.is_leaf(), n.count())
+        });
+        acc.finish()
+    }
+
+    /// Structure and indices in range; every plane finite with a unit normal; every primitive
+    /// in some leaf; no primitive in a leaf on the far side of a plane above it.
+    fn validate(&self) -> Result<(), String> {
+        if self.nodes.is_empty() {
+            return if self.prims.is_empty() {
+                Ok(())
+            } else {
+                Err("no nodes for a non-empty scene".into())
+            };
+        }
+        for (k, p) in self.planes.iter().enumerate() {
+            let unit = (p.normal.length() - 1.0).abs() < 1e-4;
+            if !(unit && p.d.is_finite() && p.margin.is_finite() && p.margin >= 0.0) {
+                return Err(format!(
+                    "plane {k} is not a unit-normal finite plane: {p:?}"
+                ));
+            }
+        }
+        let mut seen = vec![false; self.prims.len()];
+        let mut err = None;
+        let len = self.nodes.len();
+        self.walk(|i, _, path| {
+            if err.is_some() {
+                return;
+            }
+            let n = &self.nodes[i];
+            if path.len() > MAX_DEPTH as usize {
+                err = Some(format!("node {i} deeper than {MAX_DEPTH}"));
+            } else if !n.is_leaf() {
+                if n.above() <= i + 1 || n.above() >= len || n.data() as usize >= self.planes.len()
+                {
+                    err = Some(format!("inner node {i} has a child or plane out of range"));
+                }
+            } else if let Some(Err(e)) = n
+                .list()
+                .map(|l| self.listed.check_list(&self.prims, &self.indices, l))
+            {
+                err = Some(format!("leaf {i}: {e}"));
+            } else {
+                for &p in n.leaf_prims(&self.indices) {
+                    let Some(prim) = self.prims.get(p as usize) else {
+                        err = Some(format!("leaf {i} holds primitive {p}, out of range"));
+                        return;
+                    };
+                    seen[p as usize] = true;
+                    for &(plane, below) in path {
+                        let wrong = if below { Side::Above } else { Side::Below };
+                        if classify(prim, &self.planes[plane]) == wrong {
+                            err = Some(format!(
+                                "primitive {p} in leaf {i} lies on the other side of plane {plane}"
+                            ));
+                            return;
+                        }
+                    }
+                }
+            }
+        });
+        if let Some(e) = err {
+            return Err(e);
+        }
+        rt_geom::all_referenced(&seen)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::KdTraversal;
+
+    rt_testkit::conformance_per_params!(BspTree::build {
+        standard: BspParams::standard(),
+        recursive: BspParams {
+            traversal: KdTraversal::Recursive,
+            ..BspParams::standard()
+        },
+        autopartition: BspParams::autopartition(),
+        many_candidates: BspParams {
+            candidates: 64,
+            parallel_threshold: 16,
+            ..BspParams::standard()
+        },
+    });
+}
