@@ -20,8 +20,8 @@
 //! build picks the step so that `origin + 255 * step` reaches the node's maximum, then rounds
 //! each child's codes outward, checking them with that same expression (the one the traversal
 //! evaluates), so every dequantized box holds its child's box. The walk (the one wide-BVH
-//! stack loop, over [`NodeLayout`]) then visits a superset of the nodes the exact boxes would give, and
-//! returns exactly their hits.
+//! stack loop, over [`NodeLayout`]) then visits a superset of the nodes the exact boxes would
+//! give, and returns exactly their hits.
 
 use crate::wide::{NodeLayout, WideBvh, WideNode, WideTree, lane_entries};
 use rt_geom::aabb::SlabRay;

@@ -9,7 +9,11 @@
 use crate::rays::{RayKind, SamplePoints, TestRay, conformance_rays};
 use crate::scenes::Scene;
 use rt_geom::{Accel, BruteForce, BuildError, Hit, Primitive, Ray};
+use std::any::TypeId;
+use std::collections::HashMap;
 use std::fmt;
+use std::hash::{Hash, Hasher};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// How closely a structure must agree with the reference.
 ///
@@ -268,8 +272,8 @@ fn prim_is_hit_at<P: Primitive>(prims: &[P], ray: &Ray, got: &Hit, tolerance: To
     }
 }
 
-/// Builds the structure and the reference, checks `validate()` and `stats()`, and compares
-/// them on the scene's conformance rays.
+/// Builds the structure, checks `validate()` and `stats()`, and compares it with brute force
+/// on the scene's conformance rays.
 pub fn check_scene<P, A, F>(
     scene: &Scene<P>,
     build: F,
@@ -280,7 +284,6 @@ where
     A: Accel,
     F: Fn(&[P]) -> Result<A, BuildError>,
 {
-    let reference = BruteForce::build(&scene.prims).map_err(|e| e.to_string())?;
     let subject =
         build(&scene.prims).map_err(|e| format!("build failed on {}: {e}", scene.name))?;
     subject
@@ -297,20 +300,51 @@ where
             scene.prims.len()
         ));
     }
-    let rays = conformance_rays(
-        &scene.prims,
-        &reference,
-        400,
-        0x5eed ^ scene.prims.len() as u64,
-    );
-    Ok(compare(
+    let reference = reference(scene)?;
+    Ok(compare_with_expected(
         &scene.name,
         &scene.prims,
-        &rays,
-        &reference,
+        &reference.rays,
+        &reference.expected,
         &subject,
         tolerance,
     ))
+}
+
+/// A scene's conformance rays and brute force's answers to them.
+struct Reference {
+    rays: Vec<TestRay>,
+    expected: Vec<Option<Hit>>,
+}
+
+/// The brute-force [`Reference`] of `scene`, computed once per scene and process: every
+/// structure a test binary checks on a scene is compared with the same rays and answers (the
+/// reference's work is most of a conformance check). Scenes are told apart by name, primitive
+/// type and the bits of every primitive's box.
+fn reference<P: SamplePoints>(scene: &Scene<P>) -> Result<Arc<Reference>, String> {
+    type Cache = Mutex<HashMap<(TypeId, String, u64), Arc<Reference>>>;
+    static CACHE: OnceLock<Cache> = OnceLock::new();
+    let mut hash = std::hash::DefaultHasher::new();
+    for p in &scene.prims {
+        let b = p.bounds();
+        for x in b.min.to_array().into_iter().chain(b.max.to_array()) {
+            x.to_bits().hash(&mut hash);
+        }
+    }
+    let key = (TypeId::of::<P>(), scene.name.clone(), hash.finish());
+    let cache = CACHE.get_or_init(Default::default);
+    if let Some(r) = cache.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
+        return Ok(r.clone());
+    }
+    let brute = BruteForce::build(&scene.prims).map_err(|e| e.to_string())?;
+    let rays = conformance_rays(&scene.prims, &brute, 400, 0x5eed ^ scene.prims.len() as u64);
+    let expected = rays.iter().map(|r| brute.intersect(&r.ray)).collect();
+    let r = Arc::new(Reference { rays, expected });
+    cache
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .insert(key, r.clone());
+    Ok(r)
 }
 
 /// [`check_scene`] with [`Tolerance::EXACT`], panicking with reproducers on any disagreement.
