@@ -253,6 +253,19 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
     let pool = pool(args.threads)?;
     let built = pool.install(|| build(entry, &scene, objects.as_ref(), args))?;
     let (rendered, counts) = trace(&scene, &built, &options, &pool, args.quiet)?;
+    report(args, entry, scene, &built, rendered, counts, out)
+}
+
+/// Report: the PNG, the statistics (and their `--stats` file), the scene's warnings.
+fn report(
+    args: &RenderArgs,
+    entry: &registry::AccelEntry,
+    scene: Scene,
+    built: &Built,
+    rendered: rt_shade::Rendered,
+    counts: rt_geom::counters::Counts,
+    out: Option<PathBuf>,
+) -> Result<RenderSummary, String> {
     let out =
         out.unwrap_or_else(|| PathBuf::from("target/render").join(format!("{}.png", scene.name)));
     rendered.image.save_png(&out)?;
@@ -261,8 +274,8 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
         seconds: rendered.seconds,
         scene: scene.name.clone(),
         accel: entry.name.to_string(),
-        width: options.width,
-        height: options.height,
+        width: rendered.image.width,
+        height: rendered.image.height,
         primitives: scene.shapes.len(),
         build_seconds: built.seconds,
         packets: built.packets.is_some(),

@@ -12,11 +12,10 @@
 //! as soon as its closest hit lies before the cell's entry, as a single ray does; a leaf tests
 //! its primitives against all lanes that reach it at once ([`PacketPrimitive`]).
 //!
-//! **Exactness.** Every lane's answer equals its single ray's: the leaf test keeps the closest hit
-//! over all primitives tested, ties to the lower id ([`rt_geom::replaces`]), so a lane's
+//! **Exactness.** Every lane's answer equals its single ray's: the leaf test keeps the closest
+//! hit over all primitives tested, ties to the lower id ([`rt_geom::replaces`]), so a lane's
 //! answer depends only on *which* leaves it tests; each lane tests every leaf its single-ray
-//! walk would need (the same padded steps, and an entry-point cell that holds every non-empty
-//! leaf the ray can reach, by conservative interval arithmetic).
+//! walk would need (the same padded steps at every plane).
 
 use crate::lanes::{
     BlockRegs, PacketPrimitive, active_mask, block_width, clip_block, lane_mask, le_bits, load,

@@ -1,17 +1,16 @@
 //! Multi-level ray tracing (Reshetov, Soupikov & Hurley 2005, "Multi-Level Ray Tracing
 //! Algorithm") over the kd-tree's packet walk: [`MlrtaKdTree`].
 //!
-//! Before the walk, the packet's rays are bounded as a beam
-//! ([`Beam`]), and the tree is searched for the deepest node that is a valid *entry point*:
-//! every non-empty leaf that any of the rays can reach lies below it. From the root down, a
-//! child is dropped when its subtree holds no primitive or when the beam cannot enter its cell
-//! (inverse frustum culling against the split planes); when both children stay, the near one
-//! is searched first and the far one is kept for later. The lanes then start at the entry
-//! point, their intervals clipped to its cell, which skips the top of the tree for the whole
-//! packet; the far sides kept follow, nearest the entry point first, each taken down the
-//! levels where the beam reaches one child only and skipped by the whole beam once every
-//! ray's closest hit lies before it. A beam whose search keeps more than a few far sides (it
-//! straddles many planes) is subdivided into quarters, each with its own search.
+//! Before the walk, the packet's rays are bounded as a beam ([`Beam`]), and the tree is searched
+//! for the deepest node that is a valid *entry point*: every non-empty leaf that any of the rays
+//! can reach lies below it. From the root down, a child is dropped when its subtree holds no
+//! primitive or when the beam cannot enter its cell (inverse frustum culling against the split
+//! planes); when both children stay, the near one is searched first and the far one is kept for
+//! later. The lanes then start at the entry point, their intervals clipped to its cell, which skips
+//! the top of the tree for the whole packet; the far sides kept follow, nearest the entry point
+//! first, each taken down the levels where the beam reaches one child only and skipped by the whole
+//! beam once every ray's closest hit lies before it. A beam whose search keeps more than a few far
+//! sides (it straddles many planes) is subdivided into quarters, each with its own search.
 //!
 //! **Exactness.** Every answer equals the single-ray one: the leaf test keeps the closest hit
 //! over all primitives tested, ties to the lower id ([`rt_geom::replaces`]), so a lane's

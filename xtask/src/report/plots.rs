@@ -10,7 +10,7 @@ use std::path::Path;
 /// fresh machine with no system fonts still gets labelled plots.
 const PLOT_FONT: &[u8] = include_bytes!("../../assets/DejaVuSans-subset.ttf");
 
-/// Registers [`PLOT_FONT`] as plotters' "sans-serif" (once per process is enough; again is
+/// Registers the embedded plot font (DejaVu Sans, cut down) as plotters' "sans-serif" (once per process is enough; again is
 /// harmless).
 pub fn register_font() -> bool {
     plotters::style::register_font("sans-serif", FontStyle::Normal, PLOT_FONT).is_ok()
