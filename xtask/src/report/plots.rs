@@ -10,8 +10,8 @@ use std::path::Path;
 /// fresh machine with no system fonts still gets labelled plots.
 const PLOT_FONT: &[u8] = include_bytes!("../../assets/DejaVuSans-subset.ttf");
 
-/// Registers the embedded plot font (DejaVu Sans, cut down) as plotters' "sans-serif" (once per process is enough; again is
-/// harmless).
+/// Registers the embedded plot font (DejaVu Sans, cut down) as plotters' "sans-serif" (once
+/// per process is enough; again is harmless).
 pub fn register_font() -> bool {
     plotters::style::register_font("sans-serif", FontStyle::Normal, PLOT_FONT).is_ok()
 }
