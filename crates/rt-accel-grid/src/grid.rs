@@ -11,7 +11,7 @@ pub struct Grid<P> {
     pub(crate) offsets: Vec<u32>,
     pub(crate) children: Vec<u32>,
     pub(crate) refs: Vec<u32>,
-    /// Per cell, its distance to the nearest occupied cell of its level ([`skip`]).
+    /// Per cell, its distance to the nearest occupied cell of its level ([`skip`](crate::skip)).
     pub(crate) skip: Vec<u8>,
     /// Every level's cell planes ([`level`]).
     pub(crate) planes: Vec<f32>,
@@ -57,7 +57,7 @@ impl<P: Primitive> Grid<P> {
         })
     }
 
-    /// The levels; level 0 is the root grid (layout in [`level`]).
+    /// The levels; level 0 is the root grid (layout in [`level`](crate::level)).
     pub fn levels(&self) -> &[Level] {
         &self.levels
     }
@@ -73,7 +73,7 @@ impl<P: Primitive> Grid<P> {
     }
 
     /// Per cell, at its place in [`Self::offsets`], the distance to the nearest occupied cell
-    /// of its level ([`skip`]).
+    /// of its level ([`skip`](crate::skip)).
     pub fn skip(&self) -> &[u8] {
         &self.skip
     }

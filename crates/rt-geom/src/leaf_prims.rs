@@ -1,5 +1,5 @@
 //! Primitives stored leaf by leaf for the leaf test: [`TriangleSoa`], triangles as structure
-//! of arrays tested four or eight at a time ([`watertight_rows`](crate::triangle::watertight_rows)) with exactly the answers of the
+//! of arrays tested four or eight at a time ([`watertight_rows`]) with exactly the answers of the
 //! scalar kernel (the leaves of rt's wide BVHs over triangles), and [`LeafPrims`], the same
 //! for structures whose leaves list primitives by id (kd-trees, BSP trees, octrees, grids):
 //! a copy of each listed primitive in listing order, so that a leaf test reads its leaf's

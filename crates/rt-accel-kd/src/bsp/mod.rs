@@ -1,7 +1,7 @@
 //! General BSP trees: splitting planes of any orientation, taken from the primitives' own
 //! planes (autopartition) or axis-aligned, traversed front to back by signed distance.
 //!
-//! Nodes are [`KdNode`]s whose `data` indexes [`BspTree::planes`]. A primitive goes below a
+//! Nodes are [`KdNode`](crate::KdNode)s whose `data` indexes [`BspTree::planes`]. A primitive goes below a
 //! plane if all of it is below `margin` (see [`SplitPlane`]), above if all of it is above
 //! `-margin`, to one side (the cheaper) if it lies within the margin, and to both otherwise.
 //! The walk pads each crossing by the margin over `|n . dir|`, so that a hit within the band

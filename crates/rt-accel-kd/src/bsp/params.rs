@@ -4,7 +4,7 @@ use crate::KdParams;
 use crate::params::KdTraversal;
 use rt_geom::BuildError;
 
-/// Parameters of [`BspTree::build`].
+/// Parameters of [`BspTree::build`](super::BspTree::build).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BspParams {
     /// SAH cost of traversing an inner node.
@@ -17,7 +17,7 @@ pub struct BspParams {
     pub axis_planes: bool,
     /// Nodes of at most this many primitives become leaves.
     pub max_leaf_size: u32,
-    /// Depth cap. `None`: `8 + 1.3 log2 N`, at most [`MAX_DEPTH`].
+    /// Depth cap. `None`: `8 + 1.3 log2 N`, at most [`MAX_DEPTH`](crate::MAX_DEPTH).
     pub max_depth: Option<u32>,
     /// At most `reference_budget * N` references in all (as [`KdParams::reference_budget`]).
     pub reference_budget: f32,

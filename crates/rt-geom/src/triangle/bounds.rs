@@ -5,7 +5,7 @@
 use super::simd::{ShearedLanes, SimdLanes};
 use crate::{PrimHit, Ray};
 
-/// The lanes whose hit, if [`Triangle::refine`] found one, would certainly lie before `tmin`
+/// The lanes whose hit, if [`Triangle::refine`](super::Triangle::refine) found one, would certainly lie before `tmin`
 /// (`tmin > 0`), so that it returns `None`: decided from the `f32` numbers with the error
 /// bounds of Pharr, Jakob & Humphreys (pbrt-v4, `IntersectTriangle`, the bounds that keep
 /// `t > 0`), each taken twice over.
@@ -23,7 +23,7 @@ use crate::{PrimHit, Ray};
 ///   by more than the `f64` evaluation and its rounding to `f32` can move it.
 ///
 /// NaN or infinite inputs fail the comparisons: such lanes are never culled. Out of line:
-/// [`watertight_lanes`] asks only for rays with `tmin > 0` and lanes whose `f32` estimate
+/// [`watertight_lanes`](super::watertight_lanes) asks only for rays with `tmin > 0` and lanes whose `f32` estimate
 /// lies before `tmin`: inlined, or asked for every lane that passed the sign test, it cost
 /// more than it saved.
 #[inline(never)]
@@ -70,7 +70,7 @@ impl<L: SimdLanes> EstimateBounds<L> {
 }
 
 /// An any-hit query's shortcut for one triangle that passed the sign test: `Some` when the
-/// error bounds of [`hits_before_tmin`], mirrored, prove that [`Triangle::finish_watertight`]
+/// error bounds of [`hits_before_tmin`], mirrored, prove that [`Triangle::finish_watertight`](super::Triangle::finish_watertight)
 /// would report a hit inside `[tmin, tmax]` (`tmin > 0`), so that the query can stop without
 /// the `f64` refinement. Every edge function exceeds its bound (the exact ones agree in sign,
 /// so `refine` interpolates) and `T - 2 dT > tmin (D + 2 dD) (1 + 2^-20)`, `T + 2 dT < tmax
@@ -78,8 +78,8 @@ impl<L: SimdLanes> EstimateBounds<L> {
 /// (an any-hit query answers only whether something is hit); `None` sends the caller to the
 /// refinement.
 ///
-/// Inputs as [`watertight_lanes`] computes them for the triangle's lane: the sheared `x`, `y`
-/// and the unscaled depth `v[kz] - o[kz]` per vertex, and its edge functions ([`lane_edges`]).
+/// Inputs as [`watertight_lanes`](super::watertight_lanes) computes them for the triangle's lane: the sheared `x`, `y`
+/// and the unscaled depth `v[kz] - o[kz]` per vertex, and its edge functions ([`lane_edges`](super::lane_edges)).
 #[inline]
 pub fn proven_hit(
     x: [f32; 3],
