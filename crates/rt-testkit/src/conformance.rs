@@ -427,9 +427,10 @@ macro_rules! conformance_tests {
         #[test]
         fn rejects_non_finite_triangles() {
             let valid = $crate::scenes::random_soup(10, 1);
-            $crate::conformance::assert_rejects_non_finite(&valid, |t| t.v[1].y = f32::NAN, $tri);
             $crate::conformance::assert_rejects_non_finite(
-                &valid, |t| t.v[0].x = f32::INFINITY, $tri);
+                &valid, |t| t.v[1].y = f32::NAN, built_triangles);
+            $crate::conformance::assert_rejects_non_finite(
+                &valid, |t| t.v[0].x = f32::INFINITY, built_triangles);
         }
     };
     (tolerance: $tol:expr, triangles: $tri:expr, spheres: $sph:expr $(,)?) => {
@@ -438,7 +439,8 @@ macro_rules! conformance_tests {
         #[test]
         fn rejects_non_finite_spheres() {
             let valid = $crate::scenes::random_spheres(10, 1);
-            $crate::conformance::assert_rejects_non_finite(&valid, |s| s.radius = f32::NAN, $sph);
+            $crate::conformance::assert_rejects_non_finite(
+                &valid, |s| s.radius = f32::NAN, built_spheres);
         }
     };
     (tolerance: $tol:expr, triangles: $tri:expr, spheres: $sph:expr, shapes: $shp:expr $(,)?) => {
@@ -451,7 +453,7 @@ macro_rules! conformance_tests {
                 if let $crate::rt_geom::Shape::Cone(c) = s { c.apex.z = f32::NAN }
                 else { *s = $crate::rt_geom::Cone::new(
                     $crate::rt_geom::Vec3::ZERO, f32::INFINITY, $crate::rt_geom::Vec3::Z, 1.0).into() }
-            }, $shp);
+            }, built_shapes);
         }
     };
     (triangles: $tri:expr, spheres: $sph:expr, shapes: $shp:expr $(,)?) => {
@@ -461,29 +463,50 @@ macro_rules! conformance_tests {
         );
     };
     (@shp $tol:expr, $build:expr; $($scene:ident),*) => {
+        /// The structure under test, built over shapes (one function for every scene's test,
+        /// so that the check is compiled once per module, not once per test).
+        fn built_shapes(
+            p: &[$crate::rt_geom::Shape],
+        ) -> Result<Box<dyn $crate::rt_geom::Accel>, $crate::rt_geom::BuildError> {
+            ($build)(p).map(|a| Box::new(a) as Box<dyn $crate::rt_geom::Accel>)
+        }
         $(
             #[test]
             fn $scene() {
                 $crate::conformance::assert_conforms_within(
-                    &$crate::scenes::shape_scene(stringify!($scene)), $build, $tol);
+                    &$crate::scenes::shape_scene(stringify!($scene)), built_shapes, $tol);
             }
         )*
     };
     (@tri $tol:expr, $build:expr; $($scene:ident),*) => {
+        /// The structure under test, built over triangles (one function for every scene's test,
+        /// so that the check is compiled once per module, not once per test).
+        fn built_triangles(
+            p: &[$crate::rt_geom::Triangle],
+        ) -> Result<Box<dyn $crate::rt_geom::Accel>, $crate::rt_geom::BuildError> {
+            ($build)(p).map(|a| Box::new(a) as Box<dyn $crate::rt_geom::Accel>)
+        }
         $(
             #[test]
             fn $scene() {
                 $crate::conformance::assert_conforms_within(
-                    &$crate::scenes::triangle_scene(stringify!($scene)), $build, $tol);
+                    &$crate::scenes::triangle_scene(stringify!($scene)), built_triangles, $tol);
             }
         )*
     };
     (@sph $tol:expr, $build:expr; $($scene:ident),*) => {
+        /// The structure under test, built over spheres (one function for every scene's test,
+        /// so that the check is compiled once per module, not once per test).
+        fn built_spheres(
+            p: &[$crate::rt_geom::Sphere],
+        ) -> Result<Box<dyn $crate::rt_geom::Accel>, $crate::rt_geom::BuildError> {
+            ($build)(p).map(|a| Box::new(a) as Box<dyn $crate::rt_geom::Accel>)
+        }
         $(
             #[test]
             fn $scene() {
                 $crate::conformance::assert_conforms_within(
-                    &$crate::scenes::sphere_scene(stringify!($scene)), $build, $tol);
+                    &$crate::scenes::sphere_scene(stringify!($scene)), built_spheres, $tol);
             }
         )*
     };
