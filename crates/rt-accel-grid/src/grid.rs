@@ -2,7 +2,7 @@
 
 use crate::level::NO_CHILD;
 use crate::{GridParams, Level, build};
-use rt_geom::{Aabb, Accel, AccelStats, BuildError, LeafPrims, Primitive, check_primitives};
+use rt_geom::{Aabb, Accel, BuildError, LeafPrims, Primitive, check_primitives};
 
 /// A grid over primitives `P`: uniform, two-level or adaptive (see [`GridKind`](crate::GridKind)).
 #[derive(Clone, Debug)]
@@ -112,15 +112,7 @@ impl<P: Primitive> Grid<P> {
 }
 
 impl<P: Primitive> Accel for Grid<P> {
-    rt_geom::queries_from_walk!();
-
-    fn stats(&self) -> AccelStats {
-        self.compute_stats()
-    }
-
-    fn validate(&self) -> Result<(), String> {
-        self.check()
-    }
+    rt_geom::queries_from_walk!(stats: compute_stats, validate: check);
 }
 
 #[cfg(test)]

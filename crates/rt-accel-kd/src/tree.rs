@@ -1,9 +1,7 @@
 //! [`KdTree`]: the kd-tree over any primitive, its build entry points and queries.
 
 use crate::{KdNode, KdParams, KdTraversal, build, node, traverse};
-use rt_geom::{
-    Aabb, Accel, AccelStats, BuildError, Hit, LeafPrims, Primitive, Ray, check_primitives,
-};
+use rt_geom::{Aabb, Accel, BuildError, Hit, LeafPrims, Primitive, Ray, check_primitives};
 
 /// A kd-tree over primitives `P`: 8-byte nodes flattened depth-first, leaves referring to the
 /// primitives by index (a primitive cut by planes is in several leaves).
@@ -135,21 +133,14 @@ impl<P: Primitive> KdTree<P> {
 }
 
 impl<P: Primitive> Accel for KdTree<P> {
-    rt_geom::queries_from_walk!();
-
-    fn stats(&self) -> AccelStats {
-        self.compute_stats()
-    }
-
-    fn validate(&self) -> Result<(), String> {
-        self.check()
-    }
+    rt_geom::queries_from_walk!(stats: compute_stats, validate: check);
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::{BspParams, BspTree, MAX_DEPTH};
+    use rt_geom::AccelStats;
     use rt_geom::{Triangle, Vec3};
 
     /// The leaves a walk tests, tested again alone in order, give the walk's answer; nodes

@@ -2,7 +2,7 @@
 
 use crate::node::{MAX_NODES, octant};
 use crate::{ChildRef, MAX_DEPTH, OctLeaf, OctNode, OctreeParams, OctreeTraversal, build};
-use rt_geom::{Aabb, Accel, AccelStats, BuildError, LeafPrims, Primitive, Vec3, check_primitives};
+use rt_geom::{Aabb, Accel, BuildError, LeafPrims, Primitive, Vec3, check_primitives};
 
 /// An octree over primitives `P`.
 #[derive(Clone, Debug)]
@@ -120,15 +120,7 @@ impl<P: Primitive> Octree<P> {
 }
 
 impl<P: Primitive> Accel for Octree<P> {
-    rt_geom::queries_from_walk!();
-
-    fn stats(&self) -> AccelStats {
-        self.compute_stats()
-    }
-
-    fn validate(&self) -> Result<(), String> {
-        self.check()
-    }
+    rt_geom::queries_from_walk!(stats: compute_stats, validate: check);
 }
 
 #[cfg(test)]

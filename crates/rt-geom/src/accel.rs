@@ -36,8 +36,22 @@ pub trait Accel: Send + Sync {
 ///     fn validate(&self) -> Result<(), String> { ... }
 /// }
 /// ```
+///
+/// `queries_from_walk!(stats: compute_stats, validate: check)` also forwards `stats` and
+/// `validate` to the inherent methods named.
 #[macro_export]
 macro_rules! queries_from_walk {
+    (stats: $stats:ident, validate: $validate:ident) => {
+        $crate::queries_from_walk!();
+
+        fn stats(&self) -> $crate::AccelStats {
+            self.$stats()
+        }
+
+        fn validate(&self) -> Result<(), String> {
+            self.$validate()
+        }
+    };
     () => {
         #[inline]
         fn intersect(&self, ray: &$crate::Ray) -> Option<$crate::Hit> {
