@@ -178,7 +178,8 @@ fn scene_rays<P: SamplePoints>(prims: &[P], per_kind: usize) -> Vec<TestRay> {
 
 /// The rays whose answers rt promises exactly (ARCHITECTURE.md, robustness): not those with
 /// a subnormal origin or direction component, or whose closest hit lies at a subnormal
-/// distance (`0 < |t| < f32::MIN_POSITIVE`), where the box and cell tests' relative padding
+/// distance (`0 < |t| < f32::MIN_POSITIVE`) or at a subnormal offset along an axis
+/// (`0 < |t * d| < f32::MIN_POSITIVE`), where the box and cell tests' relative padding
 /// rounds away, nor those whose hit lies farther from the ray's
 /// origin, or at coordinates larger, than [`FAR_HIT`] times the narrowest extent of the
 /// primitive hit: there points computed in `f32` along the ray (a grid's or octree's entry
@@ -215,7 +216,12 @@ fn in_exact_domain<P: rt_geom::Primitive>(prims: &[P], ray: &Ray, hit: Option<Hi
                 .length()
                 .max((o + step).abs().max_element())
                 .max(o.abs().max_element());
-            h.t.abs() >= f32::MIN_POSITIVE && reach <= FAR_HIT * narrowest as f64
+            // The hit's offset from the origin along each axis the ray moves on is a normal
+            // `f32`: where `t * d` underflows, the kernel sees the ray on a vertex or edge
+            // that the exact box test finds the ray already past.
+            let offsets_normal = (0..3)
+                .all(|a| d[a] == 0.0 || (d[a] * h.t as f64).abs() >= f32::MIN_POSITIVE as f64);
+            h.t.abs() >= f32::MIN_POSITIVE && offsets_normal && reach <= FAR_HIT * narrowest as f64
         }
     }
 }

@@ -307,8 +307,17 @@ fn run_target(dir: &Path, name: &str, corpus: &Path, seconds: u64) -> Result<Fuz
         .find(|n| !before.contains(n))
         .map(|n| artifacts.join(n));
     if crash.is_some() || !output.status.success() {
-        let tail: Vec<&str> = log.lines().rev().take(40).collect();
-        eprintln!("{}", tail.into_iter().rev().collect::<Vec<_>>().join("\n"));
+        // The failure's own message (a panic's first lines, or libFuzzer's error), then the
+        // log's end: the backtrace between them can push the message out of a short tail.
+        let lines: Vec<&str> = log.lines().collect();
+        if let Some(at) = lines
+            .iter()
+            .position(|l| l.contains("panicked at") || l.contains("ERROR: libFuzzer"))
+        {
+            eprintln!("{}", lines[at..(at + 4).min(lines.len())].join("\n"));
+        }
+        let tail = &lines[lines.len().saturating_sub(40)..];
+        eprintln!("{}", tail.join("\n"));
     }
     if crash.is_none() && !output.status.success() {
         return Err(format!("cargo fuzz run {name} failed ({})", output.status));
