@@ -60,6 +60,9 @@ per_scene!(
     tiny_coords,
     one_triangle,
     empty,
+    far_soup,
+    far_sphere,
+    far_stadium,
 );
 
 mod brute {

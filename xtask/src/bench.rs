@@ -25,7 +25,8 @@ pub fn scene_names() -> Vec<&'static str> {
     v
 }
 
-fn load_scene(name: &str) -> Result<Option<Vec<Triangle>>, String> {
+/// A `bench` scene by name; `Ok(None)` when it is a shared mesh and the shared models are absent.
+pub fn load_scene(name: &str) -> Result<Option<Vec<Triangle>>, String> {
     Ok(Some(match name {
         "soup-100k" => scenes::random_soup(100_000, 11),
         "soup-20k" => scenes::random_soup(20_000, 11),

@@ -25,6 +25,7 @@ pub mod animate;
 pub mod bench;
 #[cfg(feature = "embree")]
 pub mod embree;
+pub mod far;
 pub mod fuzz;
 pub mod native;
 pub mod obvhs_accel;

@@ -120,6 +120,33 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Every structure on a mesh placed at the origin and far from it (as GIS and CAD scenes
+    /// come), at several sizes: build and trace time against the origin's, and the rays whose
+    /// answers differ from brute force's.
+    Far {
+        /// The mesh: a `bench` scene name.
+        #[arg(long, default_value = "bunny")]
+        mesh: String,
+        /// Comma-separated largest extents to scale the mesh to.
+        #[arg(long, default_value = "0.15,1.5,30")]
+        sizes: String,
+        /// Comma-separated offsets of its centre along every axis, each against the same
+        /// placed mesh moved back to the origin.
+        #[arg(long, default_value = "3e5,5e6")]
+        offsets: String,
+        /// Camera resolution (side x side primary rays, and a diffuse ray per hit).
+        #[arg(long, default_value_t = 128)]
+        side: usize,
+        /// Comma-separated structure names (default: rt's own).
+        #[arg(long)]
+        accels: Option<String>,
+        /// Threads (0 = all cores).
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
+        /// Write the table as Markdown to this file too.
+        #[arg(long)]
+        markdown: Option<PathBuf>,
+    },
     /// Write a standard ray set of a mesh (camera, shadow, diffuse) as a ray file.
     Rays {
         #[arg(long)]
@@ -197,6 +224,56 @@ fn run(command: Command) -> Result<ExitCode, String> {
             }
             if rows.iter().any(|r| !r.problems.is_empty()) {
                 return Ok(ExitCode::FAILURE);
+            }
+        }
+        Command::Far {
+            mesh,
+            sizes,
+            offsets,
+            side,
+            accels,
+            threads,
+            markdown,
+        } => {
+            let entries = match accels {
+                Some(list) => registry::select(Some(&list))?,
+                None => xtask::stress::default_entries(),
+            };
+            let numbers = |list: &str, what: &str| -> Result<Vec<f64>, String> {
+                list.split(',')
+                    .map(|x| match x.trim().parse::<f64>() {
+                        Ok(v) if v.is_finite() && v.abs() <= 1e18 => Ok(v),
+                        _ => Err(format!("--{what}: '{x}' is not a number within 1e18")),
+                    })
+                    .collect()
+            };
+            let sizes = numbers(&sizes, "sizes")?;
+            if sizes.iter().any(|&s| s <= 0.0) {
+                return Err("--sizes: every size must be positive".into());
+            }
+            let offsets = numbers(&offsets, "offsets")?;
+            if !(1..=4096).contains(&side) {
+                return Err(format!("--side must lie in 1..=4096, got {side}"));
+            }
+            let options = xtask::far::FarOptions {
+                sizes,
+                offsets,
+                side,
+                threads,
+                repeat: 3,
+            };
+            let Some(tris) = xtask::bench::load_scene(&mesh)? else {
+                return Err(format!("mesh {mesh} not found"));
+            };
+            let spinner = xtask::run::spinner("far".to_string());
+            let rows = xtask::far::run(&tris, &entries, &options, &|m| {
+                spinner.set_message(m.to_string())
+            })?;
+            spinner.finish_and_clear();
+            let table = xtask::far::markdown(&rows);
+            println!("{table}");
+            if let Some(path) = markdown {
+                std::fs::write(&path, &table).map_err(|e| format!("{}: {e}", path.display()))?;
             }
         }
         Command::Fuzz { seconds, targets } => {

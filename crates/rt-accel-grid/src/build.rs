@@ -6,7 +6,7 @@ use crate::level::{Level, NO_CHILD};
 use crate::params::{GridKind, GridParams};
 use crate::skip;
 use rayon::prelude::*;
-use rt_geom::{Aabb, Primitive};
+use rt_geom::{Aabb, Frame, Primitive};
 
 /// A level before flattening.
 pub(crate) struct LevelBuild {
@@ -21,6 +21,9 @@ pub(crate) struct LevelBuild {
 pub(crate) struct Ctx<'a, P> {
     pub prims: &'a [P],
     pub params: &'a GridParams,
+    /// The frame the levels' boxes and planes are in: primitives are clipped to the cells'
+    /// world boxes (rounded outward) and their boxes taken back to it (rounded outward).
+    pub frame: Frame,
 }
 
 /// Cells per primitive at `depth` for `kind`.
@@ -43,12 +46,13 @@ fn refines(params: &GridParams, depth: u32, count: usize) -> bool {
     }
 }
 
-/// The cells of `level` that primitive `p` overlaps, appended to `out`.
-fn cells_of<P: Primitive>(p: &P, level: &Level, out: &mut Vec<u32>) {
-    let b = p.clipped_bounds(&level.bounds);
+/// The cells of `level` (in `frame`) that primitive `p` overlaps, appended to `out`.
+fn cells_of<P: Primitive>(p: &P, level: &Level, frame: &Frame, out: &mut Vec<u32>) {
+    let b = p.clipped_bounds(&frame.to_world(&level.bounds));
     if b.is_empty() {
         return;
     }
+    let b = frame.to_local(&b);
     // A box starting exactly on a plane touches the previous cell's face, one ending exactly
     // on a plane the next cell's (where `index_of` already puts `hi`): both cells list it, so
     // that a ray crossing the plane at that edge or vertex, whichever way its walk turns at a
@@ -68,7 +72,11 @@ fn cells_of<P: Primitive>(p: &P, level: &Level, out: &mut Vec<u32>) {
         for y in lo[1]..=hi[1] {
             for x in lo[0]..=hi[0] {
                 let idx = [x, y, z];
-                if single || !p.clipped_bounds(&level.cell_box(idx)).is_empty() {
+                if single
+                    || !p
+                        .clipped_bounds(&frame.to_world(&level.cell_box(idx)))
+                        .is_empty()
+                {
                     out.push(level.linear(idx) as u32);
                 }
             }
@@ -76,14 +84,15 @@ fn cells_of<P: Primitive>(p: &P, level: &Level, out: &mut Vec<u32>) {
     }
 }
 
-/// The box of what `ids` hold inside `cell`: their parts clipped to it. A sub-grid spans
-/// this box, not the whole cell, so that a small dense object in a large cell (the teapot
-/// in a stadium) gets the sub-grid's resolution for itself.
+/// The box of what `ids` hold inside `cell` (local): their parts clipped to it. A sub-grid
+/// spans this box, not the whole cell, so that a small dense object in a large cell (the
+/// teapot in a stadium) gets the sub-grid's resolution for itself.
 fn content_box<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], cell: &Aabb) -> Aabb {
+    let world = ctx.frame.to_world(cell);
     let content = ids.iter().fold(Aabb::EMPTY, |b, &id| {
-        b.union(ctx.prims[id as usize].clipped_bounds(cell))
+        b.union(ctx.prims[id as usize].clipped_bounds(&world))
     });
-    let content = content.intersection(*cell);
+    let content = ctx.frame.to_local(&content).intersection(*cell);
     if content.is_empty() { *cell } else { content }
 }
 
@@ -91,7 +100,10 @@ fn content_box<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], cell: &Aabb) -> Aabb {
 fn reference_bound<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], level: &Level) -> u64 {
     ids.par_iter()
         .map(|&id| {
-            let b = ctx.prims[id as usize].bounds().intersection(level.bounds);
+            let b = ctx
+                .frame
+                .to_local(&ctx.prims[id as usize].bounds())
+                .intersection(level.bounds);
             if b.is_empty() {
                 return 0;
             }
@@ -134,7 +146,7 @@ pub(crate) fn build_level<P: Primitive>(
         .with_min_len(256)
         .map(|&id| {
             let mut out = Vec::new();
-            cells_of(&ctx.prims[id as usize], &level, &mut out);
+            cells_of(&ctx.prims[id as usize], &level, &ctx.frame, &mut out);
             out
         })
         .collect();

@@ -2,7 +2,7 @@
 
 use crate::level::NO_CHILD;
 use crate::{GridParams, Level, build};
-use rt_geom::{Aabb, Accel, BuildError, LeafPrims, Primitive, check_primitives};
+use rt_geom::{Aabb, Accel, BuildError, Frame, LeafPrims, Primitive, check_primitives};
 
 /// A grid over primitives `P`: uniform, two-level or adaptive (see [`GridKind`](crate::GridKind)).
 #[derive(Clone, Debug)]
@@ -19,6 +19,9 @@ pub struct Grid<P> {
     /// The primitives of every cell, in `refs` order, laid out for the cell test.
     pub(crate) listed: LeafPrims<P>,
     pub(crate) params: GridParams,
+    /// The frame the levels' boxes and planes are in (the world's, for scenes about the
+    /// origin).
+    pub(crate) frame: Frame,
 }
 
 impl<P: Primitive> Grid<P> {
@@ -27,15 +30,23 @@ impl<P: Primitive> Grid<P> {
         params.validate()?;
         check_primitives(prims, u32::MAX as usize - 1)?;
         let mut flat = build::Flat::default();
+        let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
+        let frame = Frame::of(&bounds);
         if !prims.is_empty() {
-            let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
             let ids: Vec<u32> = (0..prims.len() as u32).collect();
             let ctx = build::Ctx {
                 prims,
                 params: &params,
+                frame,
             };
             let budget = (params.max_refs_per_prim as f64 * prims.len() as f64) as u64;
-            let root = build::build_level(&ctx, &ids, bounds, 0, budget.max(prims.len() as u64));
+            let root = build::build_level(
+                &ctx,
+                &ids,
+                frame.to_local(&bounds),
+                0,
+                budget.max(prims.len() as u64),
+            );
             build::flatten(&root, &mut flat);
         }
         // Every cell's range of `refs`, level by level.
@@ -54,10 +65,18 @@ impl<P: Primitive> Grid<P> {
             planes: flat.planes,
             prims: prims.to_vec(),
             params,
+            frame,
         })
     }
 
-    /// The levels; level 0 is the root grid (layout in [`level`](crate::level)).
+    /// The frame the levels' boxes and planes are in: world coordinates minus its anchor
+    /// (the world's own for scenes about the origin).
+    pub fn frame(&self) -> &Frame {
+        &self.frame
+    }
+
+    /// The levels; level 0 is the root grid (layout in [`level`](crate::level)), their boxes
+    /// and planes in [`Self::frame`].
     pub fn levels(&self) -> &[Level] {
         &self.levels
     }

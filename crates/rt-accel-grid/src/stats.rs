@@ -107,7 +107,7 @@ impl<P: Primitive> Grid<P> {
                         None => {
                             err.get_or_insert(format!("reference {p} out of range"));
                         }
-                        Some(prim) if !rt_geom::touches_cell(prim, &cell) => {
+                        Some(prim) if !rt_geom::touches_cell(prim, &self.frame.to_world(&cell)) => {
                             err.get_or_insert(format!("primitive {p} listed in a cell it misses"));
                         }
                         Some(_) => seen[p as usize] = true,

@@ -247,10 +247,14 @@ impl<P: Primitive> Grid<P> {
             return None;
         }
         let inv = ray.inv_dir().to_array();
-        let (t0, t1) = self.levels[0].bounds.clip_ray_with_inv(ray, &inv)?;
+        // The walk computes in the grid's frame: the ray's origin relative to it.
+        let origin = self.frame.local_point(ray.origin());
+        let (t0, t1) = self.levels[0]
+            .bounds
+            .clip_interval(&origin, &inv, (ray.tmin, ray.tmax))?;
         let mut walk = Walk {
             grid: self,
-            origin: ray.origin().to_array(),
+            origin,
             dir: ray.dir().to_array(),
             inv,
             ray: *ray,

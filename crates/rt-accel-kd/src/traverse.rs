@@ -103,7 +103,7 @@ pub(crate) trait SplitPlanes {
     /// Per-ray constants (reciprocal direction, ...), from the ray and its reciprocal
     /// direction `inv` (computed once per query, also for the clip to the root cell).
     type RayData;
-    fn ray_data(ray: &Ray, inv: [f32; 3]) -> Self::RayData;
+    fn ray_data(&self, ray: &Ray, inv: [f32; 3]) -> Self::RayData;
     fn nodes(&self) -> &[KdNode];
     fn indices(&self) -> &[u32];
     /// `(first, second, step)` at inner node `i` for the ray's interval `[t0, t1]`.
@@ -272,7 +272,7 @@ pub(crate) struct AxisRay {
 impl<P: Primitive> SplitPlanes for KdTree<P> {
     type RayData = AxisRay;
 
-    fn ray_data(ray: &Ray, inv: [f32; 3]) -> AxisRay {
+    fn ray_data(&self, ray: &Ray, inv: [f32; 3]) -> AxisRay {
         AxisRay {
             dir: ray.dir().to_array(),
             slab: SlabRay::with_inv_dir(ray, inv),
@@ -327,7 +327,7 @@ pub(crate) fn query_with<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     }
     let inv = ray.inv_dir().to_array();
     let span = bounds.clip_ray_with_inv(ray, &inv)?;
-    let data = T::ray_data(ray, inv);
+    let data = tree.ray_data(ray, inv);
     match traversal {
         KdTraversal::Iterative => {
             iterative::<T, P, ANY_HIT>(tree, leaves, ray, data, span, on_leaf)

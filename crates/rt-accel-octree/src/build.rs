@@ -5,7 +5,7 @@
 use crate::node::{ChildRef, OctLeaf, OctNode, content_step, octant, quantize_content};
 use crate::params::OctreeParams;
 use rayon::prelude::*;
-use rt_geom::{Aabb, Primitive};
+use rt_geom::{Aabb, Frame, Primitive};
 
 pub(crate) enum BuildNode {
     /// Primitives and their content box (clipped to the cell).
@@ -25,14 +25,22 @@ impl BuildNode {
 /// A leaf, with the union of its primitives clipped to its cell.
 fn leaf<P: Primitive>(ctx: &Ctx<P>, ids: Vec<u32>, bounds: &Aabb) -> BuildNode {
     let content = ids.iter().fold(Aabb::EMPTY, |c, &id| {
-        c.union(ctx.prims[id as usize].clipped_bounds(bounds))
+        c.union(clipped(&ctx.frame, &ctx.prims[id as usize], bounds))
     });
     BuildNode::Leaf(ids, content.intersection(*bounds))
+}
+
+/// The box of `p` clipped to the local box `cell`, in local coordinates: clipped to the
+/// cell's world box and brought back, both rounded outward.
+pub(crate) fn clipped<P: Primitive>(frame: &Frame, p: &P, cell: &Aabb) -> Aabb {
+    frame.to_local(&p.clipped_bounds(&frame.to_world(cell)))
 }
 
 pub(crate) struct Ctx<'a, P> {
     pub prims: &'a [P],
     pub params: &'a OctreeParams,
+    /// The frame the cells are in.
+    pub frame: Frame,
 }
 
 /// The primitives of each octant of `bounds`.
@@ -42,14 +50,14 @@ fn distribute<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], bounds: &Aabb) -> [Vec<u3
     let mut out: [Vec<u32>; 8] = Default::default();
     for &id in ids {
         let p = &ctx.prims[id as usize];
-        let b = p.clipped_bounds(bounds);
+        let b = clipped(&ctx.frame, p, bounds);
         // The octants its (clipped) box reaches; more than one: clip to each.
         let sides = |a: usize| -> [bool; 2] { [b.min[a] <= c[a], b.max[a] >= c[a]] };
         let (sx, sy, sz) = (sides(0), sides(1), sides(2));
         let reach = (0..8).filter(|&i| sx[i & 1] && sy[i >> 1 & 1] && sz[i >> 2 & 1]);
         let single = reach.clone().count() == 1;
         for i in reach {
-            if single || !p.clipped_bounds(&boxes[i]).is_empty() {
+            if single || !clipped(&ctx.frame, p, &boxes[i]).is_empty() {
                 out[i].push(id);
             }
         }

@@ -2,7 +2,7 @@
 
 use crate::node::{MAX_NODES, octant};
 use crate::{ChildRef, MAX_DEPTH, OctLeaf, OctNode, OctreeParams, OctreeTraversal, build};
-use rt_geom::{Aabb, Accel, BuildError, LeafPrims, Primitive, Vec3, check_primitives};
+use rt_geom::{Aabb, Accel, BuildError, Frame, LeafPrims, Primitive, Vec3, check_primitives};
 
 /// An octree over primitives `P`.
 #[derive(Clone, Debug)]
@@ -15,9 +15,11 @@ pub struct Octree<P> {
     pub(crate) prims: Vec<P>,
     /// The listed primitives in `indices` order, laid out for the leaf test.
     pub(crate) leaf_prims: LeafPrims<P>,
-    /// The root cube.
+    /// The root cube, in `frame`.
     pub(crate) bounds: Aabb,
     pub(crate) params: OctreeParams,
+    /// The frame the cells are in (the world's, for scenes about the origin).
+    pub(crate) frame: Frame,
 }
 
 impl<P: Primitive> Octree<P> {
@@ -30,8 +32,10 @@ impl<P: Primitive> Octree<P> {
         let mut flat = build::Flat::default();
         let mut bounds = Aabb::EMPTY;
         let mut root = ChildRef::inner(0);
+        let world = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
+        let frame = Frame::of(&world);
         if !prims.is_empty() {
-            let b = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
+            let b = frame.to_local(&world);
             // A cube, so that octants stay cubes (no flat octants duplicating everything).
             let half = Vec3::splat(0.5 * b.extent().max_element());
             let c = b.center();
@@ -39,6 +43,7 @@ impl<P: Primitive> Octree<P> {
             let ctx = build::Ctx {
                 prims,
                 params: &params,
+                frame,
             };
             let n = prims.len();
             let budget = (params.reference_budget as f64 * n as f64).min((MAX_NODES - 1) as f64);
@@ -56,6 +61,7 @@ impl<P: Primitive> Octree<P> {
             prims: prims.to_vec(),
             bounds,
             params,
+            frame,
         })
     }
 
@@ -79,9 +85,15 @@ impl<P: Primitive> Octree<P> {
         &self.indices
     }
 
-    /// The root cube.
+    /// The root cube, in [`Self::frame`].
     pub fn bounds(&self) -> Aabb {
         self.bounds
+    }
+
+    /// The frame the cells are in: world coordinates minus its anchor (the world's own for
+    /// scenes about the origin).
+    pub fn frame(&self) -> &Frame {
+        &self.frame
     }
 
     /// The parameters the octree was built with.

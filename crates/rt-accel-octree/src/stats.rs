@@ -82,12 +82,17 @@ impl<P: Primitive> Octree<P> {
                     None => {
                         err.get_or_insert(format!("leaf {i} holds primitive {p}, out of range"));
                     }
-                    Some(prim) if !rt_geom::touches_cell(prim, b) => {
+                    Some(prim) if !rt_geom::touches_cell(prim, &self.frame.to_world(b)) => {
                         err.get_or_insert(format!(
                             "primitive {p} is in leaf {i} but not in its box"
                         ));
                     }
-                    Some(prim) if !holds(content, &prim.clipped_bounds(b).intersection(*b)) => {
+                    Some(prim)
+                        if !holds(
+                            content,
+                            &crate::build::clipped(&self.frame, prim, b).intersection(*b),
+                        ) =>
+                    {
                         err.get_or_insert(format!(
                             "primitive {p} reaches outside the content box of leaf {i}"
                         ));

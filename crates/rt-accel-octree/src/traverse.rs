@@ -105,7 +105,8 @@ impl<P: Primitive> Walk<'_, P> {
             if let Some(child) = node.child(o) {
                 let b = octant(cell, o);
                 let content = content_box(&b, step, &node.content(o));
-                if let Some((t0, _)) = content.clip_ray_with_inv(&self.ray, &self.inv) {
+                let interval = (self.ray.tmin, self.ray.tmax);
+                if let Some((t0, _)) = content.clip_interval(&self.origin, &self.inv, interval) {
                     entered[count] = (t0, child, b);
                     count += 1;
                 }
@@ -355,7 +356,8 @@ impl<P: Primitive> Octree<P> {
         let (inv_lo, inv_hi) = slab.plane_reciprocals();
         let mut walk = Walk {
             tree: self,
-            origin: slab.origin,
+            // The walk computes in the tree's frame: the ray's origin relative to it.
+            origin: self.frame.local_point(ray.origin()),
             inv_lo,
             inv_hi,
             pad_after: slab.pad_after,

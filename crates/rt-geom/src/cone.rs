@@ -105,12 +105,18 @@ impl Cone {
 
     /// `(min, max)` of `n . p` over the cone's points.
     pub fn extent_along(&self, n: Vec3) -> (f32, f32) {
-        let (n, a) = (n.as_dvec3(), self.axis());
+        self.extent_along_from(Vec3::ZERO, n)
+    }
+
+    /// `(min, max)` of `n . (p - origin)` over the cone's points (in `f64`, rounded outward).
+    pub fn extent_along_from(&self, origin: Vec3, n: Vec3) -> (f32, f32) {
+        let (n, a, o) = (n.as_dvec3(), self.axis(), origin.as_dvec3());
         let spread = (n.length_squared() - n.dot(a).powi(2)).max(0.0).sqrt();
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         for (c, r) in self.rims() {
-            lo = lo.min(c.dot(n) - spread * r);
-            hi = hi.max(c.dot(n) + spread * r);
+            let d = (c - o).dot(n);
+            lo = lo.min(d - spread * r);
+            hi = hi.max(d + spread * r);
         }
         ((lo as f32).next_down(), (hi as f32).next_up())
     }

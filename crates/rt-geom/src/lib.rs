@@ -12,6 +12,7 @@
 //! | [`sphere`] | [`Sphere`], solved in the stable form of Ray Tracing Gems ch. 7 |
 //! | [`cone`] | [`Cone`]: open cones and cylinders (NFF's `c`), solved in `f64` |
 //! | [`shape`] | [`Shape`]: a triangle, sphere or cone, for scenes that mix them |
+//! | [`frame`] | [`Frame`]: coordinates relative to a structure's own box, for cell walks far from the origin |
 //! | [`volume`] | [`BoundingVolume`]: [`BoundingSphere`], [`Aabb`], [`Kdop7`] (Kay & Kajiya 1986) |
 //! | [`primitive`] | [`Primitive`]: what structures need of their elements |
 //! | [`accel`] | [`Accel`], [`AccelStats`], [`BuildError`] |
@@ -37,6 +38,7 @@ pub mod accel;
 pub mod brute;
 pub mod cone;
 pub mod counters;
+pub mod frame;
 pub mod leaf_prims;
 pub mod mesh;
 pub mod primitive;
@@ -53,6 +55,7 @@ pub use accel::{
 };
 pub use brute::BruteForce;
 pub use cone::Cone;
+pub use frame::Frame;
 pub use glam::{self, Vec3};
 pub use leaf_prims::{LeafPrims, TriangleSoa};
 pub use mesh::{Mesh, MeshError, MeshGroup, load_obj, parse_obj};

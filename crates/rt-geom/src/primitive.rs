@@ -1,6 +1,6 @@
 //! The `Primitive` trait: what every acceleration structure needs to know about its elements.
 
-use crate::aabb::f32_at_or_above;
+use crate::aabb::{f32_at_or_above, f32_at_or_below};
 use crate::{Aabb, Hit, PrimHit, Ray, Sphere, Triangle};
 use glam::Vec3;
 
@@ -22,6 +22,23 @@ pub trait Primitive: Clone + Send + Sync + 'static {
     /// `(min, max)` of `n . p` over the points `p` of the primitive: the slab the primitive
     /// occupies along `n` (k-DOPs are built from it).
     fn extent_along(&self, n: Vec3) -> (f32, f32);
+
+    /// `(min, max)` of `n . (p - origin)` over the points `p` of the primitive, rounded
+    /// outward: [`Self::extent_along`] measured from `origin`, as precise as the result's own
+    /// size allows rather than the world coordinates' (BSP planes in a frame of their own,
+    /// [`crate::Frame`], far from the world's origin). The default widens `extent_along` by
+    /// its rounding; triangles, spheres and cones compute it in `f64`.
+    fn extent_along_from(&self, origin: Vec3, n: Vec3) -> (f32, f32) {
+        let (lo, hi) = self.extent_along(n);
+        let o = n.as_dvec3().dot(origin.as_dvec3());
+        let scale = lo.abs().max(hi.abs()) as f64
+            + (n.abs().element_sum() * origin.abs().max_element()) as f64;
+        let err = scale * f64::from(f32::EPSILON) * 4.0;
+        (
+            f32_at_or_below(lo as f64 - o - err),
+            f32_at_or_above(hi as f64 - o + err),
+        )
+    }
 
     /// The largest distance from `p` to a point of the primitive (bounding spheres).
     fn farthest_distance(&self, p: Vec3) -> f32;
@@ -104,6 +121,15 @@ impl Primitive for Triangle {
         (d[0].min(d[1]).min(d[2]), d[0].max(d[1]).max(d[2]))
     }
 
+    fn extent_along_from(&self, origin: Vec3, n: Vec3) -> (f32, f32) {
+        let (o, n) = (origin.as_dvec3(), n.as_dvec3());
+        let d = self.v.map(|p| (p.as_dvec3() - o).dot(n));
+        (
+            f32_at_or_below(d[0].min(d[1]).min(d[2])),
+            f32_at_or_above(d[0].max(d[1]).max(d[2])),
+        )
+    }
+
     fn farthest_distance(&self, p: Vec3) -> f32 {
         let far = self
             .v
@@ -152,11 +178,53 @@ impl Primitive for Sphere {
         (c - r, c + r)
     }
 
+    fn extent_along_from(&self, origin: Vec3, n: Vec3) -> (f32, f32) {
+        let n = n.as_dvec3();
+        let c = (self.center.as_dvec3() - origin.as_dvec3()).dot(n);
+        let r = self.radius.max(0.0) as f64 * n.length();
+        (f32_at_or_below(c - r), f32_at_or_above(c + r))
+    }
+
     fn farthest_distance(&self, p: Vec3) -> f32 {
         f32_at_or_above(self.center.as_dvec3().distance(p.as_dvec3()) + self.radius.max(0.0) as f64)
     }
 
     fn is_finite(&self) -> bool {
         self.center.is_finite() && self.radius.is_finite()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Far from the origin, `extent_along` in `f32` rounds `n . p` to a unit; measured from
+    /// a nearby origin the slab keeps the primitive's own precision, and holds it.
+    #[test]
+    fn extents_from_a_nearby_origin_keep_their_precision() {
+        let far = Vec3::new(3.0e5, 5.0e6, 1.0e7);
+        let t = Triangle::new(
+            far + Vec3::new(0.25, 0.0, 0.0),
+            far + Vec3::new(0.0, 0.5, 0.0),
+            far + Vec3::new(0.0, 0.0, 1.0),
+        );
+        let n = Vec3::new(1.0, 2.0, 2.0) / 3.0;
+        let exact: Vec<f64> = [[0.25, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, 1.0]]
+            .iter()
+            .map(|p| p[0] * n.x as f64 + p[1] * n.y as f64 + p[2] * n.z as f64)
+            .collect();
+        let (lo, hi) = Primitive::extent_along_from(&t, far, n);
+        let (min, max) = (
+            exact[0].min(exact[1]).min(exact[2]),
+            exact[0].max(exact[1]).max(exact[2]),
+        );
+        assert!(lo as f64 <= min && min - (lo as f64) < 1e-6, "{lo} {min}");
+        assert!(hi as f64 >= max && (hi as f64) - max < 1e-6, "{hi} {max}");
+        let s = Sphere::new(far, 0.5);
+        let (lo, hi) = Primitive::extent_along_from(&s, far, n);
+        assert!(
+            lo <= -0.5 && lo > -0.5001 && hi >= 0.5 && hi < 0.5001,
+            "{lo} {hi}"
+        );
     }
 }

@@ -103,6 +103,10 @@ impl Primitive for Shape {
         each!(self, p => Primitive::extent_along(p, n))
     }
 
+    fn extent_along_from(&self, origin: Vec3, n: Vec3) -> (f32, f32) {
+        each!(self, p => Primitive::extent_along_from(p, origin, n))
+    }
+
     fn farthest_distance(&self, p: Vec3) -> f32 {
         each!(self, s => Primitive::farthest_distance(s, p))
     }
@@ -141,6 +145,10 @@ impl Primitive for Cone {
 
     fn extent_along(&self, n: Vec3) -> (f32, f32) {
         Cone::extent_along(self, n)
+    }
+
+    fn extent_along_from(&self, origin: Vec3, n: Vec3) -> (f32, f32) {
+        Cone::extent_along_from(self, origin, n)
     }
 
     fn farthest_distance(&self, p: Vec3) -> f32 {

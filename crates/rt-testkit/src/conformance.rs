@@ -423,7 +423,7 @@ macro_rules! conformance_tests {
         $crate::conformance_tests!(@tri $tol, $tri;
             soup, sphere_mesh, torus, planar_grid, coplanar, axis_slivers, duplicates,
             teapot_in_stadium, overlapping_fan, long_slivers, huge_coords, tiny_coords,
-            one_triangle, empty);
+            one_triangle, empty, far_soup, far_sphere, far_stadium);
         #[test]
         fn rejects_non_finite_triangles() {
             let valid = $crate::scenes::random_soup(10, 1);
@@ -435,7 +435,7 @@ macro_rules! conformance_tests {
     };
     (tolerance: $tol:expr, triangles: $tri:expr, spheres: $sph:expr $(,)?) => {
         $crate::conformance_tests!(tolerance: $tol, triangles: $tri);
-        $crate::conformance_tests!(@sph $tol, $sph; spheres, one_sphere, empty_spheres);
+        $crate::conformance_tests!(@sph $tol, $sph; spheres, one_sphere, empty_spheres, far_spheres);
         #[test]
         fn rejects_non_finite_spheres() {
             let valid = $crate::scenes::random_spheres(10, 1);

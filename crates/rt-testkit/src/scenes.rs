@@ -222,6 +222,17 @@ pub fn transformed(tris: &[Triangle], scale: f32, offset: Vec3) -> Vec<Triangle>
         .collect()
 }
 
+/// A scene scaled by `scale` and moved to `offset`, each coordinate computed in `f64` and
+/// rounded to `f32` once, as a file in projected coordinates (GIS, CAD) holds it: far from the
+/// origin, vertices snap to the coarse `f32` lattice there (0.5 at 5e6, 1 at 1e7).
+pub fn placed(tris: &[Triangle], scale: f64, offset: [f64; 3]) -> Vec<Triangle> {
+    let at = |p: Vec3| {
+        let o = rt_geom::glam::DVec3::from_array(offset);
+        (p.as_dvec3() * scale + o).as_vec3()
+    };
+    tris.iter().map(|t| Triangle { v: t.v.map(at) }).collect()
+}
+
 /// Random spheres: most small, a few large, some overlapping, a few of zero radius.
 pub fn random_spheres(n: usize, seed: u64) -> Vec<Sphere> {
     let mut rng = Rng::new(seed);
@@ -315,6 +326,25 @@ pub fn conformance_triangle_scenes() -> Vec<Scene<Triangle>> {
             vec![Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y)],
         ),
         Scene::new("empty", vec![]),
+        // Far from the origin, as GIS and CAD scenes come (UTM coordinates, metres): small
+        // triangles on the 0.5 lattice at 5e6 (many snap flat), a sphere at 1e7, the
+        // teapot in a stadium at 5e6.
+        Scene::new(
+            "far_soup",
+            placed(&soup[..1000], 20.0, [3.0e5, 5.0e6, 250.0]),
+        ),
+        Scene::new(
+            "far_sphere",
+            placed(
+                &tessellated_sphere(1500, Vec3::ZERO, 1.0),
+                60.0,
+                [1.0e7, -1.0e7, 1.0e7],
+            ),
+        ),
+        Scene::new(
+            "far_stadium",
+            placed(&teapot_in_stadium(1500), 50.0, [-3.0e5, 2.0e3, 5.0e6]),
+        ),
     ]
 }
 
@@ -324,6 +354,17 @@ pub fn conformance_sphere_scenes() -> Vec<Scene<Sphere>> {
         Scene::new("spheres", random_spheres(1500, 5)),
         Scene::new("one_sphere", vec![Sphere::new(Vec3::splat(0.5), 0.25)]),
         Scene::new("empty_spheres", vec![]),
+        Scene::new(
+            "far_spheres",
+            random_spheres(1000, 6)
+                .into_iter()
+                .map(|s| {
+                    let c = s.center.as_dvec3() * 40.0
+                        + rt_geom::glam::DVec3::new(3.0e5, 5.0e6, -4.0e3);
+                    Sphere::new(c.as_vec3(), s.radius * 40.0)
+                })
+                .collect(),
+        ),
     ]
 }
 

@@ -115,10 +115,16 @@ pub fn rays(bytes: &[u8]) -> Result<(), String> {
 /// Arbitrary bytes as a scene of up to 48 triangles (or triangles, spheres and cones) and rays
 /// ([`Decoder`]): every rt structure in the registry (not the external peers) builds it or
 /// rejects it as brute force does, passes `validate()`, and answers every ray exactly as brute
-/// force does; packet paths answer as their single rays.
+/// force does; packet paths answer as their single rays. The first byte's bits 1-2 move the
+/// scene and its rays by 3e5, 5e6 or 1e7 (each coordinate rounded to `f32` once) for a second
+/// check far from the origin.
 pub fn build_trace(bytes: &[u8]) -> Result<(), String> {
     let mut d = Decoder::new(bytes);
-    let mixed = d.byte() & 1 == 1;
+    let first = d.byte();
+    let mixed = first & 1 == 1;
+    // Bits 1-2: the scene is also checked moved far from the origin (as GIS and CAD scenes
+    // come), every coordinate rounded to `f32` once.
+    let offset = [0.0, 3.0e5, 5.0e6, 1.0e7][(first >> 1 & 3) as usize];
     let count = d.byte() as usize % 49;
     let shapes: Vec<Shape> = (0..count)
         .map(|_| match (mixed, d.byte() % 3) {
@@ -141,6 +147,39 @@ pub fn build_trace(bytes: &[u8]) -> Result<(), String> {
             kind: RayKind::Random,
         });
     }
+    check_scene(&shapes, &extra)?;
+    if offset != 0.0 {
+        let by = rt_geom::glam::DVec3::new(offset, -offset, offset);
+        let moved: Vec<Shape> = shapes.iter().map(|s| moved_shape(s, by)).collect();
+        let extra: Vec<TestRay> = extra
+            .iter()
+            .map(|t| TestRay {
+                ray: Ray::segment(
+                    (t.ray.origin().as_dvec3() + by).as_vec3(),
+                    t.ray.dir(),
+                    t.ray.tmin,
+                    t.ray.tmax,
+                ),
+                kind: t.kind,
+            })
+            .collect();
+        check_scene(&moved, &extra).map_err(|e| format!("moved by {by}: {e}"))?;
+    }
+    Ok(())
+}
+
+/// `s` moved by `by`, every coordinate rounded to `f32` once.
+fn moved_shape(s: &Shape, by: rt_geom::glam::DVec3) -> Shape {
+    let at = |p: Vec3| (p.as_dvec3() + by).as_vec3();
+    match s {
+        Shape::Triangle(t) => Triangle { v: t.v.map(at) }.into(),
+        Shape::Sphere(sp) => Sphere::new(at(sp.center), sp.radius).into(),
+        Shape::Cone(c) => Cone::new(at(c.base), c.base_radius, at(c.apex), c.apex_radius).into(),
+    }
+}
+
+/// Every rt structure on `shapes` with its conformance rays and `extra`.
+fn check_scene(shapes: &[Shape], extra: &[TestRay]) -> Result<(), String> {
     let entries = REGISTRY.iter().filter(|e| !e.external);
     match shapes
         .iter()
@@ -149,18 +188,18 @@ pub fn build_trace(bytes: &[u8]) -> Result<(), String> {
     {
         Some(tris) => {
             let mut rays = scene_rays(&tris, 4);
-            rays.extend(extra);
+            rays.extend_from_slice(extra);
             let rays = exact_domain(&tris, &rays);
             for e in entries {
                 check_entry(e, &tris, &rays)?;
             }
         }
         None => {
-            let mut rays = scene_rays(&shapes, 4);
-            rays.extend(extra);
-            let rays = exact_domain(&shapes, &rays);
+            let mut rays = scene_rays(shapes, 4);
+            rays.extend_from_slice(extra);
+            let rays = exact_domain(shapes, &rays);
             for e in entries.filter(|e| e.build_shapes.is_some()) {
-                check_shapes(e, &shapes, &rays)?;
+                check_shapes(e, shapes, &rays)?;
             }
         }
     }
@@ -180,23 +219,43 @@ fn scene_rays<P: SamplePoints>(prims: &[P], per_kind: usize) -> Vec<TestRay> {
 /// a subnormal origin or direction component, or whose closest hit lies at a subnormal
 /// distance (`0 < |t| < f32::MIN_POSITIVE`) or at a subnormal offset along an axis
 /// (`0 < |t * d| < f32::MIN_POSITIVE`), where the box and cell tests' relative padding
-/// rounds away, nor those whose hit lies farther from the ray's
-/// origin, or at coordinates larger, than [`FAR_HIT`] times the narrowest extent of the
-/// primitive hit: there points computed in `f32` along the ray (a grid's or octree's entry
-/// point, a box test's or an edge test's rounding) are off by more than that primitive.
+/// rounds away, nor those whose hit (or the primitive hit) lies farther from the ray's
+/// origin, or in a scene wider, than [`FAR_HIT`] times the narrowest extent of the primitive
+/// hit: there points computed
+/// in `f32` along the ray (a grid's or octree's entry point in its frame, a box test's or an
+/// edge test's rounding) are off by more than that primitive. Where the scene lies does not
+/// matter.
 fn exact_domain<P: rt_geom::Primitive>(prims: &[P], rays: &[TestRay]) -> Vec<TestRay> {
     let Ok(brute) = BruteForce::build(prims) else {
         return rays.to_vec();
     };
+    let extent = scene_extent(prims);
     rays.iter()
-        .filter(|r| in_exact_domain(prims, &r.ray, brute.intersect(&r.ray)))
+        .filter(|r| in_exact_domain(prims, extent, &r.ray, brute.intersect(&r.ray)))
         .copied()
         .collect()
 }
 
-/// Whether `ray`, whose closest hit in `prims` is `hit` (brute force's), lies in the exactness
-/// domain (see [`exact_domain`]).
-fn in_exact_domain<P: rt_geom::Primitive>(prims: &[P], ray: &Ray, hit: Option<Hit>) -> bool {
+/// The largest extent of the scene's box: how far apart two of its points can lie.
+fn scene_extent<P: rt_geom::Primitive>(prims: &[P]) -> f64 {
+    let b = prims
+        .iter()
+        .fold(rt_geom::Aabb::EMPTY, |b, p| b.union(p.bounds()));
+    if b.is_empty() {
+        0.0
+    } else {
+        (b.max.as_dvec3() - b.min.as_dvec3()).max_element()
+    }
+}
+
+/// Whether `ray`, whose closest hit in `prims` (a scene `extent` wide) is `hit` (brute
+/// force's), lies in the exactness domain (see [`exact_domain`]).
+fn in_exact_domain<P: rt_geom::Primitive>(
+    prims: &[P],
+    extent: f64,
+    ray: &Ray,
+    hit: Option<Hit>,
+) -> bool {
     let subnormal = |v: Vec3| v.to_array().iter().any(|x| x.is_subnormal());
     if subnormal(ray.origin()) || subnormal(ray.dir()) {
         return false;
@@ -211,11 +270,15 @@ fn in_exact_domain<P: rt_geom::Primitive>(prims: &[P], ray: &Ray, hit: Option<Hi
                 .filter(|&x| x > 0.0)
                 .fold(f32::INFINITY, f32::min);
             let (o, d) = (ray.origin().as_dvec3(), ray.dir().as_dvec3());
-            let step = d * h.t as f64;
-            let reach = step
-                .length()
-                .max((o + step).abs().max_element())
-                .max(o.abs().max_element());
+            let b = prims[h.prim as usize].bounds();
+            // How far the hit lies from the ray's origin (and the origin from the primitive:
+            // the kernel's own rounding can put a hit next to an origin far from it), and how
+            // wide the scene is: the cell walks compute in their own frame (`rt_geom::Frame`),
+            // so where the scene lies does not matter, only its size.
+            let gap = (o - o.clamp(b.min.as_dvec3(), b.max.as_dvec3()))
+                .abs()
+                .max_element();
+            let reach = (d * h.t as f64).length().max(gap).max(extent);
             // The hit's offset from the origin along each axis the ray moves on is a normal
             // `f32`: where `t * d` underflows, the kernel sees the ray on a vertex or edge
             // that the exact box test finds the ray already past.
@@ -226,9 +289,9 @@ fn in_exact_domain<P: rt_geom::Primitive>(prims: &[P], ray: &Ray, hit: Option<Hi
     }
 }
 
-/// How far from a ray's origin (and from the coordinate origin), in narrowest extents of the
+/// How far from a ray's origin, and in how wide a scene, in narrowest extents of the
 /// primitive hit, a hit is exact: 2^20, a sixteenth of where the first structure (the uniform
-/// grid's `f32` cell walk) was seen to miss a hit (2^24).
+/// grid's `f32` cell walk) was seen to miss a hit (2^24 from the ray's origin).
 pub const FAR_HIT: f64 = (1u64 << 20) as f64;
 
 /// One entry on a triangle scene: the single-ray structure and its packet path.
@@ -364,6 +427,7 @@ struct DomainWatch<'a> {
     accel: &'a dyn Accel,
     brute: &'a BruteForce<Shape>,
     shapes: &'a [Shape],
+    extent: f64,
     outside: std::sync::atomic::AtomicBool,
 }
 
@@ -373,12 +437,13 @@ impl<'a> DomainWatch<'a> {
             accel,
             brute,
             shapes,
+            extent: scene_extent(shapes),
             outside: false.into(),
         }
     }
 
     fn watch(&self, ray: &Ray) {
-        if !in_exact_domain(self.shapes, ray, self.brute.intersect(ray)) {
+        if !in_exact_domain(self.shapes, self.extent, ray, self.brute.intersect(ray)) {
             self.outside
                 .store(true, std::sync::atomic::Ordering::Relaxed);
         }

@@ -5,7 +5,7 @@
 
 use super::{BspParams, SplitPlane};
 use crate::build::{BuildNode, join, leaf, share_budget};
-use rt_geom::{Aabb, Primitive, Vec3};
+use rt_geom::{Aabb, Frame, Primitive, Vec3};
 
 /// Where a primitive lies relative to a plane, with the plane's margin as a band.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -17,10 +17,10 @@ pub(crate) enum Side {
     InPlane,
 }
 
-/// The side of `p` relative to `plane`.
+/// The side of `p` relative to `plane` (in `frame`).
 #[inline]
-pub(crate) fn classify<P: Primitive>(p: &P, plane: &SplitPlane) -> Side {
-    let (lo, hi) = p.extent_along(plane.normal);
+pub(crate) fn classify<P: Primitive>(p: &P, plane: &SplitPlane, frame: &Frame) -> Side {
+    let (lo, hi) = p.extent_along_from(frame.anchor, plane.normal);
     let (lo, hi) = (lo - plane.d, hi - plane.d);
     let m = plane.margin;
     match (lo >= -m, hi <= m) {
@@ -65,13 +65,16 @@ pub(super) struct Ctx<'a, P> {
     pub prims: &'a [P],
     pub params: &'a BspParams,
     pub depth_cap: u32,
-    /// Largest absolute coordinate of the scene: the scale of the planes' margins.
+    /// Largest absolute coordinate of the scene in `frame`: the scale of the planes' margins.
     pub scale: f32,
+    /// The frame the planes and cells are in.
+    pub frame: Frame,
 }
 
 impl<P> Ctx<'_, P> {
-    /// The plane `n . p = d` with its rounding margin: `extent_along` in `f32` is off by at
-    /// most a few `gamma(3) (|d| + |n|_1 scale)`; a margin of `1e-6` times that is safe.
+    /// The plane `n . p = d` (in the frame) with its rounding margin: `extent_along_from`
+    /// is off by at most its rounding to `f32` (a `gamma(3) (|d| + |n|_1 scale)` for the
+    /// default, `extent_along` in `f32`); a margin of `1e-6` times that is safe.
     fn plane(&self, normal: Vec3, d: f32) -> SplitPlane {
         SplitPlane {
             normal,
@@ -87,8 +90,11 @@ fn candidates<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], cell: &Aabb) -> Vec<Split
     let mut planes = Vec::with_capacity(want + 3);
     if let Some(stride) = ids.len().checked_div(want) {
         for &id in ids.iter().step_by(stride.max(1)).take(want) {
-            if let Some((n, d)) = ctx.prims[id as usize].plane() {
-                planes.push(ctx.plane(n, d));
+            let p = &ctx.prims[id as usize];
+            if let Some((n, _)) = p.plane() {
+                // The plane's offset in the frame: the middle of the primitive's extent.
+                let (lo, hi) = p.extent_along_from(ctx.frame.anchor, n);
+                planes.push(ctx.plane(n, (0.5 * (lo as f64 + hi as f64)) as f32));
             }
         }
     }
@@ -96,7 +102,10 @@ fn candidates<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], cell: &Aabb) -> Vec<Split
         let mut c: Vec<f32> = Vec::with_capacity(ids.len());
         for axis in 0..3 {
             c.clear();
-            c.extend(ids.iter().map(|&i| ctx.prims[i as usize].centroid()[axis]));
+            c.extend(
+                ids.iter()
+                    .map(|&i| ctx.frame.local_point(ctx.prims[i as usize].centroid())[axis]),
+            );
             let mid = c.len() / 2;
             let (_, &mut median, _) = c.select_nth_unstable_by(mid, f32::total_cmp);
             if median > cell.min[axis] && median < cell.max[axis] {
@@ -118,7 +127,7 @@ fn best_split<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], cell: &Aabb) -> Option<(S
     for plane in candidates(ctx, ids, cell) {
         let (mut below, mut above, mut in_plane) = (0usize, 0usize, 0usize);
         for &id in ids {
-            match classify(&ctx.prims[id as usize], &plane) {
+            match classify(&ctx.prims[id as usize], &plane, &ctx.frame) {
                 Side::Below => below += 1,
                 Side::Above => above += 1,
                 Side::Both => {
@@ -164,7 +173,7 @@ pub(super) fn build_node<P: Primitive>(
     };
     let (mut below, mut above) = (Vec::new(), Vec::new());
     for &id in &ids {
-        let side = classify(&ctx.prims[id as usize], &plane);
+        let side = classify(&ctx.prims[id as usize], &plane, &ctx.frame);
         if matches!(side, Side::Below | Side::Both) || (side == Side::InPlane && planar_below) {
             below.push(id);
         }

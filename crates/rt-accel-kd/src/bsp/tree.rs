@@ -5,7 +5,9 @@ use super::build::{self, Side, classify, clip_cell};
 use crate::build::{BuildNode, MAX_LOCAL, flatten, root_budget};
 use crate::params::MAX_DEPTH;
 use crate::{KdNode, KdParams};
-use rt_geom::{Aabb, Accel, AccelStats, BuildError, LeafPrims, Primitive, Vec3, check_primitives};
+use rt_geom::{
+    Aabb, Accel, AccelStats, BuildError, Frame, LeafPrims, Primitive, Vec3, check_primitives,
+};
 
 /// A splitting plane `normal . p = d` (unit normal), with the band `|normal . p - d| <=
 /// margin` inside which rounding cannot tell the sides apart.
@@ -28,8 +30,11 @@ pub struct BspTree<P> {
     pub(super) prims: Vec<P>,
     /// The primitives of the leaves of several, laid out for the leaf test ([`LeafPrims`]).
     pub(super) listed: LeafPrims<P>,
+    /// The scene's box (world), where the walk clips the ray.
     pub(super) bounds: Aabb,
     pub(super) params: BspParams,
+    /// The frame the planes are in (the world's, for scenes about the origin).
+    pub(super) frame: Frame,
 }
 
 impl<P: Primitive> BspTree<P> {
@@ -38,6 +43,8 @@ impl<P: Primitive> BspTree<P> {
         params.validate()?;
         check_primitives(prims, MAX_LOCAL)?;
         let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
+        let frame = Frame::of(&bounds);
+        let local = frame.to_local(&bounds);
         let (mut nodes, mut planes, mut indices) = (Vec::new(), Vec::new(), Vec::new());
         if !prims.is_empty() {
             let n = prims.len();
@@ -50,12 +57,13 @@ impl<P: Primitive> BspTree<P> {
                 prims,
                 params: &params,
                 depth_cap,
-                scale: bounds.min.abs().max(bounds.max.abs()).max_element(),
+                scale: local.min.abs().max(local.max.abs()).max_element(),
+                frame,
             };
             let root: BuildNode<SplitPlane> = build::build_node(
                 &ctx,
                 (0..n as u32).collect(),
-                bounds,
+                local,
                 0,
                 root_budget(params.reference_budget, n),
             );
@@ -79,6 +87,7 @@ impl<P: Primitive> BspTree<P> {
             listed,
             bounds,
             params,
+            frame,
         })
     }
 
@@ -87,7 +96,7 @@ impl<P: Primitive> BspTree<P> {
         &self.nodes
     }
 
-    /// The split planes, indexed by the inner nodes.
+    /// The split planes, indexed by the inner nodes, in [`Self::frame`].
     pub fn planes(&self) -> &[SplitPlane] {
         &self.planes
     }
@@ -97,13 +106,19 @@ impl<P: Primitive> BspTree<P> {
         &self.indices
     }
 
+    /// The frame the planes are in: world coordinates minus its anchor (the world's own for
+    /// scenes about the origin).
+    pub fn frame(&self) -> &Frame {
+        &self.frame
+    }
+
     /// The parameters the tree was built with.
     pub fn params(&self) -> &BspParams {
         &self.params
     }
 
-    /// Calls `f(node, cell box, planes above the node with the side taken, depth)` for every
-    /// node, parents first.
+    /// Calls `f(node, cell box (in the frame), planes above the node with the side taken,
+    /// depth)` for every node, parents first.
     fn walk(&self, mut f: impl FnMut(usize, &Aabb, &[(usize, bool)])) {
         fn go<P: Primitive>(
             t: &BspTree<P>,
@@ -126,7 +141,13 @@ impl<P: Primitive> BspTree<P> {
             }
         }
         if !self.nodes.is_empty() {
-            go(self, 0, self.bounds, &mut Vec::new(), &mut f);
+            go(
+                self,
+                0,
+                self.frame.to_local(&self.bounds),
+                &mut Vec::new(),
+                &mut f,
+            );
         }
     }
 }
@@ -148,7 +169,7 @@ impl<P: Primitive> Accel for BspTree<P> {
         if self.nodes.is_empty() {
             return s;
         }
-        let mut acc = rt_geom::StatsSum::new(s, &self.bounds);
+        let mut acc = rt_geom::StatsSum::new(s, &self.frame.to_local(&self.bounds));
         self.walk(|i, cell, path| {
             let n = &self.nodes[i];
             acc.add(cell, path.len(), n.is_leaf(), n.count())
@@ -203,7 +224,7 @@ impl<P: Primitive> Accel for BspTree<P> {
                     seen[p as usize] = true;
                     for &(plane, below) in path {
                         let wrong = if below { Side::Above } else { Side::Below };
-                        if classify(prim, &self.planes[plane]) == wrong {
+                        if classify(prim, &self.planes[plane], &self.frame) == wrong {
                             err = Some(format!(
                                 "primitive {p} in leaf {i} lies on the other side of plane {plane}"
                             ));

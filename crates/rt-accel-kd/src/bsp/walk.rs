@@ -8,7 +8,8 @@ use rt_geom::aabb::{pad_down, pad_up};
 use rt_geom::glam::DVec3;
 use rt_geom::{Hit, Primitive, Ray};
 
-/// The ray in `f64`, where the crossing with an arbitrary plane is computed.
+/// The ray in `f64`, where the crossing with an arbitrary plane is computed, its origin in
+/// the tree's frame (exact: two `f32` subtracted in `f64`).
 pub(crate) struct PlaneRay {
     origin: DVec3,
     dir: DVec3,
@@ -17,9 +18,9 @@ pub(crate) struct PlaneRay {
 impl<P: Primitive> SplitPlanes for BspTree<P> {
     type RayData = PlaneRay;
 
-    fn ray_data(ray: &Ray, _inv: [f32; 3]) -> PlaneRay {
+    fn ray_data(&self, ray: &Ray, _inv: [f32; 3]) -> PlaneRay {
         PlaneRay {
-            origin: ray.origin().as_dvec3(),
+            origin: ray.origin().as_dvec3() - self.frame.anchor.as_dvec3(),
             dir: ray.dir().as_dvec3(),
         }
     }
