@@ -63,6 +63,7 @@ per_scene!(
     far_soup,
     far_sphere,
     far_stadium,
+    far_dense,
 );
 
 mod brute {

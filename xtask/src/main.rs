@@ -128,7 +128,7 @@ enum Command {
         #[arg(long, default_value = "bunny")]
         mesh: String,
         /// Comma-separated largest extents to scale the mesh to.
-        #[arg(long, default_value = "0.15,1.5,30")]
+        #[arg(long, default_value = "1.5,30")]
         sizes: String,
         /// Comma-separated offsets of its centre along every axis, each against the same
         /// placed mesh moved back to the origin.
@@ -137,7 +137,8 @@ enum Command {
         /// Camera resolution (side x side primary rays, and a diffuse ray per hit).
         #[arg(long, default_value_t = 128)]
         side: usize,
-        /// Comma-separated structure names (default: rt's own).
+        /// Comma-separated structure names (default: rt's own but brute force, the
+        /// reference).
         #[arg(long)]
         accels: Option<String>,
         /// Threads (0 = all cores).
@@ -237,7 +238,10 @@ fn run(command: Command) -> Result<ExitCode, String> {
         } => {
             let entries = match accels {
                 Some(list) => registry::select(Some(&list))?,
-                None => xtask::stress::default_entries(),
+                None => xtask::stress::default_entries()
+                    .into_iter()
+                    .filter(|e| e.name != "brute")
+                    .collect(),
             };
             let numbers = |list: &str, what: &str| -> Result<Vec<f64>, String> {
                 list.split(',')

@@ -46,17 +46,19 @@ fn refines(params: &GridParams, depth: u32, count: usize) -> bool {
     }
 }
 
-/// The cells of `level` (in `frame`) that primitive `p` overlaps, appended to `out`.
+/// The cells of `level` (in `frame`) that primitive `p` overlaps, each cell widened by the
+/// level's band ([`Level::widened`]), appended to `out`.
 fn cells_of<P: Primitive>(p: &P, level: &Level, frame: &Frame, out: &mut Vec<u32>) {
-    let b = p.clipped_bounds(&frame.to_world(&level.bounds));
+    let b = frame.clipped_bounds(p, &level.widened(&level.bounds));
     if b.is_empty() {
         return;
     }
-    let b = frame.to_local(&b);
-    // A box starting exactly on a plane touches the previous cell's face, one ending exactly
-    // on a plane the next cell's (where `index_of` already puts `hi`): both cells list it, so
-    // that a ray crossing the plane at that edge or vertex, whichever way its walk turns at a
-    // corner, meets it (found by fuzzing: a walk stepping diagonally past a shared vertex).
+    // The cells the box reaches once widened by the band. A box starting exactly on a plane
+    // touches the previous cell's face, one ending exactly on a plane the next cell's (where
+    // `index_of` already puts `hi`): both cells list it, so that a ray crossing the plane at
+    // that edge or vertex, whichever way its walk turns at a corner, meets it (found by
+    // fuzzing: a walk stepping diagonally past a shared vertex).
+    let b = level.widened(&b);
     let lo: [u32; 3] = std::array::from_fn(|a| {
         let i = level.index_of(a, b.min[a]);
         if i > 0 && b.min[a] == level.plane(a, i) {
@@ -72,11 +74,8 @@ fn cells_of<P: Primitive>(p: &P, level: &Level, frame: &Frame, out: &mut Vec<u32
         for y in lo[1]..=hi[1] {
             for x in lo[0]..=hi[0] {
                 let idx = [x, y, z];
-                if single
-                    || !p
-                        .clipped_bounds(&frame.to_world(&level.cell_box(idx)))
-                        .is_empty()
-                {
+                let cell = level.widened(&level.cell_box(idx));
+                if single || !frame.clipped_bounds(p, &cell).is_empty() {
                     out.push(level.linear(idx) as u32);
                 }
             }
@@ -84,15 +83,15 @@ fn cells_of<P: Primitive>(p: &P, level: &Level, frame: &Frame, out: &mut Vec<u32
     }
 }
 
-/// The box of what `ids` hold inside `cell` (local): their parts clipped to it. A sub-grid
-/// spans this box, not the whole cell, so that a small dense object in a large cell (the
-/// teapot in a stadium) gets the sub-grid's resolution for itself.
+/// The box of what `ids` hold inside `cell` (local, widened by its level's band): their
+/// parts clipped to it. A sub-grid spans this box, not the whole cell, so that a small dense
+/// object in a large cell (the teapot in a stadium) gets the sub-grid's resolution for
+/// itself.
 fn content_box<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], cell: &Aabb) -> Aabb {
-    let world = ctx.frame.to_world(cell);
     let content = ids.iter().fold(Aabb::EMPTY, |b, &id| {
-        b.union(ctx.prims[id as usize].clipped_bounds(&world))
+        b.union(ctx.frame.clipped_bounds(&ctx.prims[id as usize], cell))
     });
-    let content = ctx.frame.to_local(&content).intersection(*cell);
+    let content = content.intersection(*cell);
     if content.is_empty() { *cell } else { content }
 }
 
@@ -188,7 +187,7 @@ pub(crate) fn build_level<P: Primitive>(
         .into_par_iter()
         .filter_map(|c| {
             let cell_ids = &refs[offsets[c as usize] as usize..offsets[c as usize + 1] as usize];
-            let cell_box = level.cell_box(level.coords(c as usize));
+            let cell_box = level.widened(&level.cell_box(level.coords(c as usize)));
             let share = (spare as u128 * count_of(c) as u128 / refined.max(1) as u128) as u64;
             let content = content_box(ctx, cell_ids, &cell_box);
             let child = build_level(ctx, cell_ids, content, depth + 1, count_of(c) + share);

@@ -84,6 +84,24 @@ impl Level {
         }
     }
 
+    /// `b` widened on every side by the level's band: 2^-20 of its largest coordinate (16
+    /// ulps). A primitive is listed in every cell whose widened box it touches, so a ray
+    /// whose walk rounds two walls' crossings into one (stepping diagonally past a cell it
+    /// grazes within rounding of their corner) still meets it in a cell it visits.
+    pub fn widened(&self, b: &Aabb) -> Aabb {
+        if b.is_empty() {
+            return *b;
+        }
+        let scale = self
+            .bounds
+            .min
+            .abs()
+            .max(self.bounds.max.abs())
+            .max_element();
+        let band = Vec3::splat(scale * (1.0 / (1u32 << 20) as f32));
+        Aabb::new(b.min - band, b.max + band)
+    }
+
     /// Number of cells.
     pub fn cell_count(&self) -> usize {
         self.res.iter().map(|&r| r as usize).product()

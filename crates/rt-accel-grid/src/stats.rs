@@ -91,7 +91,7 @@ impl<P: Primitive> Grid<P> {
                 err.get_or_insert(format!("level {l}: skip distances are not the level's"));
             }
             for c in 0..lv.cell_count() {
-                let cell = lv.cell_box(lv.coords(c));
+                let cell = lv.widened(&lv.cell_box(lv.coords(c)));
                 if lv.first_child != NO_CHILD {
                     let child = self.children[lv.first_child as usize + c];
                     if child != NO_CHILD && !cell.contains(&self.levels[child as usize].bounds) {

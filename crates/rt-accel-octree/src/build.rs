@@ -25,15 +25,9 @@ impl BuildNode {
 /// A leaf, with the union of its primitives clipped to its cell.
 fn leaf<P: Primitive>(ctx: &Ctx<P>, ids: Vec<u32>, bounds: &Aabb) -> BuildNode {
     let content = ids.iter().fold(Aabb::EMPTY, |c, &id| {
-        c.union(clipped(&ctx.frame, &ctx.prims[id as usize], bounds))
+        c.union(ctx.frame.clipped_bounds(&ctx.prims[id as usize], bounds))
     });
     BuildNode::Leaf(ids, content.intersection(*bounds))
-}
-
-/// The box of `p` clipped to the local box `cell`, in local coordinates: clipped to the
-/// cell's world box and brought back, both rounded outward.
-pub(crate) fn clipped<P: Primitive>(frame: &Frame, p: &P, cell: &Aabb) -> Aabb {
-    frame.to_local(&p.clipped_bounds(&frame.to_world(cell)))
 }
 
 pub(crate) struct Ctx<'a, P> {
@@ -50,14 +44,14 @@ fn distribute<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], bounds: &Aabb) -> [Vec<u3
     let mut out: [Vec<u32>; 8] = Default::default();
     for &id in ids {
         let p = &ctx.prims[id as usize];
-        let b = clipped(&ctx.frame, p, bounds);
+        let b = ctx.frame.clipped_bounds(p, bounds);
         // The octants its (clipped) box reaches; more than one: clip to each.
         let sides = |a: usize| -> [bool; 2] { [b.min[a] <= c[a], b.max[a] >= c[a]] };
         let (sx, sy, sz) = (sides(0), sides(1), sides(2));
         let reach = (0..8).filter(|&i| sx[i & 1] && sy[i >> 1 & 1] && sz[i >> 2 & 1]);
         let single = reach.clone().count() == 1;
         for i in reach {
-            if single || !clipped(&ctx.frame, p, &boxes[i]).is_empty() {
+            if single || !ctx.frame.clipped_bounds(p, &boxes[i]).is_empty() {
                 out[i].push(id);
             }
         }

@@ -90,7 +90,7 @@ impl<P: Primitive> Octree<P> {
                     Some(prim)
                         if !holds(
                             content,
-                            &crate::build::clipped(&self.frame, prim, b).intersection(*b),
+                            &self.frame.clipped_bounds(prim, b).intersection(*b),
                         ) =>
                     {
                         err.get_or_insert(format!(

@@ -15,8 +15,8 @@
 //! position ([`Frame::local_point`]), off by half an ulp of a coordinate the size of the
 //! box, the rounding a structure at the origin has in every coordinate anyway.
 
-use crate::Aabb;
 use crate::aabb::{f32_at_or_above, f32_at_or_below};
+use crate::{Aabb, Primitive};
 use glam::Vec3;
 
 /// An anchor point: local coordinates are world coordinates minus the anchor.
@@ -85,6 +85,13 @@ impl Frame {
                 f32_at_or_above(hi.z),
             ),
         )
+    }
+
+    /// The box of the part of `p` inside the local box `cell`, in local coordinates:
+    /// `p` clipped to the cell's world box, both moves rounded outward (it holds the
+    /// exact answer; what a cell structure lists a primitive by).
+    pub fn clipped_bounds<P: Primitive>(&self, p: &P, cell: &Aabb) -> Aabb {
+        self.to_local(&p.clipped_bounds(&self.to_world(cell)))
     }
 
     /// A world point in local coordinates: the exact difference (in `f64`) rounded to the

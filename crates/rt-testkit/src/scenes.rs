@@ -345,6 +345,12 @@ pub fn conformance_triangle_scenes() -> Vec<Scene<Triangle>> {
             "far_stadium",
             placed(&teapot_in_stadium(1500), 50.0, [-3.0e5, 2.0e3, 5.0e6]),
         ),
+        // A torus a few lattice steps wide at 5e6 (f32 steps by 0.5 there): cells finer
+        // than the lattice (world-coordinate grids lost hits here).
+        Scene::new(
+            "far_dense",
+            placed(&torus(2000, 1.0, 0.3), 1.5, [5.0e6, 3.5e6, -5.0e6]),
+        ),
     ]
 }
 

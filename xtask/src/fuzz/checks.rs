@@ -124,7 +124,7 @@ pub fn build_trace(bytes: &[u8]) -> Result<(), String> {
     let mixed = first & 1 == 1;
     // Bits 1-2: the scene is also checked moved far from the origin (as GIS and CAD scenes
     // come), every coordinate rounded to `f32` once.
-    let offset = [0.0, 3.0e5, 5.0e6, 1.0e7][(first >> 1 & 3) as usize];
+    let offset = [0.0, 3.0e5, 5.0e6, 1.0e7][((first >> 1) & 3) as usize];
     let count = d.byte() as usize % 49;
     let shapes: Vec<Shape> = (0..count)
         .map(|_| match (mixed, d.byte() % 3) {
