@@ -3,7 +3,7 @@
 //! `traverse`.
 
 use crate::{BvhBuilder, BvhNode, BvhParams, build};
-use rt_geom::{Accel, AccelStats, BuildError, Primitive, check_primitives};
+use rt_geom::{Aabb, Accel, AccelStats, BuildError, Frame, Primitive, check_primitives};
 
 /// A binary BVH over primitives `P`, flattened depth-first, primitives stored in leaf order.
 #[derive(Clone, Debug)]
@@ -19,7 +19,10 @@ pub struct Bvh<P> {
 }
 
 impl<P: Primitive> Bvh<P> {
-    /// Builds over `prims` (copied, reordered). Empty input gives an empty tree.
+    /// Builds over `prims` (copied, reordered). Empty input gives an empty tree. Far from the
+    /// origin the tree is built over the primitives' boxes in the scene's frame
+    /// ([`rt_geom::Frame`], where their centres keep the precision binning needs) and its
+    /// boxes are then refitted from the primitives in world coordinates.
     pub fn build(prims: &[P], params: BvhParams) -> Result<Self, BuildError> {
         params.validate()?;
         check_primitives(prims, u32::MAX as usize - 1)?;
@@ -33,7 +36,12 @@ impl<P: Primitive> Bvh<P> {
                 params,
             });
         }
-        let mut refs = build::prim_refs(prims);
+        // Spatial splits clip the primitives themselves: they build in world coordinates.
+        let frame = match (params.builder, params.spatial_alpha) {
+            (BvhBuilder::BinnedSah { .. }, Some(_)) => Frame::WORLD,
+            _ => Frame::of(&prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()))),
+        };
+        let mut refs = build::prim_refs_in(prims, &frame);
         let (root, count, ids) = match (params.builder, params.spatial_alpha) {
             (BvhBuilder::BinnedSah { bins }, Some(alpha)) => {
                 build::spatial::build(prims, refs, &params, bins, alpha, params.spatial_budget)
@@ -46,20 +54,25 @@ impl<P: Primitive> Bvh<P> {
         let nodes = build::flatten(&root, count);
         drop(root);
         let (nodes, ids) = build::reinsert::optimize(nodes, ids, params.reinsertion);
-        let prims = {
+        let in_leaf_order = {
             use rayon::prelude::*;
             ids.par_iter()
                 .with_min_len(1 << 14)
                 .map(|&i| prims[i as usize].clone())
                 .collect()
         };
-        Ok(Self {
+        let mut bvh = Self {
             nodes,
-            prims,
+            prims: in_leaf_order,
             ids,
             count: prims_len,
             params,
-        })
+        };
+        if !frame.is_world() {
+            // The boxes were built in the frame: the world's, tight, from the primitives.
+            crate::Refit::refit(&mut bvh, prims)?;
+        }
+        Ok(bvh)
     }
 
     /// The flattened nodes (read-only; layout in [`node`](crate::node)).

@@ -138,14 +138,21 @@ pub(crate) enum Split {
     },
 }
 
-/// Boxes of references, in parallel for large inputs.
+/// Boxes of references (world coordinates), in parallel for large inputs.
+#[cfg(test)]
 pub(crate) fn prim_refs<P: Primitive>(prims: &[P]) -> Vec<PrimRef> {
+    prim_refs_in(prims, &rt_geom::Frame::WORLD)
+}
+
+/// Boxes of references in `frame` (rounded outward), in parallel for large inputs: far from
+/// the origin their centres keep the precision binning needs.
+pub(crate) fn prim_refs_in<P: Primitive>(prims: &[P], frame: &rt_geom::Frame) -> Vec<PrimRef> {
     use rayon::prelude::*;
     prims
         .par_iter()
         .with_min_len(1 << 14)
         .enumerate()
-        .map(|(i, p)| PrimRef::new(p.bounds(), i as u32))
+        .map(|(i, p)| PrimRef::new(frame.to_local(&p.bounds()), i as u32))
         .collect()
 }
 
