@@ -223,7 +223,7 @@ mod tests {
         let s = Sphere::new(far, 0.5);
         let (lo, hi) = Primitive::extent_along_from(&s, far, n);
         assert!(
-            lo <= -0.5 && lo > -0.5001 && hi >= 0.5 && hi < 0.5001,
+            (-0.5001..=-0.5).contains(&lo) && (0.5..0.5001).contains(&hi),
             "{lo} {hi}"
         );
     }
