@@ -219,10 +219,7 @@ fn run(command: Command) -> Result<ExitCode, String> {
                 xtask::stress::run(&scenes, &entries, &|m| spinner.set_message(m.to_string()));
             spinner.finish_and_clear();
             let table = xtask::stress::markdown(&rows);
-            println!("{table}");
-            if let Some(path) = markdown {
-                std::fs::write(&path, &table).map_err(|e| format!("{}: {e}", path.display()))?;
-            }
+            print_table(&table, markdown.as_deref())?;
             if rows.iter().any(|r| !r.problems.is_empty()) {
                 return Ok(ExitCode::FAILURE);
             }
@@ -275,10 +272,7 @@ fn run(command: Command) -> Result<ExitCode, String> {
             })?;
             spinner.finish_and_clear();
             let table = xtask::far::markdown(&rows);
-            println!("{table}");
-            if let Some(path) = markdown {
-                std::fs::write(&path, &table).map_err(|e| format!("{}: {e}", path.display()))?;
-            }
+            print_table(&table, markdown.as_deref())?;
         }
         Command::Fuzz { seconds, targets } => {
             xtask::fuzz::run(seconds, targets.as_deref())?;
@@ -387,4 +381,13 @@ fn run(command: Command) -> Result<ExitCode, String> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Prints a Markdown table, and writes it to `path` too when one is given.
+fn print_table(table: &str, path: Option<&std::path::Path>) -> Result<(), String> {
+    println!("{table}");
+    match path {
+        Some(path) => std::fs::write(path, table).map_err(|e| format!("{}: {e}", path.display())),
+        None => Ok(()),
+    }
 }

@@ -70,7 +70,7 @@ impl<P: Primitive> Bvh<P> {
         };
         if !frame.is_world() {
             // The boxes were built in the frame: the world's, tight, from the primitives.
-            crate::Refit::refit(&mut bvh, prims)?;
+            bvh.refit_boxes();
         }
         Ok(bvh)
     }

@@ -43,6 +43,14 @@ impl<P: Primitive> Refit<P> for Bvh<P> {
     fn refit(&mut self, prims: &[P]) -> Result<(), BuildError> {
         check_moved(prims, self.count)?;
         self.prims = in_leaf_order(prims, &self.ids);
+        self.refit_boxes();
+        Ok(())
+    }
+}
+
+impl<P: Primitive> Bvh<P> {
+    /// Recomputes every node box from the primitives the tree holds.
+    pub(crate) fn refit_boxes(&mut self) {
         // Children always follow their parent: a reverse sweep sees children first.
         for i in (0..self.nodes.len()).rev() {
             let n = self.nodes[i];
@@ -56,7 +64,6 @@ impl<P: Primitive> Refit<P> for Bvh<P> {
             self.nodes[i].min = b.min.to_array();
             self.nodes[i].max = b.max.to_array();
         }
-        Ok(())
     }
 }
 

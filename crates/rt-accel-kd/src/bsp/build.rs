@@ -20,7 +20,7 @@ pub(crate) enum Side {
 /// The side of `p` relative to `plane` (in `frame`).
 #[inline]
 pub(crate) fn classify<P: Primitive>(p: &P, plane: &SplitPlane, frame: &Frame) -> Side {
-    let (lo, hi) = p.extent_along_from(frame.anchor, plane.normal);
+    let (lo, hi) = extent(p, plane.normal, frame);
     let (lo, hi) = (lo - plane.d, hi - plane.d);
     let m = plane.margin;
     match (lo >= -m, hi <= m) {
@@ -28,6 +28,17 @@ pub(crate) fn classify<P: Primitive>(p: &P, plane: &SplitPlane, frame: &Frame) -
         (false, true) => Side::Below,
         (true, false) => Side::Above,
         (false, false) => Side::Both,
+    }
+}
+
+/// The slab `p` occupies along `n` in `frame`: `extent_along` (in `f32`) in the world
+/// frame, `extent_along_from` the anchor elsewhere.
+#[inline]
+fn extent<P: Primitive>(p: &P, n: Vec3, frame: &Frame) -> (f32, f32) {
+    if frame.is_world() {
+        p.extent_along(n)
+    } else {
+        p.extent_along_from(frame.anchor, n)
     }
 }
 
@@ -91,10 +102,16 @@ fn candidates<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], cell: &Aabb) -> Vec<Split
     if let Some(stride) = ids.len().checked_div(want) {
         for &id in ids.iter().step_by(stride.max(1)).take(want) {
             let p = &ctx.prims[id as usize];
-            if let Some((n, _)) = p.plane() {
-                // The plane's offset in the frame: the middle of the primitive's extent.
-                let (lo, hi) = p.extent_along_from(ctx.frame.anchor, n);
-                planes.push(ctx.plane(n, (0.5 * (lo as f64 + hi as f64)) as f32));
+            if let Some((n, d)) = p.plane() {
+                // The plane's offset in the frame: its own in the world's, elsewhere the
+                // middle of the primitive's extent from the anchor.
+                let d = if ctx.frame.is_world() {
+                    d
+                } else {
+                    let (lo, hi) = extent(p, n, &ctx.frame);
+                    (0.5 * (lo as f64 + hi as f64)) as f32
+                };
+                planes.push(ctx.plane(n, d));
             }
         }
     }
