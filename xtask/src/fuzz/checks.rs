@@ -221,10 +221,9 @@ fn scene_rays<P: SamplePoints>(prims: &[P], per_kind: usize) -> Vec<TestRay> {
 /// (`0 < |t * d| < f32::MIN_POSITIVE`), where the box and cell tests' relative padding
 /// rounds away, nor those whose hit (or the primitive hit) lies farther from the ray's
 /// origin, or in a scene wider, than [`FAR_HIT`] times the narrowest extent of the primitive
-/// hit: there points computed
-/// in `f32` along the ray (a grid's or octree's entry point in its frame, a box test's or an
-/// edge test's rounding) are off by more than that primitive. Where the scene lies does not
-/// matter.
+/// hit: there points computed in `f32` along the ray (a grid's or octree's entry point in its
+/// frame, a box test's or an edge test's rounding) are off by more than that primitive.
+/// Where the scene lies does not matter.
 fn exact_domain<P: rt_geom::Primitive>(prims: &[P], rays: &[TestRay]) -> Vec<TestRay> {
     let Ok(brute) = BruteForce::build(prims) else {
         return rays.to_vec();
@@ -238,9 +237,7 @@ fn exact_domain<P: rt_geom::Primitive>(prims: &[P], rays: &[TestRay]) -> Vec<Tes
 
 /// The largest extent of the scene's box: how far apart two of its points can lie.
 fn scene_extent<P: rt_geom::Primitive>(prims: &[P]) -> f64 {
-    let b = prims
-        .iter()
-        .fold(rt_geom::Aabb::EMPTY, |b, p| b.union(p.bounds()));
+    let b: rt_geom::Aabb = rt_geom::BoundingVolume::enclosing(prims);
     if b.is_empty() {
         0.0
     } else {
