@@ -2,7 +2,7 @@
 //! bounding volumes, each over a fixed batch of rays (throughput in rays).
 
 use criterion::{Criterion, Throughput, black_box, criterion_group, criterion_main};
-use rt_geom::{Aabb, BoundingSphere, BoundingVolume, Kdop7, Ray, Sphere, Triangle, Vec3};
+use rt_geom::{Aabb, BoundingSphere, BoundingVolume, Frame, Kdop7, Ray, Sphere, Triangle, Vec3};
 use rt_testkit::Rng;
 
 fn rays(n: usize) -> Vec<Ray> {
@@ -25,8 +25,8 @@ fn kernels(c: &mut Criterion) {
     );
     let bounds = tri.bounds();
     let sphere = Sphere::new(Vec3::ZERO, 0.5);
-    let bsphere = BoundingSphere::enclosing(&[tri]);
-    let kdop = Kdop7::enclosing(&[tri]);
+    let bsphere = BoundingSphere::enclosing(&[tri], &Frame::WORLD);
+    let kdop = Kdop7::enclosing(&[tri], &Frame::WORLD);
     let mut g = c.benchmark_group("kernels");
     g.throughput(Throughput::Elements(rays.len() as u64));
     g.bench_function("aabb_clip_ray", |b| {
@@ -60,22 +60,22 @@ fn kernels(c: &mut Criterion) {
     g.bench_function("bounding_sphere", |b| {
         b.iter(|| {
             rays.iter()
-                .filter(|r| black_box(&bsphere).entry_distance(r).is_some())
+                .filter(|r| black_box(&bsphere).entry_distance(r, &Frame::WORLD).is_some())
                 .count()
         })
     });
     g.bench_function("kdop7", |b| {
         b.iter(|| {
             rays.iter()
-                .filter(|r| black_box(&kdop).entry_distance(r).is_some())
+                .filter(|r| black_box(&kdop).entry_distance(r, &Frame::WORLD).is_some())
                 .count()
         })
     });
-    let aabb = Aabb::enclosing(&[tri]);
+    let aabb = Aabb::around(&[tri]);
     g.bench_function("aabb_volume", |b| {
         b.iter(|| {
             rays.iter()
-                .filter(|r| black_box(&aabb).entry_distance(r).is_some())
+                .filter(|r| black_box(&aabb).entry_distance(r, &Frame::WORLD).is_some())
                 .count()
         })
     });

@@ -36,15 +36,11 @@ impl<P: Primitive> Bvh<P> {
                 params,
             });
         }
-        // Spatial splits clip the primitives themselves: they build in world coordinates.
-        let frame = match (params.builder, params.spatial_alpha) {
-            (BvhBuilder::BinnedSah { .. }, Some(_)) => Frame::WORLD,
-            _ => Frame::of(&prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()))),
-        };
+        let frame = Frame::of(&Aabb::around(prims));
         let mut refs = build::prim_refs_in(prims, &frame);
         let (root, count, ids) = match (params.builder, params.spatial_alpha) {
             (BvhBuilder::BinnedSah { bins }, Some(alpha)) => {
-                build::spatial::build(prims, refs, &params, bins, alpha, params.spatial_budget)
+                build::spatial::build(prims, &frame, refs, &params, bins, alpha, params.spatial_budget)
             }
             _ => {
                 let (root, count) = build::build_tree(&mut refs, &params);
@@ -69,8 +65,7 @@ impl<P: Primitive> Bvh<P> {
             params,
         };
         if !frame.is_world() {
-            // The boxes were built in the frame: the world's, tight, from the primitives.
-            bvh.refit_boxes();
+            bvh.boxes_to_world(&frame);
         }
         Ok(bvh)
     }

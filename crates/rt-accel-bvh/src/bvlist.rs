@@ -6,8 +6,8 @@
 
 use rt_geom::aabb::pad_up;
 use rt_geom::{
-    Aabb, Accel, AccelStats, BoundingVolume, BuildError, Hit, Primitive, Ray, check_primitives,
-    keep_hit,
+    Aabb, Accel, AccelStats, BoundingVolume, BuildError, Frame, Hit, Primitive, Ray,
+    check_primitives, keep_hit,
 };
 use std::cell::RefCell;
 use std::ops::Range;
@@ -55,6 +55,8 @@ pub struct BvList<P, V> {
     top_ranges: Vec<Range<u32>>,
     prims: Vec<P>,
     ids: Vec<u32>,
+    /// The frame spheres and k-DOPs are kept in (by the primitives' box).
+    frame: Frame,
 }
 
 thread_local! {
@@ -133,9 +135,10 @@ impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
             }
         }
         let prims: Vec<P> = order.iter().map(|&i| prims[i as usize].clone()).collect();
+        let frame = Frame::of(&Aabb::around(&prims));
         let volumes: Vec<V> = groups
             .iter()
-            .map(|g| V::enclosing(&prims[g.clone()]))
+            .map(|g| V::enclosing(&prims[g.clone()], &frame))
             .collect();
         let ranges: Vec<Range<u32>> = groups
             .iter()
@@ -162,6 +165,7 @@ impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
             top_ranges,
             prims,
             ids: order,
+            frame,
         })
     }
 
@@ -211,7 +215,7 @@ impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
         }
         let mut r = *ray;
         let mut best = None;
-        let data = V::ray_data(ray);
+        let data = V::ray_data(ray, &self.frame);
         SCRATCH.with(|s| {
             let (outer, inner) = &mut *s.borrow_mut();
             if self.top.is_empty() {
@@ -312,7 +316,7 @@ impl<P: Primitive, V: BoundingVolume> Accel for BvList<P, V> {
                 let o = c + rt_geom::Vec3::new(1.0, 0.7, 0.4) * (2.0 * size);
                 let ray = Ray::new(o, c - o);
                 if let Some(h) = p.intersect(&ray) {
-                    if self.volumes[k].entry_distance(&ray).is_none_or(|t| t > h.t) {
+                    if self.volumes[k].entry_distance(&ray, &self.frame).is_none_or(|t| t > h.t) {
                         return Err(format!("volume {k} does not contain its primitives"));
                     }
                 }

@@ -68,7 +68,7 @@ impl<O: Accel> Object<O> {
         check_primitives(prims, u32::MAX as usize - 1)?;
         Ok(Self {
             accel,
-            bounds: prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds())),
+            bounds: Aabb::around(prims),
             primitives: prims.len() as u32,
         })
     }
@@ -255,7 +255,7 @@ impl<O: Accel> InstanceBvh<O> {
                     expected: "the index of an object of the scene",
                 })?;
         check_moved(prims, o.primitives as usize)?;
-        let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
+        let bounds = Aabb::around(prims);
         let old = o.bounds;
         o.bounds = bounds;
         if let Err(e) = self.update_top(world_boxes(&self.objects, &self.instances), update) {
@@ -485,8 +485,9 @@ impl Primitive for WorldBox {
         let hi = (self.0.min * n).max(self.0.max * n).element_sum();
         (lo, hi)
     }
-    fn farthest_distance(&self, p: Vec3) -> f32 {
-        (self.0.min - p).abs().max((self.0.max - p).abs()).length()
+    fn farthest_distance(&self, p: rt_geom::DVec3) -> f32 {
+        let (lo, hi) = (self.0.min.as_dvec3() - p, self.0.max.as_dvec3() - p);
+        rt_geom::aabb::f32_at_or_above(lo.abs().max(hi.abs()).length())
     }
     fn is_finite(&self) -> bool {
         self.0.min.is_finite() && self.0.max.is_finite()

@@ -4,7 +4,7 @@
 //! [`CompressedBvh8`](crate::CompressedBvh8) and the triangle BVHs [`TriBvh`](crate::TriBvh).
 
 use crate::Bvh;
-use rt_geom::{Aabb, BuildError, Primitive, check_primitives};
+use rt_geom::{Aabb, BuildError, Frame, Primitive, check_primitives};
 
 /// A structure whose boxes can be recomputed for moved primitives, keeping its topology.
 pub trait Refit<P> {
@@ -29,9 +29,7 @@ pub(crate) fn check_moved<P: Primitive>(prims: &[P], count: usize) -> Result<(),
 
 /// The box of the leaf `(first, count)` of the leaf-ordered `prims`.
 pub(crate) fn leaf_bounds<P: Primitive>(prims: &[P], first: u32, count: u32) -> Aabb {
-    prims[first as usize..(first + count) as usize]
-        .iter()
-        .fold(Aabb::EMPTY, |b, p| b.union(p.bounds()))
+    Aabb::around(&prims[first as usize..(first + count) as usize])
 }
 
 /// `prims` in leaf order: `ids[k]` is the caller's index of the primitive at leaf slot `k`.
@@ -51,16 +49,30 @@ impl<P: Primitive> Refit<P> for Bvh<P> {
 impl<P: Primitive> Bvh<P> {
     /// Recomputes every node box from the primitives the tree holds.
     pub(crate) fn refit_boxes(&mut self) {
+        self.refit_within(|_, b| b);
+    }
+
+    /// Moves boxes built in `frame` to world coordinates: each is the part of the refitted
+    /// box (around its primitives) inside the frame's box rounded outward (around the
+    /// primitives' parts that spatial splits clipped to it). Both hold what the node holds.
+    pub(crate) fn boxes_to_world(&mut self, frame: &Frame) {
+        let local: Vec<Aabb> = self.nodes.iter().map(|n| n.bounds()).collect();
+        self.refit_within(|i, b| b.intersection(frame.to_world(&local[i])));
+    }
+
+    /// The refit's reverse sweep, node `i`'s box passed through `limit(i, box)` before its
+    /// parent sees it.
+    fn refit_within(&mut self, limit: impl Fn(usize, Aabb) -> Aabb) {
         // Children always follow their parent: a reverse sweep sees children first.
         for i in (0..self.nodes.len()).rev() {
             let n = self.nodes[i];
-            let b = if n.is_leaf() {
+            let b = limit(i, if n.is_leaf() {
                 leaf_bounds(&self.prims, n.offset, n.count())
             } else {
                 self.nodes[i + 1]
                     .bounds()
                     .union(self.nodes[n.offset as usize].bounds())
-            };
+            });
             self.nodes[i].min = b.min.to_array();
             self.nodes[i].max = b.max.to_array();
         }

@@ -30,7 +30,7 @@ impl<P: Primitive> Grid<P> {
         params.validate()?;
         check_primitives(prims, u32::MAX as usize - 1)?;
         let mut flat = build::Flat::default();
-        let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
+        let bounds = Aabb::around(prims);
         let frame = Frame::of(&bounds);
         if !prims.is_empty() {
             let ids: Vec<u32> = (0..prims.len() as u32).collect();

@@ -24,7 +24,7 @@ impl<P: Primitive> KdTree<P> {
     pub fn build(prims: &[P], params: KdParams) -> Result<Self, BuildError> {
         params.validate()?;
         check_primitives(prims, build::MAX_LOCAL)?;
-        let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
+        let bounds = Aabb::around(prims);
         let mut nodes = Vec::new();
         let mut indices = Vec::new();
         if !prims.is_empty() {

@@ -32,7 +32,7 @@ impl<P: Primitive> Octree<P> {
         let mut flat = build::Flat::default();
         let mut bounds = Aabb::EMPTY;
         let mut root = ChildRef::inner(0);
-        let world = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
+        let world = Aabb::around(prims);
         let frame = Frame::of(&world);
         if !prims.is_empty() {
             let b = frame.to_local(&world);

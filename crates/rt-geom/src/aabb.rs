@@ -32,14 +32,14 @@ pub fn pad_up(t: f32) -> f32 {
 
 /// The largest `f32` at or below `v` (an `f64` rounded towards `-inf`).
 #[inline]
-pub(crate) fn f32_at_or_below(v: f64) -> f32 {
+pub fn f32_at_or_below(v: f64) -> f32 {
     let f = v as f32;
     if f as f64 > v { f.next_down() } else { f }
 }
 
 /// The smallest `f32` at or above `v` (an `f64` rounded towards `+inf`).
 #[inline]
-pub(crate) fn f32_at_or_above(v: f64) -> f32 {
+pub fn f32_at_or_above(v: f64) -> f32 {
     let f = v as f32;
     if (f as f64) < v { f.next_up() } else { f }
 }
@@ -170,6 +170,11 @@ impl Default for Aabb {
 }
 
 impl Aabb {
+    /// The box around all of `prims` (empty for none).
+    pub fn around<P: crate::Primitive>(prims: &[P]) -> Aabb {
+        prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()))
+    }
+
     /// The empty box (min +inf, max -inf): the identity of [`Aabb::union`].
     pub const EMPTY: Aabb = Aabb {
         min: Vec3::splat(f32::INFINITY),

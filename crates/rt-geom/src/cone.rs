@@ -122,8 +122,8 @@ impl Cone {
     }
 
     /// The largest distance from `p` to a point of the cone (attained on a rim).
-    pub fn farthest_distance(&self, p: Vec3) -> f32 {
-        let (p, a) = (p.as_dvec3(), self.axis());
+    pub fn farthest_distance(&self, p: glam::DVec3) -> f32 {
+        let a = self.axis();
         let far = self
             .rims()
             .into_iter()
@@ -324,7 +324,7 @@ mod tests {
         let n = Vec3::new(0.3, -0.7, 0.2);
         let (lo, hi) = c.extent_along(n);
         let p = Vec3::new(-1.0, 0.5, 2.0);
-        let far = c.farthest_distance(p);
+        let far = c.farthest_distance(p.as_dvec3());
         let mut rng = 12345u32;
         let mut next = || {
             rng = rng.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);

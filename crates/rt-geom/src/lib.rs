@@ -56,7 +56,7 @@ pub use accel::{
 pub use brute::BruteForce;
 pub use cone::Cone;
 pub use frame::Frame;
-pub use glam::{self, Vec3};
+pub use glam::{self, DVec3, Vec3};
 pub use leaf_prims::{LeafPrims, TriangleSoa};
 pub use mesh::{Mesh, MeshError, MeshGroup, load_obj, parse_obj};
 pub use primitive::Primitive;
@@ -64,7 +64,7 @@ pub use ray::{Hit, MIN_DIRECTION, PrimHit, Ray, keep_hit, replaces, test_primiti
 pub use shape::Shape;
 pub use sphere::Sphere;
 pub use triangle::{Triangle, TriangleKernel};
-pub use volume::{BoundingSphere, BoundingVolume, KDOP7_NORMALS, Kdop7};
+pub use volume::{BoundingSphere, BoundingVolume, KDOP7_NORMALS, Kdop7, LocalRay, SlabProjections};
 
 /// Test input: a xorshift32 sequence from `seed` (non-zero), uniform in `[0, 1]`.
 #[cfg(test)]

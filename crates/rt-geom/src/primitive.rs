@@ -2,7 +2,7 @@
 
 use crate::aabb::{f32_at_or_above, f32_at_or_below};
 use crate::{Aabb, Hit, PrimHit, Ray, Sphere, Triangle};
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 /// Something a ray can hit. Structures are generic over it; triangles and spheres implement it.
 pub trait Primitive: Clone + Send + Sync + 'static {
@@ -40,8 +40,10 @@ pub trait Primitive: Clone + Send + Sync + 'static {
         )
     }
 
-    /// The largest distance from `p` to a point of the primitive (bounding spheres).
-    fn farthest_distance(&self, p: Vec3) -> f32;
+    /// The largest distance from `p` to a point of the primitive, rounded up (bounding
+    /// spheres). The point is in `f64` so that a centre near a scene far from the origin keeps
+    /// the precision of the scene's own size.
+    fn farthest_distance(&self, p: DVec3) -> f32;
 
     /// All coordinates finite (builders reject the rest with `BuildError::NonFinite`).
     fn is_finite(&self) -> bool;
@@ -130,11 +132,11 @@ impl Primitive for Triangle {
         )
     }
 
-    fn farthest_distance(&self, p: Vec3) -> f32 {
+    fn farthest_distance(&self, p: DVec3) -> f32 {
         let far = self
             .v
             .iter()
-            .map(|v| v.as_dvec3().distance(p.as_dvec3()))
+            .map(|v| v.as_dvec3().distance(p))
             .fold(0.0, f64::max);
         f32_at_or_above(far)
     }
@@ -185,8 +187,8 @@ impl Primitive for Sphere {
         (f32_at_or_below(c - r), f32_at_or_above(c + r))
     }
 
-    fn farthest_distance(&self, p: Vec3) -> f32 {
-        f32_at_or_above(self.center.as_dvec3().distance(p.as_dvec3()) + self.radius.max(0.0) as f64)
+    fn farthest_distance(&self, p: DVec3) -> f32 {
+        f32_at_or_above(self.center.as_dvec3().distance(p) + self.radius.max(0.0) as f64)
     }
 
     fn is_finite(&self) -> bool {

@@ -107,7 +107,7 @@ impl Primitive for Shape {
         each!(self, p => Primitive::extent_along_from(p, origin, n))
     }
 
-    fn farthest_distance(&self, p: Vec3) -> f32 {
+    fn farthest_distance(&self, p: glam::DVec3) -> f32 {
         each!(self, s => Primitive::farthest_distance(s, p))
     }
 
@@ -151,7 +151,7 @@ impl Primitive for Cone {
         Cone::extent_along_from(self, origin, n)
     }
 
-    fn farthest_distance(&self, p: Vec3) -> f32 {
+    fn farthest_distance(&self, p: glam::DVec3) -> f32 {
         Cone::farthest_distance(self, p)
     }
 

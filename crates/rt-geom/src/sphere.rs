@@ -2,7 +2,7 @@
 
 use crate::aabb::{f32_at_or_above, f32_at_or_below};
 use crate::{Aabb, PrimHit, Ray};
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use std::f32::consts::PI;
 
 /// A sphere primitive. A radius of zero or less gives a sphere that is never hit.
@@ -81,12 +81,18 @@ pub(crate) fn sphere_roots(center: Vec3, radius: f32, ray: &Ray) -> Option<(f64,
     if !ray.is_valid() || !(radius > 0.0) {
         return None;
     }
-    let d = ray.dir().as_dvec3();
     let f = ray.origin().as_dvec3() - center.as_dvec3();
+    roots_from(f, ray.dir().as_dvec3(), radius as f64)
+}
+
+/// [`sphere_roots`] from the ray's origin relative to the centre (`f`), its direction and the
+/// radius, all in `f64`.
+#[inline]
+pub(crate) fn roots_from(f: DVec3, d: DVec3, radius: f64) -> Option<(f64, f64)> {
     let a = d.dot(d);
     let b = -f.dot(d);
     let l = f + d * (b / a);
-    let r2 = (radius as f64).powi(2);
+    let r2 = radius * radius;
     let disc = r2 - l.dot(l);
     if !(disc >= 0.0) {
         return None;

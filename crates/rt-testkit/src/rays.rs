@@ -127,7 +127,7 @@ pub fn conformance_rays<P: SamplePoints>(
     seed: u64,
 ) -> Vec<TestRay> {
     let mut rng = Rng::new(seed);
-    let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
+    let bounds = Aabb::around(prims);
     let (lo, hi) = if bounds.is_empty() {
         (Vec3::splat(-1.0), Vec3::splat(1.0))
     } else {

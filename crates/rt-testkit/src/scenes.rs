@@ -20,9 +20,7 @@ impl<P: Primitive> Scene<P> {
     }
 
     pub fn bounds(&self) -> Aabb {
-        self.prims
-            .iter()
-            .fold(Aabb::EMPTY, |b, p| b.union(p.bounds()))
+        Aabb::around(&self.prims)
     }
 }
 
@@ -479,7 +477,7 @@ impl rt_geom::Primitive for NoGeometry {
     fn extent_along(&self, _: Vec3) -> (f32, f32) {
         (0.0, 0.0)
     }
-    fn farthest_distance(&self, _: Vec3) -> f32 {
+    fn farthest_distance(&self, _: rt_geom::DVec3) -> f32 {
         0.0
     }
     fn is_finite(&self) -> bool {

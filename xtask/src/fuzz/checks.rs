@@ -237,7 +237,7 @@ fn exact_domain<P: rt_geom::Primitive>(prims: &[P], rays: &[TestRay]) -> Vec<Tes
 
 /// The largest extent of the scene's box: how far apart two of its points can lie.
 fn scene_extent<P: rt_geom::Primitive>(prims: &[P]) -> f64 {
-    let b: rt_geom::Aabb = rt_geom::BoundingVolume::enclosing(prims);
+    let b = rt_geom::Aabb::around(prims);
     if b.is_empty() {
         0.0
     } else {

@@ -3,7 +3,7 @@
 //!
 //! At every node the best binned object split is compared with the best *spatial* split: the
 //! node's box is cut into bins along each axis, every reference is clipped into the bins it
-//! overlaps ([`Primitive::clipped_bounds`]), and the SAH is evaluated from the clipped boxes
+//! overlaps ([`Primitive::clipped_bounds`], in the build's [`Frame`]), and the SAH is evaluated from the clipped boxes
 //! and the entry/exit counts. Spatial splits are only tried where the two sides of the object
 //! split overlap by more than `alpha` of the root's area, and stop once the references have
 //! grown by the duplication budget. A primitive straddling the chosen plane is referenced from
@@ -12,7 +12,7 @@
 use super::sah::{Bins, best_binned};
 use super::{BuildNode, PrimRef, split_cost};
 use crate::params::{BvhParams, MAX_DEPTH};
-use rt_geom::{Aabb, Primitive};
+use rt_geom::{Aabb, Frame, Primitive};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 thread_local! {
@@ -23,6 +23,8 @@ thread_local! {
 /// What the spatial builder needs besides the parameters.
 struct Ctx<'a, P> {
     prims: &'a [P],
+    /// The frame the references' boxes are in.
+    frame: &'a Frame,
     params: &'a BvhParams,
     bins: usize,
     /// `alpha` times the root's half area.
@@ -41,6 +43,7 @@ enum Node {
 /// indices (with repetitions) that the leaves' ranges refer to.
 pub(crate) fn build<P: Primitive>(
     prims: &[P],
+    frame: &Frame,
     refs: Vec<PrimRef>,
     params: &BvhParams,
     bins: u32,
@@ -50,6 +53,7 @@ pub(crate) fn build<P: Primitive>(
     let root = super::bounds_of(&refs).0;
     let ctx = Ctx {
         prims,
+        frame,
         params,
         bins: bins as usize,
         min_overlap: alpha * root.half_area(),
@@ -204,7 +208,7 @@ fn best_spatial<P: Primitive>(
                 let mut cell = bounds;
                 cell.min[axis] = cell.min[axis].max(plane(b));
                 cell.max[axis] = cell.max[axis].min(plane(b + 1));
-                *slot = slot.union(prim.clipped_bounds(&cell));
+                *slot = slot.union(ctx.frame.clipped_bounds(prim, &cell));
             }
         }
         let mut acc = Aabb::EMPTY;
@@ -261,7 +265,8 @@ fn split_refs<P: Primitive>(
             let (mut lbox, mut rbox) = (bounds, bounds);
             lbox.max[axis] = plane;
             rbox.min[axis] = plane;
-            let (lb, rb) = (prim.clipped_bounds(&lbox), prim.clipped_bounds(&rbox));
+            let clip = |b: &Aabb| ctx.frame.clipped_bounds(prim, b);
+            let (lb, rb) = (clip(&lbox), clip(&rbox));
             for (b, side) in [(lb, &mut left), (rb, &mut right)] {
                 if !b.is_empty() {
                     side.push(PrimRef::new(b, r.index()));

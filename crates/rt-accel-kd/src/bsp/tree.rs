@@ -42,7 +42,7 @@ impl<P: Primitive> BspTree<P> {
     pub fn build(prims: &[P], params: BspParams) -> Result<Self, BuildError> {
         params.validate()?;
         check_primitives(prims, MAX_LOCAL)?;
-        let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
+        let bounds = Aabb::around(prims);
         let frame = Frame::of(&bounds);
         let local = frame.to_local(&bounds);
         let (mut nodes, mut planes, mut indices) = (Vec::new(), Vec::new(), Vec::new());
