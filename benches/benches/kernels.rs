@@ -60,7 +60,11 @@ fn kernels(c: &mut Criterion) {
     g.bench_function("bounding_sphere", |b| {
         b.iter(|| {
             rays.iter()
-                .filter(|r| black_box(&bsphere).entry_distance(r, &Frame::WORLD).is_some())
+                .filter(|r| {
+                    black_box(&bsphere)
+                        .entry_distance(r, &Frame::WORLD)
+                        .is_some()
+                })
                 .count()
         })
     });

@@ -39,9 +39,15 @@ impl<P: Primitive> Bvh<P> {
         let frame = Frame::of(&Aabb::around(prims));
         let mut refs = build::prim_refs_in(prims, &frame);
         let (root, count, ids) = match (params.builder, params.spatial_alpha) {
-            (BvhBuilder::BinnedSah { bins }, Some(alpha)) => {
-                build::spatial::build(prims, &frame, refs, &params, bins, alpha, params.spatial_budget)
-            }
+            (BvhBuilder::BinnedSah { bins }, Some(alpha)) => build::spatial::build(
+                prims,
+                &frame,
+                refs,
+                &params,
+                bins,
+                alpha,
+                params.spatial_budget,
+            ),
             _ => {
                 let (root, count) = build::build_tree(&mut refs, &params);
                 (root, count, refs.iter().map(|r| r.index()).collect())

@@ -316,7 +316,10 @@ impl<P: Primitive, V: BoundingVolume> Accel for BvList<P, V> {
                 let o = c + rt_geom::Vec3::new(1.0, 0.7, 0.4) * (2.0 * size);
                 let ray = Ray::new(o, c - o);
                 if let Some(h) = p.intersect(&ray) {
-                    if self.volumes[k].entry_distance(&ray, &self.frame).is_none_or(|t| t > h.t) {
+                    if self.volumes[k]
+                        .entry_distance(&ray, &self.frame)
+                        .is_none_or(|t| t > h.t)
+                    {
                         return Err(format!("volume {k} does not contain its primitives"));
                     }
                 }

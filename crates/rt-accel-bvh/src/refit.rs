@@ -66,13 +66,16 @@ impl<P: Primitive> Bvh<P> {
         // Children always follow their parent: a reverse sweep sees children first.
         for i in (0..self.nodes.len()).rev() {
             let n = self.nodes[i];
-            let b = limit(i, if n.is_leaf() {
-                leaf_bounds(&self.prims, n.offset, n.count())
-            } else {
-                self.nodes[i + 1]
-                    .bounds()
-                    .union(self.nodes[n.offset as usize].bounds())
-            });
+            let b = limit(
+                i,
+                if n.is_leaf() {
+                    leaf_bounds(&self.prims, n.offset, n.count())
+                } else {
+                    self.nodes[i + 1]
+                        .bounds()
+                        .union(self.nodes[n.offset as usize].bounds())
+                },
+            );
             self.nodes[i].min = b.min.to_array();
             self.nodes[i].max = b.max.to_array();
         }

@@ -11,7 +11,7 @@ impl<P: Primitive> KdTree<P> {
         if self.nodes.is_empty() {
             return;
         }
-        let mut stack = vec![(0usize, self.bounds, 0usize)];
+        let mut stack = vec![(0usize, self.root, 0usize)];
         while let Some((i, cell, d)) = stack.pop() {
             f(i, &cell, d);
             let n = &self.nodes[i];
@@ -36,7 +36,7 @@ impl<P: Primitive> KdTree<P> {
         if self.nodes.is_empty() {
             return s;
         }
-        let mut acc = rt_geom::StatsSum::new(s, &self.bounds);
+        let mut acc = rt_geom::StatsSum::new(s, &self.root);
         self.walk(|i, cell, d| acc.add(cell, d, self.nodes[i].is_leaf(), self.nodes[i].count()));
         acc.finish()
     }
@@ -80,7 +80,7 @@ impl<P: Primitive> KdTree<P> {
                 let Some(prim) = self.prims.get(p as usize) else {
                     return fail(format!("leaf {i} holds primitive {p}, out of range"));
                 };
-                if !rt_geom::touches_cell(prim, cell) {
+                if !rt_geom::touches_cell(prim, &self.frame.to_world(cell)) {
                     return fail(format!("primitive {p} is in leaf {i} but not in its cell"));
                 }
                 seen[p as usize] = true;

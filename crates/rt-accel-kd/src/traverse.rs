@@ -9,6 +9,7 @@
 //! the plane crosses it at `t = 0`. Pending cells are skipped once the closest hit lies before
 //! their entry, which is the classic "stop when the hit lies inside the current cell".
 
+use crate::bsp::PlaneRay;
 use crate::params::{KdTraversal, MAX_DEPTH};
 use crate::{KdNode, KdTree};
 use rt_geom::aabb::{PAD, SlabRay};
@@ -296,6 +297,40 @@ impl<P: Primitive> SplitPlanes for KdTree<P> {
         let split = node.split();
         let (first, second) = ordered_children(i, node, below_first(ray.dir[a]));
         (first, second, step_folded(&ray.slab, a, split, t0, t1))
+    }
+}
+
+/// A kd-tree whose planes lie in a frame away from the world's origin (naive planes far from
+/// it): the crossing is computed in `f64` from the ray's exact local origin, rounded to `f32`
+/// and padded as in the world frame, then the same step rule.
+pub(crate) struct InFrame<'a, P>(pub &'a KdTree<P>);
+
+impl<P: Primitive> SplitPlanes for InFrame<'_, P> {
+    type RayData = PlaneRay;
+
+    fn ray_data(&self, ray: &Ray, _inv: [f32; 3]) -> PlaneRay {
+        PlaneRay::new(ray, &self.0.frame)
+    }
+
+    #[inline(always)]
+    fn nodes(&self) -> &[KdNode] {
+        &self.0.nodes
+    }
+
+    #[inline(always)]
+    fn indices(&self) -> &[u32] {
+        &self.0.indices
+    }
+
+    #[inline(always)]
+    fn at(&self, ray: &PlaneRay, i: usize, t0: f32, t1: f32) -> (usize, usize, Step) {
+        let node = &self.0.nodes[i];
+        let a = node.axis();
+        let d = ray.dir[a];
+        let ts = ((node.split() as f64 - ray.origin[a]) / d) as f32;
+        let (first, second) = ordered_children(i, node, below_first(d as f32));
+        let (lo, hi) = padded_crossing(ts);
+        (first, second, step_between(lo, hi, t0, t1))
     }
 }
 

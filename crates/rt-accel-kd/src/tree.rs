@@ -1,7 +1,7 @@
 //! [`KdTree`]: the kd-tree over any primitive, its build entry points and queries.
 
-use crate::{KdNode, KdParams, KdTraversal, build, node, traverse};
-use rt_geom::{Aabb, Accel, BuildError, Hit, LeafPrims, Primitive, Ray, check_primitives};
+use crate::{KdBuilder, KdNode, KdParams, KdTraversal, build, node, traverse};
+use rt_geom::{Aabb, Accel, BuildError, Frame, Hit, LeafPrims, Primitive, Ray, check_primitives};
 
 /// A kd-tree over primitives `P`: 8-byte nodes flattened depth-first, leaves referring to the
 /// primitives by index (a primitive cut by planes is in several leaves).
@@ -15,7 +15,12 @@ pub struct KdTree<P> {
     /// The primitives of the leaves of several, in `indices` order, laid out for the leaf
     /// test.
     pub(crate) listed: LeafPrims<P>,
+    /// The root cell in world coordinates (where queries clip the ray).
     pub(crate) bounds: Aabb,
+    /// The frame the planes are in: the world's, but for naive planes far from the origin.
+    pub(crate) frame: Frame,
+    /// The root cell in the frame (where the planes split it).
+    pub(crate) root: Aabb,
     pub(crate) params: KdParams,
 }
 
@@ -25,10 +30,18 @@ impl<P: Primitive> KdTree<P> {
         params.validate()?;
         check_primitives(prims, build::MAX_LOCAL)?;
         let bounds = Aabb::around(prims);
+        // SAH planes are values of the primitives' own coordinates; naive planes are
+        // positions of their own, which world `f32` far from the origin cannot place between
+        // the primitives' coordinates (robustness decision 9).
+        let frame = match params.builder {
+            KdBuilder::Sah => Frame::WORLD,
+            KdBuilder::Midpoint | KdBuilder::Centroid => Frame::of(&bounds),
+        };
+        let root = frame.to_local(&bounds);
         let mut nodes = Vec::new();
         let mut indices = Vec::new();
         if !prims.is_empty() {
-            let root = build::build_tree(prims, bounds, &params);
+            let root = build::build_tree(prims, root, &params, &frame);
             build::flatten(
                 &root,
                 &mut nodes,
@@ -48,7 +61,9 @@ impl<P: Primitive> KdTree<P> {
             indices,
             prims: prims.to_vec(),
             listed,
-            bounds,
+            bounds: frame.to_world(&root),
+            frame,
+            root,
             params,
         })
     }
@@ -68,9 +83,15 @@ impl<P: Primitive> KdTree<P> {
         &self.prims
     }
 
-    /// The root cell: the bounds of all primitives.
+    /// The root cell in world coordinates: the bounds of all primitives.
     pub fn bounds(&self) -> Aabb {
         self.bounds
+    }
+
+    /// The frame the split planes are in: world coordinates minus its anchor (the world's own
+    /// for SAH planes and for scenes about the origin).
+    pub fn frame(&self) -> &Frame {
+        &self.frame
     }
 
     /// The parameters the tree was built with.
@@ -93,14 +114,27 @@ impl<P: Primitive> KdTree<P> {
         let mut tested = Vec::new();
         let leaves = (self.prims.as_slice(), &self.listed);
         let iterative = KdTraversal::Iterative;
-        let hit = traverse::query_with::<_, _, ANY_HIT>(
-            self,
-            leaves,
-            &self.bounds,
-            iterative,
-            ray,
-            |i| tested.push(i as u32),
-        );
+        let on_leaf = |i| tested.push(i as u32);
+        let hit = if self.frame.is_world() {
+            traverse::query_with::<_, _, ANY_HIT>(
+                self,
+                leaves,
+                &self.bounds,
+                iterative,
+                ray,
+                on_leaf,
+            )
+        } else {
+            let framed = &traverse::InFrame(self);
+            traverse::query_with::<_, _, ANY_HIT>(
+                framed,
+                leaves,
+                &self.bounds,
+                iterative,
+                ray,
+                on_leaf,
+            )
+        };
         (tested, hit)
     }
 
@@ -127,8 +161,12 @@ impl<P: Primitive> KdTree<P> {
     /// The walk, for the closest hit or any hit.
     #[inline]
     fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        let t = self.params.traversal;
-        traverse::query::<_, _, ANY_HIT>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
+        let (t, leaves) = (self.params.traversal, (self.prims.as_slice(), &self.listed));
+        if self.frame.is_world() {
+            traverse::query::<_, _, ANY_HIT>(self, leaves, &self.bounds, t, ray)
+        } else {
+            traverse::query::<_, _, ANY_HIT>(&traverse::InFrame(self), leaves, &self.bounds, t, ray)
+        }
     }
 }
 

@@ -422,7 +422,8 @@ mod tests {
         ];
         let b = BoundingSphere::enclosing(&s, &w);
         assert!(b.radius >= 3.0 && b.radius < 3.001);
-        let m = BoundingSphere::enclosing(&s[..1], &w).merge(&BoundingSphere::enclosing(&s[1..], &w));
+        let m =
+            BoundingSphere::enclosing(&s[..1], &w).merge(&BoundingSphere::enclosing(&s[1..], &w));
         assert!((m.radius - 3.0).abs() < 1e-3 && (m.center.x - 2.0).abs() < 1e-3);
     }
 
@@ -450,7 +451,11 @@ mod tests {
                 if let Some(h) = t.intersect_watertight(&r) {
                     hits += 1;
                     let e = v.entry_distance(&r, &frame);
-                    assert!(e.is_some_and(|e| e <= h.t), "{} missed a hit: {r:?}", V::NAME);
+                    assert!(
+                        e.is_some_and(|e| e <= h.t),
+                        "{} missed a hit: {r:?}",
+                        V::NAME
+                    );
                 }
             }
         }

@@ -43,6 +43,28 @@ pub trait PacketTraversal {
     }
 }
 
+/// Every active lane of `packet` traced on its own through `a` (closest hit): for packets
+/// too small to share work, and for walks that do not apply (a kd-tree whose planes lie in
+/// a frame of their own).
+pub(crate) fn each_lane<const N: usize>(
+    a: &impl Accel,
+    packet: &RayPacket<'_, N>,
+) -> [Option<Hit>; N] {
+    std::array::from_fn(|i| {
+        packet.active[i]
+            .then(|| a.intersect(&packet.ray(i)))
+            .flatten()
+    })
+}
+
+/// [`each_lane`] for any hit.
+pub(crate) fn each_lane_occluded<const N: usize>(
+    a: &impl Accel,
+    packet: &RayPacket<'_, N>,
+) -> [bool; N] {
+    std::array::from_fn(|i| packet.active[i] && a.occluded(&packet.ray(i)))
+}
+
 /// Packet queries behind a trait object (the registry's packet paths): a group of up to 256
 /// rays is traced as one packet of the smallest size that holds it (4, 16, 64 or 256 lanes),
 /// unless it is incoherent ([`is_coherent`]): then ray by ray, so that incoherent rays (diffuse

@@ -17,6 +17,7 @@
 //! answer depends only on *which* leaves it tests; each lane tests every leaf its single-ray
 //! walk would need (the same padded steps at every plane).
 
+use crate::api::{each_lane, each_lane_occluded};
 use crate::lanes::{
     BlockRegs, PacketPrimitive, active_mask, block_width, clip_block, lane_mask, le_bits, load,
     negative_bits, registers, select_lanes, test_block,
@@ -244,9 +245,18 @@ pub(crate) use with_block_width;
 /// Lanes that walk the kd-tree together (packets of 16 lanes and more).
 pub const KD_BLOCK: usize = 16;
 
-/// Plain packet traversal: every block from the root.
+/// Plain packet traversal: every block from the root. A tree whose planes lie in a frame of
+/// their own (naive planes far from the origin) traces its lanes one by one: the packet walk
+/// computes crossings in world coordinates.
 impl<P: PacketPrimitive> PacketTraversal for KdTree<P> {
+    fn ray_by_ray(&self, _: usize) -> bool {
+        !self.frame().is_world()
+    }
+
     fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [Option<Hit>; N] {
+        if !self.frame().is_world() {
+            return each_lane(self, packet);
+        }
         let mut best = [None; N];
         if !self.nodes().is_empty() {
             let root = (0, &self.bounds());
@@ -259,6 +269,9 @@ impl<P: PacketPrimitive> PacketTraversal for KdTree<P> {
     }
 
     fn occluded_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [bool; N] {
+        if !self.frame().is_world() {
+            return each_lane_occluded(self, packet);
+        }
         let mut best = [None; N];
         if !self.nodes().is_empty() {
             let root = (0, &self.bounds());

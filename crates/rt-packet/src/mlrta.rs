@@ -18,6 +18,7 @@
 //! walk would need (the same padded steps, and an entry-point cell that holds every non-empty
 //! leaf the ray can reach, by conservative interval arithmetic).
 
+use crate::api::{each_lane, each_lane_occluded};
 use crate::beam::Beam;
 use crate::kd::{KD_BLOCK, Stack, new_stack, trace_from, with_block_width};
 use crate::lanes::{PacketPrimitive, block_width};
@@ -286,14 +287,25 @@ fn mlrta<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool
     m.trace_range::<N, W, ANY_HIT>(p, best, 0..N, &mut new_stack());
 }
 
+/// As the plain packet walk, lanes one by one for a tree whose planes lie in a frame.
 impl<P: PacketPrimitive> PacketTraversal for MlrtaKdTree<P> {
+    fn ray_by_ray(&self, lanes: usize) -> bool {
+        self.tree.ray_by_ray(lanes)
+    }
+
     fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [Option<Hit>; N] {
+        if !self.tree.frame().is_world() {
+            return each_lane(&self.tree, packet);
+        }
         let mut best = [None; N];
         with_block_width!(N, mlrta::<P, false>(self, packet, &mut best));
         best
     }
 
     fn occluded_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [bool; N] {
+        if !self.tree.frame().is_world() {
+            return each_lane_occluded(&self.tree, packet);
+        }
         let mut best = [None; N];
         with_block_width!(N, mlrta::<P, true>(self, packet, &mut best));
         best.map(|h| h.is_some())

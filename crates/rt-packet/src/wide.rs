@@ -6,12 +6,13 @@
 //! at a time, as in the binary tree, with the same tie rule: every lane's answer equals the
 //! wide BVH's single-ray answer.
 
+use crate::api::{each_lane, each_lane_occluded};
 use crate::bvh::{Culling, lane_entry, narrow_range, test_leaf};
 use crate::lanes::PacketPrimitive;
 use crate::lanes::{pad, select};
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_bvh::{NodeLayout, WideBvh, WideNode};
-use rt_geom::{Accel, Hit};
+use rt_geom::Hit;
 
 /// A pending child: `(parent node, child slot, first lane, last lane)`, the lanes those in the
 /// parent's range that entered the child's box when it was pushed.
@@ -166,11 +167,7 @@ impl<P: PacketPrimitive, const K: usize> PacketTraversal for WideBvh<P, K> {
 
     fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [Option<Hit>; N] {
         if N <= WIDE_RAY_BY_RAY {
-            return std::array::from_fn(|i| {
-                packet.active[i]
-                    .then(|| self.intersect(&packet.ray(i)))
-                    .flatten()
-            });
+            return each_lane(self, packet);
         }
         let mut best = [None; N];
         by_block_width!(N, W => traverse::<P, K, N, W, false>(self, packet, &mut best));
@@ -179,7 +176,7 @@ impl<P: PacketPrimitive, const K: usize> PacketTraversal for WideBvh<P, K> {
 
     fn occluded_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [bool; N] {
         if N <= WIDE_RAY_BY_RAY {
-            return std::array::from_fn(|i| packet.active[i] && self.occluded(&packet.ray(i)));
+            return each_lane_occluded(self, packet);
         }
         let mut best = [None; N];
         by_block_width!(N, W => traverse::<P, K, N, W, true>(self, packet, &mut best));

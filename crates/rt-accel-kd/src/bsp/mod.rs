@@ -21,3 +21,4 @@ mod walk;
 
 pub use params::BspParams;
 pub use tree::{BspTree, SplitPlane};
+pub(crate) use walk::PlaneRay;

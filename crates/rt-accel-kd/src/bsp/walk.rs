@@ -6,23 +6,30 @@ use crate::KdNode;
 use crate::traverse::{self, SplitPlanes, Step, ordered_children};
 use rt_geom::aabb::{pad_down, pad_up};
 use rt_geom::glam::DVec3;
-use rt_geom::{Hit, Primitive, Ray};
+use rt_geom::{Frame, Hit, Primitive, Ray};
 
 /// The ray in `f64`, where the crossing with an arbitrary plane is computed, its origin in
 /// the tree's frame (exact: two `f32` subtracted in `f64`).
 pub(crate) struct PlaneRay {
-    origin: DVec3,
-    dir: DVec3,
+    pub origin: DVec3,
+    pub dir: DVec3,
+}
+
+impl PlaneRay {
+    /// `ray` in `frame`.
+    pub(crate) fn new(ray: &Ray, frame: &Frame) -> Self {
+        Self {
+            origin: ray.origin().as_dvec3() - frame.anchor.as_dvec3(),
+            dir: ray.dir().as_dvec3(),
+        }
+    }
 }
 
 impl<P: Primitive> SplitPlanes for BspTree<P> {
     type RayData = PlaneRay;
 
     fn ray_data(&self, ray: &Ray, _inv: [f32; 3]) -> PlaneRay {
-        PlaneRay {
-            origin: ray.origin().as_dvec3() - self.frame.anchor.as_dvec3(),
-            dir: ray.dir().as_dvec3(),
-        }
+        PlaneRay::new(ray, &self.frame)
     }
 
     #[inline(always)]

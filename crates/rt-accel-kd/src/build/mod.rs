@@ -13,7 +13,7 @@ mod sah;
 use crate::node::KdNode;
 use crate::params::{KdBuilder, KdParams};
 use events::{AxisEvents, END, PLANAR, START};
-use rt_geom::{Aabb, Primitive};
+use rt_geom::{Aabb, Frame, Primitive};
 
 pub(crate) use events::MAX_LOCAL;
 
@@ -51,24 +51,28 @@ pub(crate) struct NodeInput {
 /// Shared, read-only state of one build.
 pub(crate) struct Ctx<'a, P> {
     pub prims: &'a [P],
+    /// The frame node boxes and planes are in.
+    pub frame: &'a Frame,
     pub params: &'a KdParams,
     pub depth_cap: u32,
 }
 
-/// Builds the tree over all of `prims` inside `bounds`; returns the root.
+/// Builds the tree over all of `prims` inside `bounds` (in `frame`); returns the root.
 pub(crate) fn build_tree<P: Primitive>(
     prims: &[P],
     bounds: Aabb,
     params: &KdParams,
+    frame: &Frame,
 ) -> BuildNode<AxisPlane> {
     let n = prims.len();
     let mut events: AxisEvents = std::array::from_fn(|_| Vec::with_capacity(2 * n));
     for (i, p) in prims.iter().enumerate() {
-        events::push_box(&mut events, i as u32, &p.bounds());
+        events::push_box(&mut events, i as u32, &frame.to_local(&p.bounds()));
     }
     events::sort(&mut events);
     let ctx = Ctx {
         prims,
+        frame,
         params,
         depth_cap: params.depth_cap(n),
     };
@@ -140,7 +144,7 @@ fn build_node<P: Primitive>(
     let Some(split) = split else {
         return leaf(input.ids);
     };
-    let (below, above) = partition(ctx.prims, &input, split);
+    let (below, above) = partition(ctx, &input, split);
     let (nb, na) = (below.ids.len(), above.ids.len());
     // No progress (every primitive on both sides), or over budget: stop here.
     if (nb == n && na == n) || nb + na > budget {
@@ -177,7 +181,11 @@ const CLIPPED: u8 = 4;
 /// Splits the node's primitives and events. Primitives entirely on one side keep their events
 /// (renumbered, still sorted); straddlers are clipped to each child box, their new events
 /// sorted and merged in (Wald & Havran's O(N log N) step).
-fn partition<P: Primitive>(prims: &[P], input: &NodeInput, split: Split) -> (NodeInput, NodeInput) {
+fn partition<P: Primitive>(
+    ctx: &Ctx<P>,
+    input: &NodeInput,
+    split: Split,
+) -> (NodeInput, NodeInput) {
     let n = input.ids.len();
     let Split {
         axis,
@@ -206,8 +214,9 @@ fn partition<P: Primitive>(prims: &[P], input: &NodeInput, split: Split) -> (Nod
     let mut clipped = Vec::new();
     for (l, s) in side.iter_mut().enumerate() {
         if *s == BOTH {
-            let p = &prims[input.ids[l] as usize];
-            let (b, a) = (p.clipped_bounds(&box_below), p.clipped_bounds(&box_above));
+            let p = &ctx.prims[input.ids[l] as usize];
+            let clip = |cell: &Aabb| ctx.frame.clipped_bounds(p, cell);
+            let (b, a) = (clip(&box_below), clip(&box_above));
             *s = CLIPPED
                 | if b.is_empty() { 0 } else { BELOW }
                 | if a.is_empty() { 0 } else { ABOVE };
