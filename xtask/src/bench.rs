@@ -67,6 +67,7 @@ const REP_BUDGET: Duration = Duration::from_millis(1500);
 
 pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
     let entries = registry::select(opts.accels.as_deref())?;
+    eprintln!("measuring the {}", crate::native::build_description());
     let scene_list: Vec<String> = match &opts.scenes {
         Some(s) => s.split(',').map(|x| x.trim().to_string()).collect(),
         None => default_scenes(opts.quick)

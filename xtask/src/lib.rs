@@ -19,7 +19,7 @@
 //! | [`run`] | timed parallel tracing, medians, progress bars |
 //! | `embree` | Intel Embree 3 behind `Accel` (feature `embree`, system `libembree-dev`) |
 //! | [`fuzz`] | the fuzz targets' properties ([`fuzz::checks`]) and `cargo xtask fuzz`, which runs them |
-//! | [`native`] | re-running `bench`/`trace` built with `-C target-cpu=native` |
+//! | [`native`] | re-running `bench`/`trace` as the release build a dependent crate gets (or `--native`) |
 
 pub mod animate;
 pub mod bench;

@@ -77,10 +77,14 @@ enum Command {
         /// Comma-separated thread counts.
         #[arg(long, value_delimiter = ',', default_value = "1,2")]
         threads: Vec<usize>,
-        /// Box and primitive tests per ray in two more columns (a counting build, not the
-        /// native one: its speeds are not comparable with a plain run's).
+        /// Box and primitive tests per ray in two more columns (a counting build: its speeds
+        /// are not comparable with a plain run's).
         #[arg(long)]
         count: bool,
+        /// Measure a `-C target-cpu=native` build rather than the plain release build a
+        /// dependent crate gets.
+        #[arg(long)]
+        native: bool,
         /// The scaling sweep instead: build time and time per ray against N (1k to 1M
         /// triangles; --quick: to 100k) on spheres, soups and a teapot in a stadium, with log-log slopes. Uses the
         /// first thread count; default structures: brute,bvh,bvh8,kd,kd-midpoint,bsp,obvhs.
@@ -117,6 +121,9 @@ enum Command {
         /// Width in pixels of the row-major image the ray file holds (for --packet).
         #[arg(long)]
         width: Option<usize>,
+        /// Measure a `-C target-cpu=native` build rather than the plain release build.
+        #[arg(long)]
+        native: bool,
         #[arg(long)]
         out: Option<PathBuf>,
     },
@@ -165,17 +172,16 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let count = match &cli.command {
-        Command::Render(args) => args.count,
-        Command::Bench { count, .. } => *count,
-        _ => false,
+    let (count, measuring) = match &cli.command {
+        Command::Render(args) => (args.count, None),
+        Command::Bench { count, native, .. } => (*count, Some(*native)),
+        Command::Trace { native, .. } => (false, Some(*native)),
+        _ => (false, None),
     };
-    let rerun = if count {
-        native::rerun_counting()
-    } else if matches!(cli.command, Command::Bench { .. } | Command::Trace { .. }) {
-        native::rerun_natively()
-    } else {
-        None
+    let rerun = match (count, measuring) {
+        (true, _) => native::rerun_counting(),
+        (false, Some(native)) => native::rerun_for_measuring(native),
+        (false, None) => None,
     };
     if let Some(code) = rerun {
         return code;
@@ -351,6 +357,7 @@ fn run(command: Command) -> Result<ExitCode, String> {
             packet,
             width,
             out,
+            native: _,
         } => {
             let s = trace::trace(&trace::TraceOptions {
                 mesh,

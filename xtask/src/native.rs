@@ -1,22 +1,34 @@
-//! `bench` and `trace` measure code built for this CPU: the first time they run, `cargo xtask`
-//! rebuilds itself in release mode with `-C target-cpu=native` into `target/native` and runs that
-//! build with the same arguments. Set `RT_NO_NATIVE=1` to measure the portable build instead.
-//! `render --count` re-runs itself the same way from a build with the `counters` feature.
+//! `bench` and `trace` measure rt as a dependent crate gets it: the first time they run,
+//! `cargo xtask` (a dev build) rebuilds itself with cargo's default release settings (no LTO,
+//! 16 codegen units: what `cargo build --release` of a crate depending on rt compiles, not
+//! rt's own release profile) into `target/plain` and runs that build with the same arguments.
+//! `--native` measures a `-C target-cpu=native` build into `target/native` instead. Set
+//! `RT_NO_RERUN=1` to measure the running build itself. `render --count` re-runs itself from
+//! a build with the `counters` feature.
 
 use std::path::PathBuf;
 use std::process::{Command, ExitCode};
 
-/// Set in the environment of the native build so that it does not re-run itself.
-const MARKER: &str = "RT_NATIVE";
+/// Set in the environment of the rebuilt binary so that it does not re-run itself.
+const MARKER: &str = "RT_RERUN";
 
-/// Runs the native release build with the current arguments, unless this is that build (or
-/// the user opted out); `Some(code)` when it ran.
-pub fn rerun_natively() -> Option<ExitCode> {
-    if std::env::var_os(MARKER).is_some() || std::env::var_os("RT_NO_NATIVE").is_some() {
+/// Runs the measuring build (plain release, or with `native` for this CPU) with the current
+/// arguments, unless this is that build (or the user opted out); `Some(code)` when it ran.
+pub fn rerun_for_measuring(native: bool) -> Option<ExitCode> {
+    if std::env::var_os(MARKER).is_some() || std::env::var_os("RT_NO_RERUN").is_some() {
         return None;
     }
-    eprintln!("running the release build for this CPU (-C target-cpu=native, target/native)");
-    Some(rerun("target/native", " -C target-cpu=native", &[]))
+    if native {
+        eprintln!("running the release build for this CPU (-C target-cpu=native, target/native)");
+        Some(rerun("target/native", " -C target-cpu=native", &[], &[]))
+    } else {
+        eprintln!("running the release build a dependent crate gets (no LTO, target/plain)");
+        let defaults = [
+            ("CARGO_PROFILE_RELEASE_LTO", "false"),
+            ("CARGO_PROFILE_RELEASE_CODEGEN_UNITS", "16"),
+        ];
+        Some(rerun("target/plain", "", &[], &defaults))
+    }
 }
 
 /// Runs the counting build (the `counters` feature: every bounding-volume and primitive test
@@ -26,12 +38,12 @@ pub fn rerun_counting() -> Option<ExitCode> {
         return None;
     }
     eprintln!("running the counting build (feature counters, target/counting)");
-    Some(rerun("target/counting", "", &["counters"]))
+    Some(rerun("target/counting", "", &["counters"], &[]))
 }
 
-/// `cargo run --release` of xtask into `target_dir` with extra `rustflags` and `features`
-/// (plus this build's optional peers), with this process's arguments.
-fn rerun(target_dir: &str, rustflags: &str, features: &[&str]) -> ExitCode {
+/// `cargo run --release` of xtask into `target_dir` with extra `rustflags`, `features` (plus
+/// this build's optional peers) and environment `envs`, with this process's arguments.
+fn rerun(target_dir: &str, rustflags: &str, features: &[&str], envs: &[(&str, &str)]) -> ExitCode {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let mut flags = std::env::var("RUSTFLAGS").unwrap_or_default();
@@ -60,6 +72,7 @@ fn rerun(target_dir: &str, rustflags: &str, features: &[&str]) -> ExitCode {
         .arg("--")
         .args(std::env::args_os().skip(1))
         .env("RUSTFLAGS", flags.trim())
+        .envs(envs.iter().copied())
         .env(MARKER, "1")
         .status();
     match status {
@@ -69,4 +82,18 @@ fn rerun(target_dir: &str, rustflags: &str, features: &[&str]) -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// What is being measured: the build (plain release, or for this CPU) and the instruction set
+/// the kernels run ([`rt_geom::Isa::selected`]).
+pub fn build_description() -> String {
+    let build = if cfg!(target_feature = "avx2") {
+        "built for this CPU (-C target-cpu=native or similar)"
+    } else {
+        "plain release build (the baseline instruction set)"
+    };
+    format!(
+        "{build}, kernels chosen at run time: {}",
+        rt_geom::Isa::selected()
+    )
 }

@@ -7,7 +7,7 @@ use std::process::{Command, Output};
 fn xtask(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_xtask"))
         .args(args)
-        .env("RT_NO_NATIVE", "1")
+        .env("RT_NO_RERUN", "1")
         .output()
         .expect("xtask runs")
 }

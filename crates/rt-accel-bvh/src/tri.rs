@@ -9,7 +9,7 @@ use crate::stats::check_leaf_primitive;
 use crate::wide::{NodeLayout, WideNode, WideTree};
 use crate::{Bvh, BvhParams};
 use rt_geom::{
-    Aabb, Accel, AccelStats, BuildError, Hit, Ray, Triangle, TriangleSoa, all_referenced,
+    Aabb, Accel, AccelStats, BuildError, Hit, Isa, Ray, Triangle, TriangleSoa, Walk, all_referenced,
 };
 
 /// Checks the triangles of leaf `(first, count)` against its `bounds` and marks their ids
@@ -97,12 +97,33 @@ impl<const N: usize, Node: NodeLayout<N>> TriBvh<N, Node> {
         &self.ids
     }
 
-    #[inline]
-    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        self.tree.traverse::<ANY_HIT>(ray, |first, count, r, best| {
-            self.tris
-                .intersect_range::<ANY_HIT>(first as usize, count as usize, r, &self.ids, best)
-        })
+    /// The same structure, its queries run compiled for `isa` ([`WideTree::with_isa`]).
+    pub fn with_isa(mut self, isa: Isa) -> Self {
+        self.tree = self.tree.with_isa(isa);
+        self
+    }
+}
+
+impl<const N: usize, Node: NodeLayout<N>> Walk for TriBvh<N, Node> {
+    fn isa(&self) -> Isa {
+        self.tree.isa()
+    }
+
+    #[inline(always)]
+    fn walk<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
+        self.tree.traverse::<ANY_HIT>(
+            ray,
+            #[inline(always)]
+            |first, count, r, best| {
+                self.tris.intersect_range::<ANY_HIT>(
+                    first as usize,
+                    count as usize,
+                    r,
+                    &self.ids,
+                    best,
+                )
+            },
+        )
     }
 }
 
@@ -121,7 +142,7 @@ impl<const N: usize, Node: NodeLayout<N>> Refit<Triangle> for TriBvh<N, Node> {
 }
 
 impl<const N: usize, Node: NodeLayout<N>> Accel for TriBvh<N, Node> {
-    rt_geom::queries_from_walk!();
+    rt_geom::queries_from_walk!(per_isa);
 
     fn stats(&self) -> AccelStats {
         self.stats.clone()
@@ -181,6 +202,40 @@ mod tests {
         rt_testkit::conformance_tests!(
             triangles: |p: &[Triangle]| TriBvh8::build(p, BvhParams::balanced().for_soa_leaves().with_reinsertion(1.0)),
         );
+    }
+
+    /// Every instruction set's walk answers as brute force (the default one, the best this
+    /// CPU has, runs everywhere else); a level this CPU lacks runs its best one.
+    macro_rules! per_isa {
+        ($($name:ident: $isa:expr;)*) => {$(
+            mod $name {
+                use super::*;
+                mod tri8 {
+                    use super::*;
+                    rt_testkit::conformance_tests!(
+                        triangles: |p: &[Triangle]| TriBvh8::build(p, BvhParams::balanced().for_soa_leaves()).map(|b| b.with_isa($isa)),
+                    );
+                }
+                mod tri4 {
+                    use super::*;
+                    rt_testkit::conformance_tests!(
+                        triangles: |p: &[Triangle]| TriBvh4::build(p, BvhParams::balanced()).map(|b| b.with_isa($isa)),
+                    );
+                }
+                mod bvh8 {
+                    use super::*;
+                    rt_testkit::conformance_tests!(
+                        triangles: |p: &[Triangle]| crate::Bvh8::build(p, BvhParams::balanced()).map(|b| b.with_isa($isa)),
+                        spheres: |p: &[rt_geom::Sphere]| crate::Bvh8::build(p, BvhParams::balanced()).map(|b| b.with_isa($isa)),
+                    );
+                }
+            }
+        )*};
+    }
+    per_isa! {
+        isa_baseline: Isa::Baseline;
+        isa_avx2: Isa::Avx2;
+        isa_avx512: Isa::Avx512;
     }
 
     mod tri8_big_leaves {

@@ -38,9 +38,22 @@ pub trait Accel: Send + Sync {
 /// ```
 ///
 /// `queries_from_walk!(stats: compute_stats, validate: check)` also forwards `stats` and
-/// `validate` to the inherent methods named.
+/// `validate` to the inherent methods named. `queries_from_walk!(per_isa)` answers through
+/// [`crate::isa::query`] instead: the walk is the structure's [`crate::Walk`], compiled per
+/// instruction set.
 #[macro_export]
 macro_rules! queries_from_walk {
+    (per_isa) => {
+        #[inline]
+        fn intersect(&self, ray: &$crate::Ray) -> Option<$crate::Hit> {
+            $crate::isa::query::<_, false>(self, ray)
+        }
+
+        #[inline]
+        fn occluded(&self, ray: &$crate::Ray) -> bool {
+            $crate::isa::query::<_, true>(self, ray).is_some()
+        }
+    };
     (stats: $stats:ident, validate: $validate:ident) => {
         $crate::queries_from_walk!();
 

@@ -14,9 +14,10 @@
 //! the [`LANES`] floats of padding at the end) and are masked off. Eight-lane windows are
 //! taken only while more than four triangles remain, so they stay inside the same bounds.
 
+use crate::triangle::Lanes8;
 use crate::triangle::{SimdLanes, lane_edges, proven_hit, watertight_rows};
 use crate::{Hit, PrimHit, Primitive, Ray, Triangle, Vec3, keep_hit};
-use wide::{f32x4, f32x8};
+use wide::f32x4;
 
 /// Triangles tested together in the narrow window (and the floats of padding at the end).
 pub const LANES: usize = 4;
@@ -123,7 +124,7 @@ impl TriangleSoa {
         let mut k = 0;
         while k < count {
             let over = if count - k > LANES {
-                self.test_window::<f32x8, ANY_HIT>(leaf, k, ids, r, &mut skip, &mut keep)
+                self.test_window::<Lanes8, ANY_HIT>(leaf, k, ids, r, &mut skip, &mut keep)
             } else {
                 self.test_window::<f32x4, ANY_HIT>(leaf, k, ids, r, &mut skip, &mut keep)
             };
@@ -158,8 +159,11 @@ impl TriangleSoa {
         }
         crate::counters::prims(lanes.count_ones());
         // Row `j` straight from the leaf (the ray's axes pick which rows are read).
-        let row = |j: usize| L::load(&leaf[j * count + k..]);
-        let (may_hit, sheared) = watertight_rows(row, r);
+        let (may_hit, sheared) = watertight_rows(
+            #[inline(always)]
+            |j| L::load(&leaf[j * count + k..]),
+            r,
+        );
         let mut may_hit = may_hit & lanes;
         if may_hit != 0 && !self.degenerate.is_empty() {
             // `finish_watertight` returns `None` for them: not asked.

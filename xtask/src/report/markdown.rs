@@ -70,6 +70,7 @@ pub(super) fn index_md(
     let _ = writeln!(s, "# rt bench report\n");
     let _ = writeln!(s, "- machine: {}", machine());
     let _ = writeln!(s, "- commit: `{}`", commit());
+    let _ = writeln!(s, "- build: {}", crate::native::build_description());
     let _ = writeln!(s, "- command: `{}`", opts.command);
     let _ = writeln!(
         s,

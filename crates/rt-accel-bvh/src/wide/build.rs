@@ -20,6 +20,7 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
             root_bounds: bin.first().map_or(Aabb::EMPTY, |n| n.bounds()),
             root_leaf: None,
             depth: 0,
+            isa: rt_geom::Isa::selected(),
         };
         match bin.first() {
             None => {}

@@ -5,7 +5,7 @@ use crate::refit::{Refit, check_moved, in_leaf_order, leaf_bounds};
 use crate::stats::check_leaf_primitive;
 use crate::{Bvh, BvhParams};
 use rt_geom::all_referenced;
-use rt_geom::{Accel, AccelStats, BuildError, Hit, Primitive, Ray};
+use rt_geom::{Accel, AccelStats, BuildError, Hit, Isa, Primitive, Ray, Walk};
 
 /// A BVH with `N` children per node (`N` = 4 or 8) in the layout `Node` (exact boxes by
 /// default), sharing the leaf-ordered primitives of the binary tree it was collapsed from.
@@ -63,10 +63,27 @@ impl<P: Primitive, const N: usize, Node: NodeLayout<N>> WideBvh<P, N, Node> {
         &self.ids
     }
 
-    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        self.tree.traverse::<ANY_HIT>(ray, |first, count, r, best| {
-            test_leaf::<P, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
-        })
+    /// The same structure, its queries run compiled for `isa` ([`WideTree::with_isa`]).
+    pub fn with_isa(mut self, isa: Isa) -> Self {
+        self.tree = self.tree.with_isa(isa);
+        self
+    }
+}
+
+impl<P: Primitive, const N: usize, Node: NodeLayout<N>> Walk for WideBvh<P, N, Node> {
+    fn isa(&self) -> Isa {
+        self.tree.isa()
+    }
+
+    #[inline(always)]
+    fn walk<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
+        self.tree.traverse::<ANY_HIT>(
+            ray,
+            #[inline(always)]
+            |first, count, r, best| {
+                test_leaf::<P, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
+            },
+        )
     }
 }
 
@@ -82,7 +99,7 @@ impl<P: Primitive, const N: usize, Node: NodeLayout<N>> Refit<P> for WideBvh<P, 
 }
 
 impl<P: Primitive, const N: usize, Node: NodeLayout<N>> Accel for WideBvh<P, N, Node> {
-    rt_geom::queries_from_walk!();
+    rt_geom::queries_from_walk!(per_isa);
 
     fn stats(&self) -> AccelStats {
         let mut s = self.tree.stats(self.count, &self.params);

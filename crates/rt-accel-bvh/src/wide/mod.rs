@@ -23,7 +23,7 @@ pub use bvh::{Bvh4, Bvh8, WideBvh};
 pub use node::{NodeLayout, WideNode};
 pub(crate) use traverse::{lane_entries, test_leaf};
 
-use rt_geom::{Aabb, Hit, Ray};
+use rt_geom::{Aabb, Hit, Isa, Ray};
 
 /// The topology of a wide BVH over a node layout (`N` lanes of [`WideNode<N>`] by default):
 /// nodes, root box, depth. Leaves are ranges of a leaf-ordered primitive array kept by the
@@ -36,6 +36,9 @@ pub struct WideTree<const N: usize, Node = WideNode<N>> {
     /// The root is a single leaf (`first`, `count`) when the whole scene fits one leaf.
     pub(crate) root_leaf: Option<(u32, u32)>,
     pub(crate) depth: usize,
+    /// The instruction set the owner's queries run the walk compiled for ([`Isa::selected`]
+    /// when collapsed).
+    pub(crate) isa: Isa,
 }
 
 impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
@@ -57,6 +60,18 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
     /// The depth of the deepest leaf (the root is 0).
     pub fn depth(&self) -> usize {
         self.depth
+    }
+
+    /// The instruction set the owner's queries run the walk compiled for.
+    pub fn isa(&self) -> Isa {
+        self.isa
+    }
+
+    /// The same tree, its owner's queries run compiled for `isa` (or, where this CPU lacks
+    /// it, for the best level it has): for tests and measurements of each level.
+    pub fn with_isa(mut self, isa: Isa) -> Self {
+        self.isa = isa.or_best();
+        self
     }
 
     /// Every leaf's `(first, count)`, in node order.

@@ -75,86 +75,100 @@ pub(crate) fn traverse_nodes<Node: NodeLayout<N>, const N: usize, const ANY_HIT:
         return None;
     }
     let slab = SlabRay::new(ray);
-    STACK.with(|cell| {
-        let mut stack = cell.borrow_mut();
-        // At most N - 1 pending siblings per level.
-        let need = (N - 1) * (depth + 1) + N;
-        if stack.len() < need {
-            stack.resize(need, (0, 0, 0.0));
-        }
-        let stack = &mut stack[..need];
-        let mut sp = 0usize;
-        let mut next = (0u32, 0u32, r.tmin);
-        loop {
-            let (child, count, entry) = next;
-            if entry <= r.tmax {
-                if count > 0 {
-                    if leaf(child, count, &mut r, &mut best) {
-                        return;
+    // The thread's stack is taken out for the walk and put back after, rather than the walk
+    // run in a closure handed to the thread-local: that closure would be a function of its
+    // own, compiled for the baseline instruction set inside the AVX2 and AVX-512 walks.
+    let mut stack = STACK.take();
+    // At most N - 1 pending siblings per level.
+    let need = (N - 1) * (depth + 1) + N;
+    if stack.len() < need {
+        stack.resize(need, (0, 0, 0.0));
+    }
+    walk_stack::<Node, N, ANY_HIT>(nodes, &slab, &mut stack[..need], &mut r, &mut best, leaf);
+    STACK.set(stack);
+    best
+}
+
+/// The stack loop of [`traverse_nodes`] from the root, over `stack` (large enough).
+#[inline(always)]
+fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool>(
+    nodes: &[Node],
+    slab: &SlabRay,
+    stack: &mut [(u32, u32, f32)],
+    r: &mut Ray,
+    best: &mut Option<Hit>,
+    mut leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<Hit>) -> bool,
+) {
+    let mut sp = 0usize;
+    let mut next = (0u32, 0u32, r.tmin);
+    loop {
+        let (child, count, entry) = next;
+        if entry <= r.tmax {
+            if count > 0 {
+                if leaf(child, count, r, best) {
+                    return;
+                }
+            } else {
+                let node = &nodes[child as usize];
+                if rt_geom::counters::ENABLED {
+                    let used = (0..N).filter(|&l| node.child(l) != u32::MAX).count();
+                    rt_geom::counters::nodes(used as u32);
+                }
+                let (entered, t) = node.entries(slab, r.tmin, r.tmax);
+                let mut mask = entered & node.used_mask();
+                if mask != 0 {
+                    let lane = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    let item = (node.child(lane), node.count(lane), t[lane]);
+                    if mask == 0 {
+                        next = item;
+                        continue;
                     }
-                } else {
-                    let node = &nodes[child as usize];
-                    if rt_geom::counters::ENABLED {
-                        let used = (0..N).filter(|&l| node.child(l) != u32::MAX).count();
-                        rt_geom::counters::nodes(used as u32);
-                    }
-                    let (entered, t) = node.entries(&slab, r.tmin, r.tmax);
-                    let mut mask = entered & node.used_mask();
-                    if mask != 0 {
-                        let lane = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
-                        let item = (node.child(lane), node.count(lane), t[lane]);
-                        if mask == 0 {
-                            next = item;
-                            continue;
-                        }
-                        if ANY_HIT {
-                            // Any hit ends the query: leaves go on top of the stack (tested
-                            // first), inner children under them, each group in lane order.
-                            mask |= 1 << lane;
-                            let leaves = node.leaf_mask();
-                            for mut group in [mask & !leaves, mask & leaves] {
-                                while group != 0 {
-                                    let l = group.trailing_zeros() as usize;
-                                    group &= group - 1;
-                                    stack[sp] = (node.child(l), node.count(l), t[l]);
-                                    sp += 1;
-                                }
-                            }
-                        } else {
-                            stack[sp] = item;
-                            sp += 1;
-                            let base = sp - 1;
-                            while mask != 0 {
-                                let lane = mask.trailing_zeros() as usize;
-                                mask &= mask - 1;
-                                let te = t[lane];
-                                let item = (node.child(lane), node.count(lane), te);
-                                let mut k = sp;
-                                while k > base && stack[k - 1].2 < te {
-                                    stack[k] = stack[k - 1];
-                                    k -= 1;
-                                }
-                                stack[k] = item;
+                    if ANY_HIT {
+                        // Any hit ends the query: leaves go on top of the stack (tested
+                        // first), inner children under them, each group in lane order.
+                        mask |= 1 << lane;
+                        let leaves = node.leaf_mask();
+                        for mut group in [mask & !leaves, mask & leaves] {
+                            while group != 0 {
+                                let l = group.trailing_zeros() as usize;
+                                group &= group - 1;
+                                stack[sp] = (node.child(l), node.count(l), t[l]);
                                 sp += 1;
                             }
+                        }
+                    } else {
+                        stack[sp] = item;
+                        sp += 1;
+                        let base = sp - 1;
+                        while mask != 0 {
+                            let lane = mask.trailing_zeros() as usize;
+                            mask &= mask - 1;
+                            let te = t[lane];
+                            let item = (node.child(lane), node.count(lane), te);
+                            let mut k = sp;
+                            while k > base && stack[k - 1].2 < te {
+                                stack[k] = stack[k - 1];
+                                k -= 1;
+                            }
+                            stack[k] = item;
+                            sp += 1;
                         }
                     }
                 }
             }
-            if sp == 0 {
-                return;
-            }
-            sp -= 1;
-            next = stack[sp];
         }
-    });
-    best
+        if sp == 0 {
+            return;
+        }
+        sp -= 1;
+        next = stack[sp];
+    }
 }
 
 thread_local! {
     /// Traversal stacks are reused per thread: no allocation and no zeroing per ray.
-    static STACK: std::cell::RefCell<Vec<(u32, u32, f32)>> = const { std::cell::RefCell::new(Vec::new()) };
+    static STACK: std::cell::Cell<Vec<(u32, u32, f32)>> = const { std::cell::Cell::new(Vec::new()) };
 }
 
 /// The lanes whose boxes `min..max` (per axis, per lane) the ray enters within `[tmin, tmax]`

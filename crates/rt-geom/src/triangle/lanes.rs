@@ -30,7 +30,11 @@ pub fn lane_edges<A: std::ops::Index<usize, Output = f32>>(
 /// [`Triangle::intersect_watertight`] returns, and for every other lane that is `None`.
 #[inline(always)]
 pub fn watertight_lanes<L: SimdLanes>(tris: &TriangleLanes<L>, ray: &Ray) -> (u32, [L::Array; 6]) {
-    watertight_rows(|j| tris[j], ray)
+    watertight_rows(
+        #[inline(always)]
+        |j| tris[j],
+        ray,
+    )
 }
 
 /// [`watertight_lanes`] with coordinate row `j` of the lanes (as in [`TriangleLanes`]) from
@@ -48,15 +52,20 @@ pub fn watertight_rows<L: SimdLanes>(row: impl Fn(usize) -> L, ray: &Ray) -> (u3
     let (ox, oy, oz) = (L::splat(o[kx]), L::splat(o[ky]), L::splat(o[kz]));
     let s = ray.watertight_shear();
     let (sx, sy) = (L::splat(s.x), L::splat(s.y));
-    let dz = |v: usize| row(3 * v + kz) - oz;
-    let shear = |v: usize| {
-        let dz = dz(v);
-        (
-            row(3 * v + kx) - ox - sx * dz,
-            row(3 * v + ky) - oy - sy * dz,
-        )
-    };
-    let ((ax, ay), (bx, by), (cx, cy)) = (shear(0), shear(1), shear(2));
+    // Written out rather than through closures or `array::from_fn`: a closure that does not
+    // inline is a function of its own, compiled for the baseline instruction set inside the
+    // AVX2 and AVX-512 walks ([`crate::isa`]). `row` inlines (the callers mark it).
+    let dz = [row(kz) - oz, row(3 + kz) - oz, row(6 + kz) - oz];
+    let (ax, bx, cx) = (
+        row(kx) - ox - sx * dz[0],
+        row(3 + kx) - ox - sx * dz[1],
+        row(6 + kx) - ox - sx * dz[2],
+    );
+    let (ay, by, cy) = (
+        row(ky) - oy - sy * dz[0],
+        row(3 + ky) - oy - sy * dz[1],
+        row(6 + ky) - oy - sy * dz[2],
+    );
     let u = cx * by - cy * bx;
     let v = ax * cy - ay * cx;
     let w = bx * ay - by * ax;
@@ -68,7 +77,6 @@ pub fn watertight_rows<L: SimdLanes>(row: impl Fn(usize) -> L, ray: &Ray) -> (u3
         // Woop's depth estimate `T / D` first (a few operations): only lanes it puts before
         // `tmin` are worth the rigorous bounds, out of line; real hits skip them.
         let sz = L::splat(s.z);
-        let dz = [dz(0), dz(1), dz(2)];
         let z = [dz[0] * sz, dz[1] * sz, dz[2] * sz];
         let e = [u.abs(), v.abs(), w.abs()];
         let num = e[0] * z[0] + e[1] * z[1] + e[2] * z[2];

@@ -125,6 +125,149 @@ impl SimdLanes for f32 {
 }
 simd_lanes!(wide::f32x8, 8);
 
+/// Eight lanes as a plain array, every operation a loop over the lanes: the compiler
+/// vectorises the loops for the instruction set of the function they are inlined into (one
+/// AVX register in the AVX2 and AVX-512 kernels of [`crate::isa`], two SSE registers in the
+/// baseline), where `wide::f32x8` is fixed when rt-geom itself is compiled.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(32))]
+pub struct Lanes8(pub [f32; 8]);
+
+// The lane loops below index by lane on purpose: plain counted loops over fixed arrays are
+// what vectorises reliably (an iterator adaptor or `array::from_fn` may leave a call behind).
+
+macro_rules! lanes8_op {
+    ($tr:ident, $f:ident, $op:tt) => {
+        impl std::ops::$tr for Lanes8 {
+            type Output = Lanes8;
+            #[inline(always)]
+            #[allow(clippy::needless_range_loop)]
+            fn $f(self, o: Lanes8) -> Lanes8 {
+                let mut r = [0.0; 8];
+                for l in 0..8 {
+                    r[l] = self.0[l] $op o.0[l];
+                }
+                Lanes8(r)
+            }
+        }
+    };
+}
+lanes8_op!(Add, add, +);
+lanes8_op!(Sub, sub, -);
+lanes8_op!(Mul, mul, *);
+
+impl Lanes8 {
+    /// Bit `l` set where `f(lane l)` holds.
+    #[inline(always)]
+    fn bits(f: impl Fn(usize) -> bool) -> u32 {
+        let mut m = 0;
+        for l in 0..8 {
+            m |= (f(l) as u32) << l;
+        }
+        m
+    }
+
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)]
+    fn map(self, f: impl Fn(f32) -> f32) -> Lanes8 {
+        let mut r = [0.0; 8];
+        for l in 0..8 {
+            r[l] = f(self.0[l]);
+        }
+        Lanes8(r)
+    }
+
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)]
+    fn zip(self, o: Lanes8, f: impl Fn(f32, f32) -> f32) -> Lanes8 {
+        let mut r = [0.0; 8];
+        for l in 0..8 {
+            r[l] = f(self.0[l], o.0[l]);
+        }
+        Lanes8(r)
+    }
+}
+
+impl SimdLanes for Lanes8 {
+    const WIDTH: usize = 8;
+    type Array = [f32; 8];
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        Lanes8([x; 8])
+    }
+    #[inline(always)]
+    fn load(src: &[f32]) -> Self {
+        Lanes8(src[..8].try_into().expect("WIDTH floats"))
+    }
+    #[inline(always)]
+    fn to_lanes(self) -> [f32; 8] {
+        self.0
+    }
+    #[inline(always)]
+    fn sign_bits(a: Self, b: Self, c: Self) -> (u32, u32, u32) {
+        let (a, b, c) = (a.0, b.0, c.0);
+        (
+            Lanes8::bits(
+                #[inline(always)]
+                |l| a[l] < 0.0,
+            ) | Lanes8::bits(
+                #[inline(always)]
+                |l| b[l] < 0.0,
+            ) | Lanes8::bits(
+                #[inline(always)]
+                |l| c[l] < 0.0,
+            ),
+            Lanes8::bits(
+                #[inline(always)]
+                |l| a[l] > 0.0,
+            ) | Lanes8::bits(
+                #[inline(always)]
+                |l| b[l] > 0.0,
+            ) | Lanes8::bits(
+                #[inline(always)]
+                |l| c[l] > 0.0,
+            ),
+            Lanes8::bits(
+                #[inline(always)]
+                |l| a[l] == 0.0,
+            ) | Lanes8::bits(
+                #[inline(always)]
+                |l| b[l] == 0.0,
+            ) | Lanes8::bits(
+                #[inline(always)]
+                |l| c[l] == 0.0,
+            ),
+        )
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        self.map(f32::abs)
+    }
+    #[inline(always)]
+    fn max(self, other: Self) -> Self {
+        self.zip(
+            other,
+            #[inline(always)]
+            |a, b| if a > b { a } else { b },
+        )
+    }
+    #[inline(always)]
+    fn min(self, other: Self) -> Self {
+        self.zip(
+            other,
+            #[inline(always)]
+            |a, b| if a < b { a } else { b },
+        )
+    }
+    #[inline(always)]
+    fn less_bits(a: Self, b: Self) -> u32 {
+        Lanes8::bits(
+            #[inline(always)]
+            |l| a.0[l] < b.0[l],
+        )
+    }
+}
+
 /// Triangles in SIMD lanes (four by default): coordinate `j` of `[v0.x, v0.y, v0.z, v1.x,
 /// .., v2.z]` in vector `j`, lane `l` holding triangle `l`.
 pub type TriangleLanes<L = f32x4> = [L; 9];

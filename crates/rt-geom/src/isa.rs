@@ -1,0 +1,203 @@
+//! [`Isa`]: the instruction sets the hot loops are compiled for, chosen at run time.
+//!
+//! A dependent crate's plain `cargo build --release` compiles for the baseline of its target
+//! (SSE2 on x86-64), where eight-lane loops run as pairs of four-lane instructions. The walks
+//! and leaf tests are therefore compiled once more inside functions that enable AVX2 and FMA
+//! (x86-64-v3) and AVX-512 (x86-64-v4), and a query runs the best one the CPU has, as Embree
+//! picks its kernels when a scene is committed. The choice is made once per query, never per
+//! node: a function compiled for an instruction set does not inline into a caller without it.
+//!
+//! A structure implements [`Walk`] (its whole query, `#[inline(always)]`, and the level it
+//! asks for) and answers through [`query`], which runs that walk inside the function of the
+//! requested instruction set, or of the best one below it that the CPU has. `RT_ISA=baseline|avx2|avx512` sets the request
+//! ([`Isa::selected`]) for tests and measurements.
+
+use crate::{Hit, Ray};
+use std::sync::atomic::{AtomicU8, Ordering};
+
+/// An instruction-set level the kernels are compiled for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Isa {
+    /// What the crate itself is compiled for (SSE2 in a plain x86-64 build; the only level on
+    /// other targets).
+    Baseline,
+    /// x86-64-v3: AVX2, FMA, BMI1, BMI2, LZCNT, POPCNT.
+    Avx2,
+    /// x86-64-v4: x86-64-v3 and AVX-512 F, VL, BW, DQ, CD.
+    Avx512,
+}
+
+impl Isa {
+    /// Every level, lowest first.
+    pub const ALL: [Isa; 3] = [Isa::Baseline, Isa::Avx2, Isa::Avx512];
+
+    /// The name `RT_ISA` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            Isa::Baseline => "baseline",
+            Isa::Avx2 => "avx2",
+            Isa::Avx512 => "avx512",
+        }
+    }
+
+    /// The level named `s` (`baseline`, `avx2`, `avx512`).
+    pub fn parse(s: &str) -> Result<Isa, String> {
+        Isa::ALL
+            .into_iter()
+            .find(|i| i.name() == s.trim())
+            .ok_or_else(|| format!("unknown instruction set {s:?} (baseline, avx2, avx512)"))
+    }
+
+    /// Whether this CPU runs this level.
+    pub fn supported(self) -> bool {
+        self <= Isa::best()
+    }
+
+    /// The highest level this CPU runs (detected once).
+    pub fn best() -> Isa {
+        static BEST: AtomicU8 = AtomicU8::new(u8::MAX);
+        match BEST.load(Ordering::Relaxed) {
+            u8::MAX => {
+                let best = detect();
+                BEST.store(best as u8, Ordering::Relaxed);
+                best
+            }
+            b => Isa::ALL[b as usize],
+        }
+    }
+
+    /// The levels this CPU runs, lowest first.
+    pub fn available() -> Vec<Isa> {
+        Isa::ALL.into_iter().filter(|i| i.supported()).collect()
+    }
+
+    /// The level structures use by default: the best this CPU runs, but AVX2 on CPUs with
+    /// AVX-512 (the eight-lane kernels gain nothing from its instructions, and its mask
+    /// registers and wider forms cost a few percent).
+    pub fn preferred() -> Isa {
+        Isa::best().min(Isa::Avx2)
+    }
+
+    /// The level structures use unless told otherwise: `RT_ISA` when it names a level this CPU
+    /// runs, else [`Isa::preferred`] (a warning on standard error once when `RT_ISA` names
+    /// something else).
+    pub fn selected() -> Isa {
+        static SELECTED: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
+        *SELECTED.get_or_init(|| {
+            let Ok(v) = std::env::var("RT_ISA") else {
+                return Isa::preferred();
+            };
+            match Isa::parse(&v) {
+                Ok(isa) if isa.supported() => isa,
+                Ok(isa) => {
+                    let p = Isa::preferred();
+                    eprintln!("RT_ISA={}: this CPU lacks it; using {p}", isa.name());
+                    p
+                }
+                Err(e) => {
+                    eprintln!("RT_ISA: {e}; using {}", Isa::preferred());
+                    Isa::preferred()
+                }
+            }
+        })
+    }
+
+    /// `self` if this CPU runs it, else the best level it runs.
+    #[inline]
+    pub fn or_best(self) -> Isa {
+        self.min(Isa::best())
+    }
+}
+
+impl std::fmt::Display for Isa {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+fn detect() -> Isa {
+    use std::arch::is_x86_feature_detected as has;
+    let v3 = has!("avx2") && has!("fma") && has!("bmi1") && has!("bmi2") && has!("lzcnt");
+    let v4 = v3
+        && has!("avx512f")
+        && has!("avx512vl")
+        && has!("avx512bw")
+        && has!("avx512dq")
+        && has!("avx512cd");
+    if v4 {
+        Isa::Avx512
+    } else if v3 {
+        Isa::Avx2
+    } else {
+        Isa::Baseline
+    }
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+fn detect() -> Isa {
+    Isa::Baseline
+}
+
+/// A structure's whole query, written once and compiled per instruction set by [`query`].
+/// Implementations are `#[inline(always)]`, down to the leaf kernels, so that each copy is
+/// compiled for its level.
+pub trait Walk {
+    /// The level [`query`] runs the walk compiled for.
+    fn isa(&self) -> Isa;
+
+    /// The closest hit, or with `ANY_HIT` any hit.
+    fn walk<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit>;
+}
+
+/// `w.walk::<ANY_HIT>(ray)` compiled for `w.isa()`, or for the best level below it that this
+/// CPU runs: the answers are the same on every level (the kernels' arithmetic is the same
+/// sequence of IEEE operations; only the width of the instructions differs).
+#[inline]
+pub fn query<W: Walk + ?Sized, const ANY_HIT: bool>(w: &W, ray: &Ray) -> Option<Hit> {
+    match w.isa().or_best() {
+        Isa::Baseline => w.walk::<ANY_HIT>(ray),
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `or_best` returned AVX2, so this CPU has every feature the function enables.
+        Isa::Avx2 => unsafe { x86::walk_v3::<W, ANY_HIT>(w, ray) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `or_best` returned AVX-512, so this CPU has every feature it enables.
+        Isa::Avx512 => unsafe { x86::walk_v4::<W, ANY_HIT>(w, ray) },
+        #[cfg(not(target_arch = "x86_64"))]
+        _ => w.walk::<ANY_HIT>(ray),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod x86 {
+    use super::Walk;
+    use crate::{Hit, Ray};
+
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    pub(super) fn walk_v3<W: Walk + ?Sized, const ANY_HIT: bool>(w: &W, ray: &Ray) -> Option<Hit> {
+        w.walk::<ANY_HIT>(ray)
+    }
+
+    #[target_feature(
+        enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq,avx512cd"
+    )]
+    pub(super) fn walk_v4<W: Walk + ?Sized, const ANY_HIT: bool>(w: &W, ray: &Ray) -> Option<Hit> {
+        w.walk::<ANY_HIT>(ray)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip_and_levels_are_ordered() {
+        for isa in Isa::ALL {
+            assert_eq!(Isa::parse(isa.name()), Ok(isa));
+        }
+        assert!(Isa::parse("sse9").is_err());
+        assert!(Isa::Baseline.supported());
+        assert!(Isa::available().contains(&Isa::best()));
+        assert!(Isa::Avx512.or_best() <= Isa::best());
+    }
+}
