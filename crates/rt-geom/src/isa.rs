@@ -139,6 +139,31 @@ fn detect() -> Isa {
     Isa::Baseline
 }
 
+/// Work to run compiled for an instruction set ([`run`]): its `run` is `#[inline(always)]`,
+/// down to the leaf kernels, so that each level's copy is compiled for that level.
+pub trait Kernel {
+    /// What the work returns.
+    type Output;
+    /// Does the work.
+    fn run(self) -> Self::Output;
+}
+
+/// `k.run()` compiled for `isa`, or for the best level below it that this CPU runs.
+#[inline]
+pub fn run<K: Kernel>(isa: Isa, k: K) -> K::Output {
+    match isa.or_best() {
+        Isa::Baseline => k.run(),
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `or_best` returned AVX2, so this CPU has every feature the function enables.
+        Isa::Avx2 => unsafe { x86::run_v3(k) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `or_best` returned AVX-512, so this CPU has every feature it enables.
+        Isa::Avx512 => unsafe { x86::run_v4(k) },
+        #[cfg(not(target_arch = "x86_64"))]
+        _ => k.run(),
+    }
+}
+
 /// A structure's whole query, written once and compiled per instruction set by [`query`].
 /// Implementations are `#[inline(always)]`, down to the leaf kernels, so that each copy is
 /// compiled for its level.
@@ -155,34 +180,37 @@ pub trait Walk {
 /// sequence of IEEE operations; only the width of the instructions differs).
 #[inline]
 pub fn query<W: Walk + ?Sized, const ANY_HIT: bool>(w: &W, ray: &Ray) -> Option<Hit> {
-    match w.isa().or_best() {
-        Isa::Baseline => w.walk::<ANY_HIT>(ray),
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `or_best` returned AVX2, so this CPU has every feature the function enables.
-        Isa::Avx2 => unsafe { x86::walk_v3::<W, ANY_HIT>(w, ray) },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `or_best` returned AVX-512, so this CPU has every feature it enables.
-        Isa::Avx512 => unsafe { x86::walk_v4::<W, ANY_HIT>(w, ray) },
-        #[cfg(not(target_arch = "x86_64"))]
-        _ => w.walk::<ANY_HIT>(ray),
+    run(w.isa(), Query::<W, ANY_HIT> { w, ray })
+}
+
+/// One query as [`Kernel`] work.
+struct Query<'a, W: ?Sized, const ANY_HIT: bool> {
+    w: &'a W,
+    ray: &'a Ray,
+}
+
+impl<W: Walk + ?Sized, const ANY_HIT: bool> Kernel for Query<'_, W, ANY_HIT> {
+    type Output = Option<Hit>;
+    #[inline(always)]
+    fn run(self) -> Option<Hit> {
+        self.w.walk::<ANY_HIT>(self.ray)
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
-    use super::Walk;
-    use crate::{Hit, Ray};
+    use super::Kernel;
 
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    pub(super) fn walk_v3<W: Walk + ?Sized, const ANY_HIT: bool>(w: &W, ray: &Ray) -> Option<Hit> {
-        w.walk::<ANY_HIT>(ray)
+    pub(super) fn run_v3<K: Kernel>(k: K) -> K::Output {
+        k.run()
     }
 
     #[target_feature(
         enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq,avx512cd"
     )]
-    pub(super) fn walk_v4<W: Walk + ?Sized, const ANY_HIT: bool>(w: &W, ray: &Ray) -> Option<Hit> {
-        w.walk::<ANY_HIT>(ray)
+    pub(super) fn run_v4<K: Kernel>(k: K) -> K::Output {
+        k.run()
     }
 }
 

@@ -119,9 +119,15 @@ pub(crate) fn entering_range<const N: usize, const W: usize>(
     let first = (from..=to).find(|&i| p.active[i])?;
     let last = (first..=to).rev().find(|&i| p.active[i])?;
     let first_entry = lane_entry(node, p, first);
-    let range = narrow_range::<N, W>(node, p, culling, (first, last, to), first_entry, || {
-        lane_enters(node, p, last)
-    });
+    let range = narrow_range::<N, W>(
+        node,
+        p,
+        culling,
+        (first, last, to),
+        first_entry,
+        #[inline(always)]
+        || lane_enters(node, p, last),
+    );
     range.map(|(lo, hi, _)| (lo, hi))
 }
 
@@ -190,25 +196,32 @@ fn scan<const N: usize, const W: usize>(
     if lo > hi {
         return None;
     }
-    // Bits of the block at `base` that lie inside `lanes` (`base <= hi` for every block).
-    let inside = |base: usize| {
+    // The lanes of the block at `base` that enter, among those inside `lanes` (`base <= hi`
+    // for every block). A function, not a closure: see `rt_geom::isa`.
+    #[inline(always)]
+    fn mask<const N: usize, const W: usize>(
+        (min, max): Bounds<'_>,
+        p: &RayPacket<'_, N>,
+        (lo, hi): (usize, usize),
+        base: usize,
+    ) -> u32 {
         let (from, to) = (lo.saturating_sub(base), (hi - base).min(W - 1));
-        (u32::MAX >> (31 - to)) & (u32::MAX << from)
-    };
-    let blocks = (lo / W..=hi / W).map(|b| b * W);
-    let mask = |base| enter_mask::<N, W>(min, max, p, base) & inside(base);
+        let inside = (u32::MAX >> (31 - to)) & (u32::MAX << from);
+        enter_mask::<N, W>(min, max, p, base) & inside
+    }
+    let (first_block, last_block) = (lo / W, hi / W);
     if backwards {
-        for base in blocks.rev() {
-            let m = mask(base);
+        for b in (first_block..=last_block).rev() {
+            let m = mask::<N, W>((min, max), p, (lo, hi), b * W);
             if m != 0 {
-                return Some(base + 31 - m.leading_zeros() as usize);
+                return Some(b * W + 31 - m.leading_zeros() as usize);
             }
         }
     } else {
-        for base in blocks {
-            let m = mask(base);
+        for b in first_block..=last_block {
+            let m = mask::<N, W>((min, max), p, (lo, hi), b * W);
             if m != 0 {
-                return Some(base + m.trailing_zeros() as usize);
+                return Some(b * W + m.trailing_zeros() as usize);
             }
         }
     }

@@ -304,31 +304,25 @@ impl PacketPrimitive for Triangle {
             if mask == 0 {
                 continue;
             }
-            // Spelled out: `array.map` compiles to a call that copies the loaded lanes.
-            let ld = |row: &[f32; N]| load::<N, W>(row, sub);
-            let o = [ld(&p.origin[0]), ld(&p.origin[1]), ld(&p.origin[2])];
-            let s = [
-                ld(&p.shear[0]),
-                ld(&p.shear[1]),
-                ld(&p.shear[2]),
-                ld(&p.shear[3]),
-                ld(&p.shear[4]),
-                ld(&p.shear[5]),
+            // Spelled out, no closures bound to names: `array.map` compiles to a call that
+            // copies the loaded lanes, and a closure that stays out of line runs at the
+            // baseline level inside the AVX2 walks (`rt_geom::isa`).
+            let o = [
+                load::<N, W>(&p.origin[0], sub),
+                load::<N, W>(&p.origin[1], sub),
+                load::<N, W>(&p.origin[2], sub),
             ];
-            let sheared = |v: Vec3| {
-                let (x, y, z) = (
-                    f32x8::splat(v.x) - o[0],
-                    f32x8::splat(v.y) - o[1],
-                    f32x8::splat(v.z) - o[2],
-                );
-                (
-                    x * s[0] + y * s[1] + z * s[2],
-                    x * s[3] + y * s[4] + z * s[5],
-                )
-            };
-            let (ax, ay) = sheared(self.v[0]);
-            let (bx, by) = sheared(self.v[1]);
-            let (cx, cy) = sheared(self.v[2]);
+            let s = [
+                load::<N, W>(&p.shear[0], sub),
+                load::<N, W>(&p.shear[1], sub),
+                load::<N, W>(&p.shear[2], sub),
+                load::<N, W>(&p.shear[3], sub),
+                load::<N, W>(&p.shear[4], sub),
+                load::<N, W>(&p.shear[5], sub),
+            ];
+            let (ax, ay) = sheared(self.v[0], &o, &s);
+            let (bx, by) = sheared(self.v[1], &o, &s);
+            let (cx, cy) = sheared(self.v[2], &o, &s);
             let u = cx * by - cy * bx;
             let v = ax * cy - ay * cx;
             let w = bx * ay - by * ax;
@@ -357,6 +351,21 @@ impl PacketPrimitive for Triangle {
         }
         hits
     }
+}
+
+/// A vertex in every lane's sheared frame: `(x, y)` from the lanes' origins `o` and shear
+/// rows `s`, as the scalar kernel computes them.
+#[inline(always)]
+fn sheared(v: Vec3, o: &[f32x8; 3], s: &[f32x8; 6]) -> (f32x8, f32x8) {
+    let (x, y, z) = (
+        f32x8::splat(v.x) - o[0],
+        f32x8::splat(v.y) - o[1],
+        f32x8::splat(v.z) - o[2],
+    );
+    (
+        x * s[0] + y * s[1] + z * s[2],
+        x * s[3] + y * s[4] + z * s[5],
+    )
 }
 
 /// [`Triangle::finish_watertight`] of the lanes in `lanes` (bits relative to `base`), whose

@@ -28,10 +28,28 @@ use crate::{PrimHit, Ray};
 /// more than it saved.
 #[inline(never)]
 pub fn hits_before_tmin<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32) -> u32 {
+    hits_outside(t, tmin, f32::INFINITY)
+}
+
+/// The lanes of `t` whose hit surely lies before `tmin` ([`hits_before_tmin`], asked only
+/// for `tmin > 0`) or surely after `tmax` (asked only for a finite `tmax > 0`): the same
+/// bounds mirrored, `T - 2 dT > tmax (D + 2 dD) (1 + 2^-20)`, as [`proven_hit`] proves a hit
+/// after `tmin`. [`Triangle::finish_watertight`](super::Triangle::finish_watertight) rejects
+/// every lane culled. Out of line, as [`hits_before_tmin`].
+#[inline(never)]
+pub fn hits_outside<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
     let b = EstimateBounds::of(t);
     let two = L::splat(2.0);
-    let bound = L::splat(tmin) * (t.den - two * b.dd) * L::splat(1.0 - ROUNDING);
-    L::less_bits(b.de, b.e_min) & L::less_bits(t.num + two * b.dt, bound)
+    let mut out = 0;
+    if tmin > 0.0 {
+        let bound = L::splat(tmin) * (t.den - two * b.dd) * L::splat(1.0 - ROUNDING);
+        out |= L::less_bits(t.num + two * b.dt, bound);
+    }
+    if tmax > 0.0 && tmax < f32::INFINITY {
+        let bound = L::splat(tmax) * (t.den + two * b.dd) * L::splat(1.0 + ROUNDING);
+        out |= L::less_bits(bound, t.num - two * b.dt);
+    }
+    L::less_bits(b.de, b.e_min) & out
 }
 
 /// How far the `f32` numbers of the depth estimate may lie from the exact ones, in
@@ -237,6 +255,61 @@ mod tests {
             "clear hits proven {clear_proven} of {clear}"
         );
         assert!(proven > 3_000, "{proven}");
+    }
+
+    /// [`hits_outside`] culls beyond `tmax` only lanes whose hit
+    /// [`Triangle::finish_watertight`] rejects: `tmax` just before, at and just after each
+    /// lane's own hit (and far before and after it), every scale; and it culls most lanes
+    /// whose hit lies clearly beyond.
+    #[test]
+    fn culls_after_tmax_only_what_refine_rejects() {
+        let mut uniform = crate::test_uniform(77);
+        let mut rnd = move || uniform();
+        let (mut beyond, mut beyond_culled) = (0, 0);
+        for case in 0..20_000 {
+            let scale = [1e-3, 1.0, 1e3][case % 3];
+            let (tris, point) = triangles_and_point(case, &mut rnd);
+            let t = &tris[case % 8];
+            let n = (t.v[1] - t.v[0]).cross(t.v[2] - t.v[0]).normalize_or_zero();
+            let dir = match case % 4 {
+                0 => (t.v[1] - t.v[0]).normalize_or_zero() + n * (rnd() - 0.5) * 1e-3,
+                _ => Vec3::new(rnd(), rnd(), rnd()) - 0.5,
+            };
+            let origin = point - dir * (scale * (0.5 + rnd()));
+            let w8: TriangleLanes<wide::f32x8> = std::array::from_fn(|j| {
+                wide::f32x8::from(std::array::from_fn(|l| tris[l].v[j / 3][j % 3]))
+            });
+            let open = Ray::segment(origin, dir, 0.0, f32::INFINITY);
+            let (all, sheared) = watertight_lanes(&w8, &open);
+            let Some(own) = tris[case % 8].finish_watertight(&open, lane_edges(&sheared, case % 8))
+            else {
+                continue;
+            };
+            let factor = [0.5, 1.0 - 1e-6, 1.0, 1.0 + 1e-6, 2.0, 1e-3][case % 6];
+            let tmax = (own.t * factor).max(f32::MIN_POSITIVE);
+            let ray = open.with_range(0.0, tmax);
+            let (kept, _) = watertight_lanes(&w8, &ray);
+            assert_eq!(kept & !all, 0);
+            let mut cut = all & !kept;
+            if factor <= 0.5 && all >> (case % 8) & 1 == 1 {
+                beyond += 1;
+                beyond_culled += cut >> (case % 8) & 1;
+            }
+            while cut != 0 {
+                let l = cut.trailing_zeros() as usize;
+                cut &= cut - 1;
+                let h = tris[l].finish_watertight(&ray, lane_edges(&sheared, l));
+                assert!(
+                    h.is_none(),
+                    "case {case} lane {l}: {:?} {ray:?} -> {h:?}",
+                    tris[l]
+                );
+            }
+        }
+        assert!(
+            beyond > 3_000 && beyond_culled * 100 > beyond * 60,
+            "{beyond_culled} of {beyond}"
+        );
     }
 
     /// [`hits_before_tmin`] culls only lanes whose hit [`Triangle::finish_watertight`] rejects:

@@ -1,7 +1,7 @@
 //! The lane kernel: the watertight test's edge functions and sign test for four or eight
 //! triangles at once, with exactly the scalar kernel's numbers, and the batched leaf test.
 
-use super::bounds::hits_before_tmin;
+use super::bounds::hits_outside;
 use super::simd::{ShearedLanes, SimdLanes, TriangleLanes};
 use super::{Triangle, watertight_edges};
 use crate::{Hit, Ray, keep_hit};
@@ -24,7 +24,7 @@ pub fn lane_edges<A: std::ops::Index<usize, Output = f32>>(
 /// ray's [`Ray::watertight_shear`] along its [`Ray::watertight_axes`]), and their sign test.
 /// Returns the lanes the sign test cannot reject (signs that agree, or an edge function
 /// exactly zero, which [`watertight_edges`] recomputes in `f64`) and that
-/// [`hits_before_tmin`] does not prove to lie before `tmin`, as bits, and the sheared
+/// [`hits_outside`] does not prove to lie outside `[tmin, tmax]`, as bits, and the sheared
 /// coordinates `[ax, ay, bx, by, cx, cy]` of every lane: for such a lane `l`,
 /// `tri.finish_watertight(ray, lane_edges(&sheared, l))` is exactly what
 /// [`Triangle::intersect_watertight`] returns, and for every other lane that is `None`.
@@ -72,16 +72,31 @@ pub fn watertight_rows<L: SimdLanes>(row: impl Fn(usize) -> L, ray: &Ray) -> (u3
     let (neg, pos, on_edge) = L::sign_bits(u, v, w);
     let mut may_hit = (!(neg & pos) | on_edge) & ((1 << L::WIDTH) - 1);
     // Rays that leave a surface (shadow rays, bounces, `tmin > 0`) pierce the triangle they
-    // start on at `t` near 0: rejected here in SIMD rather than one by one in `f64`.
-    if may_hit != 0 && ray.tmin > 0.0 {
+    // start on at `t` near 0, and once a closest hit is found (`tmax` finite) the triangles
+    // the ray meets beyond it need no `f64` refinement either: both rejected here in SIMD
+    // rather than one by one in `f64`.
+    let (tmin, tmax) = (ray.tmin, ray.tmax);
+    let (cut_before, cut_after) = (tmin > 0.0, tmax > 0.0 && tmax < f32::INFINITY);
+    if may_hit != 0 && (cut_before || cut_after) {
         // Woop's depth estimate `T / D` first (a few operations): only lanes it puts before
-        // `tmin` are worth the rigorous bounds, out of line; real hits skip them.
+        // `tmin` or after `tmax` are worth the rigorous bounds, out of line; real hits skip
+        // them.
         let sz = L::splat(s.z);
         let z = [dz[0] * sz, dz[1] * sz, dz[2] * sz];
         let e = [u.abs(), v.abs(), w.abs()];
         let num = e[0] * z[0] + e[1] * z[1] + e[2] * z[2];
         let den = e[0] + e[1] + e[2];
-        if L::less_bits(num, L::splat(ray.tmin) * den) & may_hit != 0 {
+        let before = if cut_before {
+            L::less_bits(num, L::splat(tmin) * den)
+        } else {
+            0
+        };
+        let after = if cut_after {
+            L::less_bits(L::splat(tmax) * den, num)
+        } else {
+            0
+        };
+        if (before | after) & may_hit != 0 {
             let sheared = ShearedLanes {
                 x: [ax, bx, cx],
                 y: [ay, by, cy],
@@ -91,7 +106,7 @@ pub fn watertight_rows<L: SimdLanes>(row: impl Fn(usize) -> L, ray: &Ray) -> (u3
                 num,
                 den,
             };
-            may_hit &= !hits_before_tmin(&sheared, ray.tmin);
+            may_hit &= !hits_outside(&sheared, tmin, tmax);
         }
     }
     // Spelled out: `.map(L::to_lanes)` compiled to a call that copies every lane.

@@ -7,14 +7,14 @@
 //! | `simd.rs` | [`SimdLanes`]: the vectors of four or eight lanes the kernel runs on; the lanes' triangles and sheared frame |
 //! | `simd.rs` | [`SimdLanes`]: the vectors of four or eight lanes the kernel runs on; the lanes' triangles and sheared frame |
 //! | `lanes.rs` | the lane kernel: four or eight triangles' edge functions and sign test at once ([`watertight_lanes`]), the batched leaf test |
-//! | `bounds.rs` | the error bounds that decide a lane without the `f64` refinement: [`hits_before_tmin`], [`proven_hit`] |
+//! | `bounds.rs` | the error bounds that decide a lane without the `f64` refinement: [`hits_before_tmin`], [`hits_outside`], [`proven_hit`] |
 
 mod bounds;
 mod clip;
 mod lanes;
 mod simd;
 
-pub use bounds::{hits_before_tmin, proven_hit};
+pub use bounds::{hits_before_tmin, hits_outside, proven_hit};
 pub(crate) use lanes::test_triangles;
 pub use lanes::{lane_edges, watertight_lanes, watertight_rows};
 pub use simd::{Lanes8, ShearedLanes, SimdLanes, TriangleLanes};
