@@ -14,10 +14,9 @@
 //! the [`LANES`] floats of padding at the end) and are masked off. Eight-lane windows are
 //! taken only while more than four triangles remain, so they stay inside the same bounds.
 
-use crate::triangle::Lanes8;
 use crate::triangle::{SimdLanes, lane_edges, proven_hit, watertight_rows};
 use crate::{Hit, PrimHit, Primitive, Ray, Triangle, Vec3, keep_hit};
-use wide::f32x4;
+use wide::{f32x4, f32x8};
 
 /// Triangles tested together in the narrow window (and the floats of padding at the end).
 pub const LANES: usize = 4;
@@ -124,7 +123,7 @@ impl TriangleSoa {
         let mut k = 0;
         while k < count {
             let over = if count - k > LANES {
-                self.test_window::<Lanes8, ANY_HIT>(leaf, k, ids, r, &mut skip, &mut keep)
+                self.test_window::<f32x8, ANY_HIT>(leaf, k, ids, r, &mut skip, &mut keep)
             } else {
                 self.test_window::<f32x4, ANY_HIT>(leaf, k, ids, r, &mut skip, &mut keep)
             };

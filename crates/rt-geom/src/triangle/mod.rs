@@ -17,7 +17,7 @@ mod simd;
 pub use bounds::{hits_before_tmin, hits_outside, proven_hit};
 pub(crate) use lanes::test_triangles;
 pub use lanes::{lane_edges, watertight_lanes, watertight_rows};
-pub use simd::{Lanes8, ShearedLanes, SimdLanes, TriangleLanes};
+pub use simd::{ShearedLanes, SimdLanes, TriangleLanes};
 
 use crate::{Aabb, PrimHit, Ray};
 use glam::{DVec3, Vec3};
