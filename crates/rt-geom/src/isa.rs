@@ -1,16 +1,17 @@
 //! [`Isa`]: the instruction sets the hot loops are compiled for, chosen at run time.
 //!
 //! A dependent crate's plain `cargo build --release` compiles for the baseline of its target
-//! (SSE2 on x86-64), where eight-lane loops run as pairs of four-lane instructions. The walks
-//! and leaf tests are therefore compiled once more inside functions that enable AVX2 and FMA
-//! (x86-64-v3) and AVX-512 (x86-64-v4), and a query runs the best one the CPU has, as Embree
-//! picks its kernels when a scene is committed. The choice is made once per query, never per
-//! node: a function compiled for an instruction set does not inline into a caller without it.
+//! (SSE2 on x86-64). The walks and leaf tests are therefore compiled once more inside
+//! functions that enable AVX2 and FMA (x86-64-v3) and AVX-512 (x86-64-v4), and a query runs
+//! the level its structure asks for where the CPU has it, as Embree picks its kernels when a
+//! scene is committed. The choice is made once per query, never per node: a function
+//! compiled for an instruction set does not inline into a caller without it.
 //!
-//! A structure implements [`Walk`] (its whole query, `#[inline(always)]`, and the level it
-//! asks for) and answers through [`query`], which runs that walk inside the function of the
-//! requested instruction set, or of the best one below it that the CPU has. `RT_ISA=baseline|avx2|avx512` sets the request
-//! ([`Isa::selected`]) for tests and measurements.
+//! Work to compile per level implements [`Kernel`] and runs through [`run`]; a structure
+//! implements [`Walk`] (its whole query, `#[inline(always)]`, and the level it asks for) and
+//! answers through [`query`]. Either runs at the requested level, or at the best one below it
+//! that the CPU has. `RT_ISA=baseline|avx2|avx512` sets the request ([`Isa::selected`]) for
+//! tests and measurements.
 
 use crate::{Hit, Ray};
 use std::sync::atomic::{AtomicU8, Ordering};
