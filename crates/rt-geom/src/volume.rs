@@ -240,6 +240,9 @@ pub struct Kdop7 {
     pub near: [f32; 7],
     /// Per slab normal, the highest projection.
     pub far: [f32; 7],
+    /// The largest absolute local coordinate of the volume's points, from the axis slabs:
+    /// the scale of the ray test's slack (kept with the slabs, not recomputed per ray).
+    pub size: f32,
 }
 
 impl Kdop7 {
@@ -247,7 +250,17 @@ impl Kdop7 {
     pub const EMPTY: Kdop7 = Kdop7 {
         near: [f32::INFINITY; 7],
         far: [f32::NEG_INFINITY; 7],
+        size: 0.0,
     };
+
+    /// `size` from the axis slabs (0 for the empty polytope).
+    fn with_size(mut self) -> Self {
+        self.size = (0..3)
+            .filter(|&a| self.near[a] <= self.far[a])
+            .map(|a| self.near[a].abs().max(self.far[a].abs()))
+            .fold(0.0, f32::max);
+        self
+    }
 }
 
 /// A ray against the seven slab normals: per normal, `n . (origin - anchor)` and `n . dir` in
@@ -276,7 +289,7 @@ impl BoundingVolume for Kdop7 {
                 k.far[i] = k.far[i].max(hi);
             }
         }
-        k
+        k.with_size()
     }
 
     fn merge(&self, o: &Self) -> Self {
@@ -285,7 +298,7 @@ impl BoundingVolume for Kdop7 {
             k.near[i] = k.near[i].min(o.near[i]);
             k.far[i] = k.far[i].max(o.far[i]);
         }
-        k
+        k.with_size()
     }
 
     type RayData = SlabProjections;
@@ -311,12 +324,8 @@ impl BoundingVolume for Kdop7 {
         if !(self.near[0] <= self.far[0]) {
             return None; // the empty volume
         }
-        // The slack, for the distance between the origin and the volume's points (the axis
-        // slabs bound their coordinates).
-        let size = (0..3)
-            .map(|a| self.near[a].abs().max(self.far[a].abs()))
-            .fold(0.0, f32::max) as f64;
-        let slack = SLACK * (s.origin_size + size);
+        // The slack, for the distance between the origin and the volume's points.
+        let slack = SLACK * (s.origin_size + self.size as f64);
         let (mut t0, mut t1) = (ray.tmin as f64, ray.tmax as f64);
         for (i, norm1) in KDOP7_NORM1.iter().enumerate() {
             let (near, far) = (self.near[i] as f64, self.far[i] as f64);

@@ -257,6 +257,26 @@ mod tests {
         assert!(proven > 3_000, "{proven}");
     }
 
+    /// Every lane in `cut` is one that [`Triangle::finish_watertight`] rejects.
+    fn assert_rejected(
+        tris: &[Triangle],
+        ray: &Ray,
+        sheared: &[[f32; 8]; 6],
+        mut cut: u32,
+        case: usize,
+    ) {
+        while cut != 0 {
+            let l = cut.trailing_zeros() as usize;
+            cut &= cut - 1;
+            let h = tris[l].finish_watertight(ray, lane_edges(sheared, l));
+            assert!(
+                h.is_none(),
+                "case {case} lane {l}: {:?} {ray:?} -> {h:?}",
+                tris[l]
+            );
+        }
+    }
+
     /// [`hits_outside`] culls beyond `tmax` only lanes whose hit
     /// [`Triangle::finish_watertight`] rejects: `tmax` just before, at and just after each
     /// lane's own hit (and far before and after it), every scale; and it culls most lanes
@@ -290,21 +310,12 @@ mod tests {
             let ray = open.with_range(0.0, tmax);
             let (kept, _) = watertight_lanes(&w8, &ray);
             assert_eq!(kept & !all, 0);
-            let mut cut = all & !kept;
+            let cut = all & !kept;
             if factor <= 0.5 && all >> (case % 8) & 1 == 1 {
                 beyond += 1;
                 beyond_culled += cut >> (case % 8) & 1;
             }
-            while cut != 0 {
-                let l = cut.trailing_zeros() as usize;
-                cut &= cut - 1;
-                let h = tris[l].finish_watertight(&ray, lane_edges(&sheared, l));
-                assert!(
-                    h.is_none(),
-                    "case {case} lane {l}: {:?} {ray:?} -> {h:?}",
-                    tris[l]
-                );
-            }
+            assert_rejected(&tris, &ray, &sheared, cut, case);
         }
         assert!(
             beyond > 3_000 && beyond_culled * 100 > beyond * 60,
@@ -341,7 +352,7 @@ mod tests {
             let (all, sheared) = watertight_lanes(&w8, &ray.with_range(0.0, f32::INFINITY));
             let (kept, _) = watertight_lanes(&w8, &ray);
             assert_eq!(kept & !all, 0);
-            let mut cut = all & !kept;
+            let cut = all & !kept;
             culled += cut.count_ones();
             // The usual case: an inside point, coordinates no larger than the triangle's
             // scale, `tmin` at least 1e-3 of it (shadow rays and bounces off a mesh start
@@ -352,16 +363,7 @@ mod tests {
                 own += 1;
                 own_culled += cut >> (case % 8) & 1;
             }
-            while cut != 0 {
-                let l = cut.trailing_zeros() as usize;
-                cut &= cut - 1;
-                let h = tris[l].finish_watertight(&ray, lane_edges(&sheared, l));
-                assert!(
-                    h.is_none(),
-                    "case {case} lane {l}: {:?} {ray:?} -> {h:?}",
-                    tris[l]
-                );
-            }
+            assert_rejected(&tris, &ray, &sheared, cut, case);
         }
         assert!(
             own > 2_000 && own_culled * 100 > own * 95,
