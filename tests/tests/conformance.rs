@@ -86,9 +86,9 @@ mod obvhs_bvh2 {
 
 mod obvhs_cwbvh {
     use super::*;
-    use xtask::obvhs_accel::ObvhsCwBvh;
+    use xtask::obvhs_accel::ObvhsCwBvhRtKernel;
     rt_testkit::conformance_tests!(
-        tolerance: xtask::registry::find("obvhs-cwbvh").unwrap().tolerance,
-        triangles: |p: &[Triangle]| ObvhsCwBvh::build(p),
+        tolerance: xtask::registry::find("obvhs-cwbvh-rt-kernel").unwrap().tolerance,
+        triangles: |p: &[Triangle]| ObvhsCwBvhRtKernel::build(p),
     );
 }

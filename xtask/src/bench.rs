@@ -60,7 +60,13 @@ fn default_scenes(quick: bool) -> Vec<&'static str> {
 
 /// The peers every bench measures in the same run (those registered: Embree's two modes only
 /// with the `embree` feature), so that every ratio has its reference.
-const PEERS: [&str; 4] = ["obvhs", "obvhs-cwbvh", "embree", "embree-fast"];
+const PEERS: [&str; 5] = [
+    "obvhs-cwbvh",
+    "embree",
+    "embree-fast",
+    "embree-medium",
+    "tinybvh",
+];
 
 /// Time budget of one timed repetition; larger ray sets are subsampled to fit it.
 const REP_BUDGET: Duration = Duration::from_millis(1500);
@@ -85,11 +91,17 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
         .iter()
         .map(|&t| run::pool(t).map(|p| (t, p)))
         .collect::<Result<_, _>>()?;
-    // obvhs is always measured: every ratio is against it, in the same run.
+    // The peers are always measured: every ratio is against one of them, in the same run
+    // (obvhs; Embree and tinybvh when their features register them).
     let mut measured: Vec<&AccelEntry> = entries.clone();
-    // So is Embree, in both modes, when it is registered (the `embree` feature).
     for name in PEERS {
         if let Some(e) = registry::find(name) {
+            if name == "tinybvh" && !cfg!(target_feature = "avx2") {
+                eprintln!(
+                    "tinybvh left out: tinybvh-rs runs BVH8_CPU only in AVX2 builds (--native)"
+                );
+                continue;
+            }
             if !measured.iter().any(|m| m.name == name) {
                 measured.push(e);
             }
@@ -142,6 +154,7 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
                         ratio_vs_obvhs: None,
                         ratio_vs_embree: None,
                         ratio_vs_embree_fast: None,
+                        ratio_vs_tinybvh: None,
                         ray_count,
                         hits,
                         prims: tris.len(),
@@ -355,13 +368,17 @@ fn fill_ratios(records: &mut [Record]) {
             })
             .collect()
     };
-    let obvhs = best(records, |a| a.starts_with("obvhs"));
+    // obvhs with its own triangle test; Embree as its users run it: default flags, the faster
+    // of its high and medium (default) builds.
+    let obvhs = best(records, |a| a == "obvhs-cwbvh");
     let embree = best(records, |a| a == "embree");
-    let embree_fast = best(records, |a| a == "embree-fast");
-    for (((r, o), e), f) in records.iter_mut().zip(obvhs).zip(embree).zip(embree_fast) {
-        r.ratio_vs_obvhs = o;
-        r.ratio_vs_embree = e;
-        r.ratio_vs_embree_fast = f;
+    let embree_fast = best(records, |a| a == "embree-fast" || a == "embree-medium");
+    let tinybvh = best(records, |a| a == "tinybvh");
+    for (i, r) in records.iter_mut().enumerate() {
+        r.ratio_vs_obvhs = obvhs[i];
+        r.ratio_vs_embree = embree[i];
+        r.ratio_vs_embree_fast = embree_fast[i];
+        r.ratio_vs_tinybvh = tinybvh[i];
     }
 }
 

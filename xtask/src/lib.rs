@@ -19,6 +19,7 @@
 //! | [`run`] | timed parallel tracing, medians, progress bars |
 //! | `embree` | Intel Embree 3 behind `Accel` (feature `embree`, system `libembree-dev`) |
 //! | [`fuzz`] | the fuzz targets' properties ([`fuzz::checks`]) and `cargo xtask fuzz`, which runs them |
+//! | `tinybvh` | tinybvh's `BVH8_CPU` behind `Accel` (feature `tinybvh`, crate `tinybvh-rs`) |
 //! | [`native`] | re-running `bench`/`trace` as the release build a dependent crate gets (or `--native`) |
 
 pub mod animate;
@@ -36,6 +37,8 @@ pub mod run;
 pub mod stress;
 pub mod sweep;
 pub mod table;
+#[cfg(feature = "tinybvh")]
+pub mod tinybvh;
 pub mod trace;
 pub mod verify;
 

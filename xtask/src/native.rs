@@ -52,6 +52,9 @@ fn rerun(target_dir: &str, rustflags: &str, features: &[&str], envs: &[(&str, &s
     if cfg!(feature = "embree") {
         features.push("embree");
     }
+    if cfg!(feature = "tinybvh") {
+        features.push("tinybvh");
+    }
     let status = Command::new(cargo)
         .args([
             "run",

@@ -1,11 +1,14 @@
-//! obvhs behind the `Accel` trait: the reference that `verify` and `bench` measure beside.
+//! obvhs behind the `Accel` trait: the reference that `verify` checks against, and a peer that
+//! `bench` measures beside.
 //!
-//! Both adapters run rt's own watertight kernel inside obvhs's traversal, so a disagreement can
-//! only come from obvhs's trees and box tests, never from a different triangle test.
-//! - [`ObvhsBvh2`]: obvhs's binary BVH, the correctness reference (its traversal honours
-//!   `tmin`/`tmax`).
-//! - [`ObvhsCwBvh`]: obvhs's compressed 8-wide BVH, a speed reference only: its traversal drops
-//!   hits closer than t = 1e-4, so `verify` compares it with that tolerance.
+//! - [`ObvhsBvh2`]: obvhs's binary BVH with rt's own watertight kernel in its leaves, the
+//!   correctness reference (its traversal honours `tmin`/`tmax`): a disagreement can only come
+//!   from obvhs's tree and box tests, never from a different triangle test.
+//! - [`ObvhsCwBvh`]: obvhs's compressed 8-wide BVH with its own triangle test (Möller and
+//!   Trumbore, triangles stored in the tree's order), the way its users run it: the speed
+//!   peer. Its traversal drops hits closer than t = 1e-4, and its triangle test is not
+//!   watertight, so `verify` compares it with a tolerance.
+//! - [`ObvhsCwBvhRtKernel`]: the same tree with rt's kernel, for `verify`.
 
 use obvhs::bvh2::Bvh2;
 use obvhs::cwbvh::CwBvh;
@@ -113,31 +116,64 @@ pub trait ObvhsTree: Send + Sync + Sized {
     fn check(&self) -> Result<(), String>;
 }
 
-/// An obvhs tree over triangles, traversed with rt's kernel.
-pub struct Obvhs<T> {
+/// An obvhs tree over triangles, traversed with rt's kernel, or with obvhs's own
+/// (`OWN_KERNEL`).
+pub struct Obvhs<T, const OWN_KERNEL: bool = false> {
     bvh: Option<T>,
     tris: Vec<Triangle>,
+    /// obvhs's triangles in the tree's primitive order (empty unless `OWN_KERNEL`).
+    slots: Vec<obvhs::triangle::Triangle>,
 }
 
 /// obvhs's `Bvh2` built with [`params`]: the correctness reference.
 pub type ObvhsBvh2 = Obvhs<Bvh2>;
-/// obvhs's compressed wide `CwBvh` built with [`params`]: a speed reference.
-pub type ObvhsCwBvh = Obvhs<CwBvh>;
+/// obvhs's compressed wide `CwBvh` built with [`params`], with its own triangle test: the
+/// speed peer.
+pub type ObvhsCwBvh = Obvhs<CwBvh, true>;
+/// [`ObvhsCwBvh`]'s tree with rt's kernel in its leaves.
+pub type ObvhsCwBvhRtKernel = Obvhs<CwBvh>;
 
-impl<T: ObvhsTree> Obvhs<T> {
+impl<T: ObvhsTree, const OWN_KERNEL: bool> Obvhs<T, OWN_KERNEL> {
     pub fn build(tris: &[Triangle]) -> Result<Self, BuildError> {
         check_primitives(tris, u32::MAX as usize - 1)?;
-        let bvh = (!tris.is_empty()).then(|| T::build(&to_obvhs(tris)));
+        let otris = to_obvhs(tris);
+        let bvh = (!tris.is_empty()).then(|| T::build(&otris));
+        let slots = match (&bvh, OWN_KERNEL) {
+            (Some(b), true) => b.indices().iter().map(|&i| otris[i as usize]).collect(),
+            _ => Vec::new(),
+        };
         Ok(Self {
             bvh,
             tris: tris.to_vec(),
+            slots,
+        })
+    }
+
+    /// The closest hit by obvhs's own triangle test, its barycentrics computed for the hit
+    /// only, as obvhs's examples do.
+    fn intersect_own(&self, bvh: &T, ray: &Ray) -> Option<Hit> {
+        let (oray, scale) = obvhs_ray(ray);
+        let mut hit = RayHit::none();
+        if !bvh.closest(oray, &mut hit, |r, slot| self.slots[slot].intersect(r)) {
+            return None;
+        }
+        let slot = hit.primitive_id as usize;
+        let uv = self.slots[slot].compute_barycentric(&oray);
+        Some(Hit {
+            t: hit.t / scale,
+            u: uv.x,
+            v: uv.y,
+            prim: bvh.indices()[slot],
         })
     }
 }
 
-impl<T: ObvhsTree> Accel for Obvhs<T> {
+impl<T: ObvhsTree, const OWN_KERNEL: bool> Accel for Obvhs<T, OWN_KERNEL> {
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let bvh = self.bvh.as_ref().filter(|_| ray.is_valid())?;
+        if OWN_KERNEL {
+            return self.intersect_own(bvh, ray);
+        }
         let (oray, scale) = obvhs_ray(ray);
         let mut c = Closest {
             tris: &self.tris,
@@ -155,6 +191,9 @@ impl<T: ObvhsTree> Accel for Obvhs<T> {
             return false;
         };
         let indices = bvh.indices();
+        if OWN_KERNEL {
+            return !bvh.missed(obvhs_ray(ray).0, |r, slot| self.slots[slot].intersect(r));
+        }
         !bvh.missed(obvhs_ray(ray).0, |_, id| {
             any_hit(&self.tris, ray, indices[id])
         })
@@ -166,8 +205,12 @@ impl<T: ObvhsTree> Accel for Obvhs<T> {
         };
         let mut s = bvh.tree_stats();
         s.primitives = self.tris.len();
-        s.bytes +=
-            std::mem::size_of_val(bvh.indices()) + std::mem::size_of_val(self.tris.as_slice());
+        s.bytes += std::mem::size_of_val(bvh.indices())
+            + if OWN_KERNEL {
+                std::mem::size_of_val(self.slots.as_slice())
+            } else {
+                std::mem::size_of_val(self.tris.as_slice())
+            };
         s
     }
 

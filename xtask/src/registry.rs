@@ -1,7 +1,7 @@
 //! The one registry of structures by name. `verify`, `bench`, `trace` (and `render`) cover
 //! every entry here; a new structure is one more line in [`REGISTRY`].
 
-use crate::obvhs_accel::{ObvhsBvh2, ObvhsCwBvh};
+use crate::obvhs_accel::{ObvhsBvh2, ObvhsCwBvh, ObvhsCwBvhRtKernel};
 use rt_accel_bvh::{
     BvList, BvListParams, Bvh, Bvh4, Bvh8, BvhBuilder, BvhParams, CompressedBvh8,
     CompressedTriBvh8, TriBvh4, TriBvh8, WideCollapse,
@@ -177,20 +177,21 @@ fn bvlist_two_level() -> BvListParams {
 }
 
 /// Every registered structure: rt's own and the references, then the optional peers.
-pub static REGISTRY: [AccelEntry; BASE.len() + OPTIONAL.len()] = concat(BASE, OPTIONAL);
+pub static REGISTRY: [AccelEntry; BASE.len() + OPTIONAL.len() + TINYBVH.len()] =
+    concat(&[BASE, OPTIONAL, TINYBVH]);
 
-/// `a` then `b`, as one array (entries are plain data: names, function pointers, numbers).
-const fn concat<const N: usize>(a: &[AccelEntry], b: &[AccelEntry]) -> [AccelEntry; N] {
-    let mut out = [a[0]; N];
-    let mut i = 0;
-    while i < b.len() {
-        out[a.len() + i] = b[i];
-        i += 1;
-    }
-    i = 0;
-    while i < a.len() {
-        out[i] = a[i];
-        i += 1;
+/// The lists one after the other, as one array (entries are plain data: names, function
+/// pointers, numbers).
+const fn concat<const N: usize>(lists: &[&[AccelEntry]]) -> [AccelEntry; N] {
+    let mut out = [BASE[0]; N];
+    let (mut k, mut n) = (0, 0);
+    while k < lists.len() {
+        let mut i = 0;
+        while i < lists[k].len() {
+            out[n] = lists[k][i];
+            (i, n) = (i + 1, n + 1);
+        }
+        k += 1;
     }
     out
 }
@@ -250,6 +251,27 @@ const OPTIONAL: &[AccelEntry] = &[
 
 #[cfg(not(feature = "embree"))]
 const OPTIONAL: &[AccelEntry] = &[];
+
+/// tinybvh's BVH8_CPU (`--features tinybvh`; its queries need an AVX2 build: `--native`).
+#[cfg(feature = "tinybvh")]
+const TINYBVH: &[AccelEntry] = &[AccelEntry {
+    name: "tinybvh",
+    about: "tinybvh 1.6.8 BVH8_CPU (tinybvh-rs, C++ built with -march=native): default build, leaves of 4, its own AVX2 walk and Moeller-Trumbore test; no tmin, closest hit only",
+    build: |p| boxed(crate::tinybvh::TinyBvh8::build(p)),
+    build_shapes: None,
+    tolerance: Tolerance {
+        near_t: CWBVH_NEAR_T,
+        ..EMBREE_TOLERANCE
+    },
+    external: true,
+    bench_max_prims: usize::MAX,
+    conformance: false,
+    packets: None,
+    packet_only: None,
+}];
+
+#[cfg(not(feature = "tinybvh"))]
+const TINYBVH: &[AccelEntry] = &[];
 
 /// What Embree is held to: `t` within 1e-4 relative; rays of the boundary families may lose
 /// hits (its watertight test differs from rt's in which of two triangles a shared edge or
@@ -526,7 +548,7 @@ const BASE: &[AccelEntry] = &[
     ),
     AccelEntry {
         name: "obvhs",
-        about: "obvhs 0.4 Bvh2, very_slow_build preset (PLOC + reinsertion + presplits): the correctness reference",
+        about: "obvhs 0.4 Bvh2, very_slow_build preset (PLOC + reinsertion + presplits), rt's watertight kernel in its leaves: the correctness reference",
         build: |p| boxed(ObvhsBvh2::build(p)),
         build_shapes: None,
         tolerance: OBVHS_TOLERANCE,
@@ -538,8 +560,24 @@ const BASE: &[AccelEntry] = &[
     },
     AccelEntry {
         name: "obvhs-cwbvh",
-        about: "obvhs 0.4 CwBvh (8-wide compressed), very_slow_build preset: speed reference; drops hits below t = 1e-4",
+        about: "obvhs 0.4 CwBvh (8-wide compressed), very_slow_build preset, its own Moeller-Trumbore triangle test: the speed peer as its users run it; drops hits below t = 1e-4",
         build: |p| boxed(ObvhsCwBvh::build(p)),
+        build_shapes: None,
+        tolerance: Tolerance {
+            near_t: CWBVH_NEAR_T,
+            ..EMBREE_TOLERANCE
+        },
+        external: true,
+        bench_max_prims: usize::MAX,
+        // Not watertight: a ray through a shared edge or vertex may miss both triangles.
+        conformance: false,
+        packets: None,
+        packet_only: None,
+    },
+    AccelEntry {
+        name: "obvhs-cwbvh-rt-kernel",
+        about: "the same obvhs CwBvh with rt's watertight kernel in its leaves (for verify); drops hits below t = 1e-4",
+        build: |p| boxed(ObvhsCwBvhRtKernel::build(p)),
         build_shapes: None,
         tolerance: Tolerance {
             near_t: CWBVH_NEAR_T,

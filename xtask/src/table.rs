@@ -15,14 +15,19 @@ pub struct Record {
     /// Median over the repetitions.
     pub mrays_s: f64,
     pub bytes: usize,
-    /// `mrays_s` over the faster of `obvhs` and `obvhs-cwbvh` on the same scene, rays, threads.
+    /// `mrays_s` over `obvhs-cwbvh` (obvhs with its own triangle test) on the same scene, rays,
+    /// threads.
     pub ratio_vs_obvhs: Option<f64>,
     /// `mrays_s` over Embree's on the same scene, rays, threads (with the `embree` feature).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ratio_vs_embree: Option<f64>,
-    /// `mrays_s` over Embree's in its default (not robust) mode, `embree-fast`.
+    /// `mrays_s` over Embree's in its default (not robust) mode: the faster of its high-quality
+    /// (`embree-fast`) and medium (`embree-medium`) builds.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ratio_vs_embree_fast: Option<f64>,
+    /// `mrays_s` over tinybvh's `BVH8_CPU` (with the `tinybvh` feature, in an AVX2 build).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ratio_vs_tinybvh: Option<f64>,
     pub ray_count: usize,
     pub hits: usize,
     /// Primitives in the scene.
@@ -33,9 +38,32 @@ pub struct Record {
     pub tests_per_ray: Option<(f64, f64)>,
 }
 
-/// Column titles; with `embree`, two more columns: the ratios to Embree's robust and default
-/// modes; with `counted`, two more: box and primitive tests per ray.
-pub fn headers(embree: bool, counted: bool) -> Vec<&'static str> {
+/// The optional columns a table has.
+#[derive(Clone, Copy, Debug)]
+pub struct Columns {
+    /// The ratios to Embree's robust and default modes.
+    pub embree: bool,
+    /// The ratio to tinybvh.
+    pub tinybvh: bool,
+    /// Box and primitive tests per ray.
+    pub counted: bool,
+}
+
+impl Columns {
+    /// The columns some record of `records` fills (then every row gets them).
+    pub fn of(records: &[Record]) -> Self {
+        Self {
+            embree: records
+                .iter()
+                .any(|r| r.ratio_vs_embree.is_some() || r.ratio_vs_embree_fast.is_some()),
+            tinybvh: records.iter().any(|r| r.ratio_vs_tinybvh.is_some()),
+            counted: records.iter().any(|r| r.tests_per_ray.is_some()),
+        }
+    }
+}
+
+/// Column titles, the optional ones where `cols` has them.
+pub fn headers(cols: Columns) -> Vec<&'static str> {
     let mut h = vec![
         "structure",
         "scene",
@@ -48,17 +76,20 @@ pub fn headers(embree: bool, counted: bool) -> Vec<&'static str> {
         "MiB",
         "SAH",
     ];
-    if embree {
-        h.extend(["vs embree", "vs embree-fast"]);
+    if cols.embree {
+        h.extend(["vs embree", "vs embree default"]);
     }
-    if counted {
+    if cols.tinybvh {
+        h.push("vs tinybvh");
+    }
+    if cols.counted {
         h.extend(["boxes/ray", "prims/ray"]);
     }
     h
 }
 
 /// The cells of `r`'s row, in [`headers`] order.
-pub fn cells(r: &Record, embree: bool, counted: bool) -> Vec<String> {
+pub fn cells(r: &Record, cols: Columns) -> Vec<String> {
     let ratio = |x: Option<f64>| x.map_or("-".into(), |x| format!("{x:.2}x"));
     let mut c = vec![
         r.accel.clone(),
@@ -72,10 +103,13 @@ pub fn cells(r: &Record, embree: bool, counted: bool) -> Vec<String> {
         format!("{:.1}", r.bytes as f64 / (1 << 20) as f64),
         r.sah_cost.map_or("-".into(), |x| format!("{x:.1}")),
     ];
-    if embree {
+    if cols.embree {
         c.extend([ratio(r.ratio_vs_embree), ratio(r.ratio_vs_embree_fast)]);
     }
-    if counted {
+    if cols.tinybvh {
+        c.push(ratio(r.ratio_vs_tinybvh));
+    }
+    if cols.counted {
         let (boxes, prims) = r.tests_per_ray.map_or(("-".into(), "-".into()), |(b, p)| {
             (format!("{b:.1}"), format!("{p:.1}"))
         });
@@ -84,32 +118,16 @@ pub fn cells(r: &Record, embree: bool, counted: bool) -> Vec<String> {
     c
 }
 
-/// Whether any record has test counts (a counting build).
-fn with_counts(records: &[Record]) -> bool {
-    records.iter().any(|r| r.tests_per_ray.is_some())
-}
-
-/// Whether any record has an Embree ratio (then every table gets the columns).
-fn with_embree(records: &[Record]) -> bool {
-    records
-        .iter()
-        .any(|r| r.ratio_vs_embree.is_some() || r.ratio_vs_embree_fast.is_some())
-}
-
 /// Columns that hold names (left-aligned); the others are numbers.
 const NAME_COLUMNS: usize = 3;
 
 /// The records as aligned text, one line each under a title line.
 pub fn text(records: &[Record]) -> String {
-    let (embree, counted) = (with_embree(records), with_counts(records));
-    let rows: Vec<Vec<String>> = std::iter::once(
-        headers(embree, counted)
-            .iter()
-            .map(|h| h.to_string())
-            .collect(),
-    )
-    .chain(records.iter().map(|r| cells(r, embree, counted)))
-    .collect();
+    let cols = Columns::of(records);
+    let rows: Vec<Vec<String>> =
+        std::iter::once(headers(cols).iter().map(|h| h.to_string()).collect())
+            .chain(records.iter().map(|r| cells(r, cols)))
+            .collect();
     let widths: Vec<usize> = (0..rows[0].len())
         .map(|c| rows.iter().map(|r| r[c].len()).max().unwrap_or(0))
         .collect();
@@ -135,14 +153,14 @@ pub fn text(records: &[Record]) -> String {
 
 /// The records as a Markdown table.
 pub fn markdown(records: &[Record]) -> String {
-    let (embree, counted) = (with_embree(records), with_counts(records));
-    let h = headers(embree, counted);
+    let cols = Columns::of(records);
+    let h = headers(cols);
     let align: Vec<&str> = (0..h.len())
         .map(|c| if c < NAME_COLUMNS { "---" } else { "---:" })
         .collect();
     let mut out = format!("| {} |\n|{}|\n", h.join(" | "), align.join("|"));
     for r in records {
-        out.push_str(&format!("| {} |\n", cells(r, embree, counted).join(" | ")));
+        out.push_str(&format!("| {} |\n", cells(r, cols).join(" | ")));
     }
     out
 }

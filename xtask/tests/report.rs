@@ -16,6 +16,7 @@ fn record(accel: &str, scene: &str, rays: &str, mrays_s: f64, build_ms: f64) -> 
         ratio_vs_obvhs: Some(mrays_s / 2.0),
         ratio_vs_embree: None,
         ratio_vs_embree_fast: None,
+        ratio_vs_tinybvh: None,
         ray_count: 1000,
         hits: 500,
         prims: if scene == "big" { 100_000 } else { 1000 },
