@@ -167,6 +167,24 @@ impl Drop for EmbreeScene {
     }
 }
 
+/// Embree's device held to the instruction set `RT_ISA` holds rt to (`,isa=avx2` and so on),
+/// so that both engines can be compared on the same level; nothing when `RT_ISA` is unset
+/// (Embree then picks the best its build has for this CPU).
+fn isa_config() -> String {
+    let Some(isa) = std::env::var("RT_ISA")
+        .ok()
+        .and_then(|v| rt_geom::Isa::parse(&v).ok())
+    else {
+        return String::new();
+    };
+    let name = match isa {
+        rt_geom::Isa::Baseline => "sse2",
+        rt_geom::Isa::Avx2 => "avx2",
+        rt_geom::Isa::Avx512 => "avx512skx",
+    };
+    format!(",isa={name}")
+}
+
 fn error(what: &str) -> BuildError {
     BuildError::InvalidParameter {
         name: "embree",
@@ -201,7 +219,7 @@ impl EmbreeScene {
         } else {
             threads
         };
-        let config = format!("threads={threads},verbose=0\0");
+        let config = format!("threads={threads},verbose=0{}\0", isa_config());
         let config = CStr::from_bytes_with_nul(config.as_bytes()).map_err(|_| error("config"))?;
         // SAFETY: a valid NUL-terminated configuration string.
         let device = NonNull::new(unsafe { rtcNewDevice(config.as_ptr()) })

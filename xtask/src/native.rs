@@ -91,7 +91,7 @@ fn rerun(target_dir: &str, rustflags: &str, features: &[&str], envs: &[(&str, &s
 /// the kernels run ([`rt_geom::Isa::selected`]).
 pub fn build_description() -> String {
     let build = if cfg!(target_feature = "avx2") {
-        "built for this CPU (-C target-cpu=native or similar)"
+        "release build for this CPU (-C target-cpu=native or similar)"
     } else {
         "plain release build (the baseline instruction set)"
     };

@@ -74,8 +74,9 @@ pub(super) fn index_md(
     let _ = writeln!(s, "- command: `{}`", opts.command);
     let _ = writeln!(
         s,
-        "- throughput: median Mrays/s of {} timed runs, single rays; ratios against the faster \
-         obvhs preset measured in the same run. Verdicts use {threads} thread(s).\n",
+        "- throughput: median Mrays/s of {} timed runs, single rays; ratios against obvhs's \
+         CwBvh with its own triangle test, measured in the same run. Verdicts use {threads} \
+         thread(s).\n",
         if opts.quick { 3 } else { 5 }
     );
     let mut scenes: Vec<&str> = records.iter().map(|r| r.scene.as_str()).collect();
