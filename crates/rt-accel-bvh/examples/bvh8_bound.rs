@@ -17,7 +17,7 @@
 //! (`cargo xtask rays` writes the ray files).
 
 use rt_accel_bvh::TriBvh8;
-use rt_geom::{Accel, Hit, Ray};
+use rt_geom::{Accel, BaseLevel, Hit, Kernel, Level, Ray, Walk};
 use std::hint::black_box;
 use std::time::Instant;
 
@@ -33,40 +33,80 @@ fn record<const ANY_HIT: bool>(bvh: &TriBvh8, ray: &Ray) -> (Vec<(u32, u32)>, Op
     let mut leaves = Vec::new();
     let answer = bvh
         .tree()
-        .traverse::<ANY_HIT>(ray, |first, count, r, best| {
+        .traverse::<ANY_HIT, _>(BaseLevel, ray, |first, count, r, best| {
             leaves.push((first, count));
-            test::<ANY_HIT>(bvh, first, count, r, best)
+            test::<ANY_HIT, _>(BaseLevel, bvh, first, count, r, best)
         });
     (leaves, answer)
 }
 
 #[inline(always)]
-fn test<const ANY_HIT: bool>(
+fn test<const ANY_HIT: bool, L: Level>(
+    level: L,
     bvh: &TriBvh8,
     first: u32,
     count: u32,
     r: &mut Ray,
     best: &mut Option<Hit>,
 ) -> bool {
-    bvh.triangles()
-        .intersect_range::<ANY_HIT>(first as usize, count as usize, r, bvh.ids(), best)
+    bvh.triangles().intersect_range::<ANY_HIT, L>(
+        level,
+        first as usize,
+        count as usize,
+        r,
+        bvh.ids(),
+        best,
+    )
 }
 
 /// The recorded leaves tested again, in order, until the answer.
-fn replay<const ANY_HIT: bool>(bvh: &TriBvh8, ray: &Ray, leaves: &[(u32, u32)]) -> Option<Hit> {
+#[inline(always)]
+fn replay<const ANY_HIT: bool, L: Level>(
+    level: L,
+    bvh: &TriBvh8,
+    ray: &Ray,
+    leaves: &[(u32, u32)],
+) -> Option<Hit> {
     let mut r = *ray;
     let mut best = None;
     for &(first, count) in leaves {
-        if test::<ANY_HIT>(bvh, first, count, &mut r, &mut best) {
+        if test::<ANY_HIT, L>(level, bvh, first, count, &mut r, &mut best) {
             break;
         }
     }
     best
 }
 
+/// A timed pass over the recorded rays, compiled for the structure's instruction set as its
+/// queries are: the leaves alone (`LEAVES`) or the walk alone.
+struct Pass<'a, const ANY_HIT: bool, const LEAVES: bool> {
+    bvh: &'a TriBvh8,
+    rays: &'a [Ray],
+    recorded: &'a [Recorded],
+}
+
+/// A ray's leaves, its answer and the leaf that gave it.
+type Recorded = (Vec<(u32, u32)>, Option<Hit>, Option<(u32, u32)>);
+
+impl<const ANY_HIT: bool, const LEAVES: bool> Kernel for Pass<'_, ANY_HIT, LEAVES> {
+    type Output = ();
+    #[inline(always)]
+    fn run<L: Level>(self, level: L) {
+        for (ray, (tested, answer, last)) in self.rays.iter().zip(self.recorded) {
+            if LEAVES {
+                black_box(replay::<ANY_HIT, L>(level, self.bvh, ray, tested));
+            } else {
+                black_box(walk::<ANY_HIT, L>(level, self.bvh, ray, *answer, *last));
+            }
+        }
+    }
+}
+
 /// The walk with free leaves, told the answer: the ray ends at its hit (closest hit), or the
 /// walk stops at the leaf that answered (any hit). Returns that answer.
-fn walk<const ANY_HIT: bool>(
+#[inline(always)]
+fn walk<const ANY_HIT: bool, L: Level>(
+    level: L,
     bvh: &TriBvh8,
     ray: &Ray,
     answer: Option<Hit>,
@@ -78,14 +118,15 @@ fn walk<const ANY_HIT: bool>(
             r.tmax = h.t;
         }
     }
-    bvh.tree().traverse::<ANY_HIT>(&r, |first, count, _, best| {
-        black_box(first);
-        if ANY_HIT && answer.is_some() && last == Some((first, count)) {
-            *best = answer;
-            return true;
-        }
-        false
-    })
+    bvh.tree()
+        .traverse::<ANY_HIT, L>(level, &r, |first, count, _, best| {
+            black_box(first);
+            if ANY_HIT && answer.is_some() && last == Some((first, count)) {
+                *best = answer;
+                return true;
+            }
+            false
+        })
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -98,11 +139,13 @@ fn race<const ANY_HIT: bool>(bvh: &TriBvh8, rays: &[Ray]) -> Result<(), String> 
     let (mut leaves, mut prims) = (0usize, 0usize);
     for (k, ray) in rays.iter().enumerate() {
         let (tested, answer) = record::<ANY_HIT>(bvh, ray);
-        if replay::<ANY_HIT>(bvh, ray, &tested) != answer {
+        if replay::<ANY_HIT, _>(BaseLevel, bvh, ray, &tested) != answer {
             return Err(format!("ray {k}: the leaves alone answer otherwise"));
         }
         let last = tested.last().copied();
-        if ANY_HIT && walk::<ANY_HIT>(bvh, ray, answer, last).is_some() != answer.is_some() {
+        if ANY_HIT
+            && walk::<ANY_HIT, _>(BaseLevel, bvh, ray, answer, last).is_some() != answer.is_some()
+        {
             return Err(format!("ray {k}: the walk alone answers otherwise"));
         }
         leaves += tested.len();
@@ -130,15 +173,22 @@ fn race<const ANY_HIT: bool>(bvh: &TriBvh8, rays: &[Ray]) -> Result<(), String> 
             }
         }
         whole.push(t.elapsed().as_secs_f64());
+        let isa = bvh.isa();
         let t = Instant::now();
-        for (ray, (tested, _, _)) in rays.iter().zip(&recorded) {
-            black_box(replay::<ANY_HIT>(bvh, ray, tested));
-        }
+        let pass = |rays, recorded| Pass::<ANY_HIT, true> {
+            bvh,
+            rays,
+            recorded,
+        };
+        rt_geom::isa::run(isa, pass(rays, &recorded));
         alone.push(t.elapsed().as_secs_f64());
         let t = Instant::now();
-        for (ray, (_, answer, last)) in rays.iter().zip(&recorded) {
-            black_box(walk::<ANY_HIT>(bvh, ray, *answer, *last));
-        }
+        let pass = |rays, recorded| Pass::<ANY_HIT, false> {
+            bvh,
+            rays,
+            recorded,
+        };
+        rt_geom::isa::run(isa, pass(rays, &recorded));
         walked.push(t.elapsed().as_secs_f64());
     }
     let rate = |s: f64| rays.len() as f64 / s / 1e6;

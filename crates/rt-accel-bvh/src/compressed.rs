@@ -25,7 +25,7 @@
 
 use crate::wide::{NodeLayout, WideBvh, WideNode, WideTree, lane_entries};
 use rt_geom::aabb::SlabRay;
-use rt_geom::{Aabb, Vec3};
+use rt_geom::{Aabb, Level, Vec3};
 
 /// A node of [`CompressedBvh8`] (layout in the module documentation).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -134,7 +134,7 @@ impl NodeLayout<8> for CompressedNode {
     }
 
     #[inline(always)]
-    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; 8]) {
+    fn entries<V: Level>(&self, level: V, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; 8]) {
         let dequantize = |q: &[[u8; 8]; 3]| -> [[f32; 8]; 3] {
             std::array::from_fn(|a| {
                 let step = self.step(a);
@@ -142,6 +142,7 @@ impl NodeLayout<8> for CompressedNode {
             })
         };
         lane_entries(
+            level,
             &dequantize(&self.qmin),
             &dequantize(&self.qmax),
             ray,

@@ -9,7 +9,8 @@ use crate::stats::check_leaf_primitive;
 use crate::wide::{NodeLayout, WideNode, WideTree};
 use crate::{Bvh, BvhParams};
 use rt_geom::{
-    Aabb, Accel, AccelStats, BuildError, Hit, Isa, Ray, Triangle, TriangleSoa, Walk, all_referenced,
+    Aabb, Accel, AccelStats, BuildError, Hit, Isa, Level, Ray, Triangle, TriangleSoa, Walk,
+    all_referenced,
 };
 
 /// Checks the triangles of leaf `(first, count)` against its `bounds` and marks their ids
@@ -110,12 +111,14 @@ impl<const N: usize, Node: NodeLayout<N>> Walk for TriBvh<N, Node> {
     }
 
     #[inline(always)]
-    fn walk<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        self.tree.traverse::<ANY_HIT>(
+    fn walk<const ANY_HIT: bool, L: Level>(&self, ray: &Ray, level: L) -> Option<Hit> {
+        self.tree.traverse::<ANY_HIT, L>(
+            level,
             ray,
             #[inline(always)]
             |first, count, r, best| {
-                self.tris.intersect_range::<ANY_HIT>(
+                self.tris.intersect_range::<ANY_HIT, L>(
+                    level,
                     first as usize,
                     count as usize,
                     r,

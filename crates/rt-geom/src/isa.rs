@@ -12,8 +12,15 @@
 //! answers through [`query`]. Either runs at the requested level, or at the best one below it
 //! that the CPU has. `RT_ISA=baseline|avx2|avx512` sets the request ([`Isa::selected`]) for
 //! tests and measurements.
+//!
+//! Inside, the work is handed the level it runs at as a value ([`Level`]), which the leaf
+//! tests pass on ([`TriangleSoa::intersect_range`](crate::TriangleSoa::intersect_range)) to
+//! pick their eight-lane vectors: `wide`'s (SSE pairs in a plain build) at the baseline, one
+//! AVX register at the AVX2 and AVX-512 levels. Only [`run`] makes an AVX2 level value, after
+//! checking the CPU, so the AVX instructions never run where they are missing.
 
-use crate::{Hit, Ray};
+use crate::triangle::{ShearedLanes, SimdLanes, Triangle};
+use crate::{Hit, PrimHit, Ray, TriangleSoa};
 use std::sync::atomic::{AtomicU8, Ordering};
 
 /// An instruction-set level the kernels are compiled for.
@@ -140,20 +147,172 @@ fn detect() -> Isa {
     Isa::Baseline
 }
 
+/// The level a [`Kernel`] runs at, as a value it hands to the node and leaf tests:
+/// [`BaseLevel`], or [`Avx2Level`] (made only by [`run`], on a CPU it checked). The value is
+/// the proof that the CPU runs the level: every operation that uses its instructions takes it.
+pub trait Level: Copy + Send + Sync + std::fmt::Debug + sealed::Sealed {
+    /// Bit `l` set where `a[l] <= b[l]` (false for NaN): one compare of the level's eight-lane
+    /// vectors (the wide walk's hit mask).
+    #[inline(always)]
+    fn le_bits8(self, a: &[f32; 8], b: &[f32; 8]) -> u32 {
+        sealed::Sealed::le8(self, a, b)
+    }
+}
+
+/// The baseline level: `wide`'s eight-lane vectors.
+#[derive(Clone, Copy, Debug)]
+pub struct BaseLevel;
+
+/// The AVX2 level (used at the AVX-512 one too): eight lanes in one AVX register. Its field is
+/// private: only [`run`] makes one, after finding AVX2 and FMA on the CPU.
+#[derive(Clone, Copy, Debug)]
+pub struct Avx2Level(());
+
+impl Level for BaseLevel {}
+impl Level for Avx2Level {}
+
+/// The hooks behind [`Level`]: not nameable outside rt-geom.
+pub(crate) mod sealed {
+    use crate::triangle::{ShearedLanes, SimdLanes, Triangle};
+    use crate::{PrimHit, Ray, TriangleSoa};
+
+    /// What a level gives the leaf tests (see [`Level`](super::Level)). Every hook takes the
+    /// level's value, the proof that the CPU runs it.
+    pub trait Sealed {
+        /// Triangles `k .. k + 8` of a leaf of `soa` ([`TriangleSoa::test_window`]) on the
+        /// level's eight-lane vectors.
+        #[allow(clippy::too_many_arguments)]
+        fn window8<const ANY_HIT: bool>(
+            self,
+            soa: &TriangleSoa,
+            leaf: (usize, usize),
+            k: usize,
+            ids: &[u32],
+            r: &mut Ray,
+            skip: &mut impl FnMut(u32) -> bool,
+            keep: &mut impl FnMut(PrimHit, u32, &mut Ray) -> bool,
+        ) -> bool;
+        /// [`Level::le_bits8`](super::Level::le_bits8).
+        fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32;
+        /// [`hits_outside`](crate::triangle::hits_outside), compiled for the level.
+        fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32;
+        /// The `f64` refinement of an accepted triangle, compiled for the level.
+        fn finish(self, tri: &Triangle, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit>;
+    }
+}
+
+impl sealed::Sealed for BaseLevel {
+    #[inline(always)]
+    fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32 {
+        use wide::{CmpLe, f32x8};
+        f32x8::from(*a).cmp_le(f32x8::from(*b)).move_mask() as u32
+    }
+
+    #[inline(always)]
+    fn window8<const ANY_HIT: bool>(
+        self,
+        soa: &TriangleSoa,
+        leaf: (usize, usize),
+        k: usize,
+        ids: &[u32],
+        r: &mut Ray,
+        skip: &mut impl FnMut(u32) -> bool,
+        keep: &mut impl FnMut(PrimHit, u32, &mut Ray) -> bool,
+    ) -> bool {
+        soa.test_window::<wide::f32x8, Self, ANY_HIT>(self, leaf, k, ids, r, skip, keep)
+    }
+
+    #[inline(always)]
+    fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
+        crate::triangle::hits_outside(t, tmin, tmax)
+    }
+
+    #[inline(always)]
+    fn finish(self, tri: &Triangle, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
+        tri.finish_accepted(ray, e)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl sealed::Sealed for Avx2Level {
+    #[inline(always)]
+    fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32 {
+        crate::triangle::Avx8::le_bits(a, b)
+    }
+
+    #[inline(always)]
+    fn window8<const ANY_HIT: bool>(
+        self,
+        soa: &TriangleSoa,
+        leaf: (usize, usize),
+        k: usize,
+        ids: &[u32],
+        r: &mut Ray,
+        skip: &mut impl FnMut(u32) -> bool,
+        keep: &mut impl FnMut(PrimHit, u32, &mut Ray) -> bool,
+    ) -> bool {
+        soa.test_window::<crate::triangle::Avx8, Self, ANY_HIT>(self, leaf, k, ids, r, skip, keep)
+    }
+
+    #[inline(always)]
+    fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
+        // SAFETY: an `Avx2Level` is made only by `run`, after finding AVX2 and FMA.
+        unsafe { crate::triangle::outside_avx2(t, tmin, tmax) }
+    }
+
+    #[inline(always)]
+    fn finish(self, tri: &Triangle, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
+        // SAFETY: as in `outside`.
+        unsafe { crate::triangle::finish_avx2(tri, ray, e) }
+    }
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+impl sealed::Sealed for Avx2Level {
+    #[inline(always)]
+    fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32 {
+        BaseLevel.le8(a, b)
+    }
+
+    #[inline(always)]
+    fn window8<const ANY_HIT: bool>(
+        self,
+        soa: &TriangleSoa,
+        leaf: (usize, usize),
+        k: usize,
+        ids: &[u32],
+        r: &mut Ray,
+        skip: &mut impl FnMut(u32) -> bool,
+        keep: &mut impl FnMut(PrimHit, u32, &mut Ray) -> bool,
+    ) -> bool {
+        soa.test_window::<wide::f32x8, Self, ANY_HIT>(self, leaf, k, ids, r, skip, keep)
+    }
+
+    #[inline(always)]
+    fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
+        BaseLevel.outside(t, tmin, tmax)
+    }
+
+    #[inline(always)]
+    fn finish(self, tri: &Triangle, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
+        BaseLevel.finish(tri, ray, e)
+    }
+}
+
 /// Work to run compiled for an instruction set ([`run`]): its `run` is `#[inline(always)]`,
 /// down to the leaf kernels, so that each level's copy is compiled for that level.
 pub trait Kernel {
     /// What the work returns.
     type Output;
-    /// Does the work.
-    fn run(self) -> Self::Output;
+    /// Does the work at `level`.
+    fn run<L: Level>(self, level: L) -> Self::Output;
 }
 
 /// `k.run()` compiled for `isa`, or for the best level below it that this CPU runs.
 #[inline]
 pub fn run<K: Kernel>(isa: Isa, k: K) -> K::Output {
     match isa.or_best() {
-        Isa::Baseline => k.run(),
+        Isa::Baseline => k.run(BaseLevel),
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `or_best` returned AVX2, so this CPU has every feature the function enables.
         Isa::Avx2 => unsafe { x86::run_v3(k) },
@@ -172,8 +331,8 @@ pub trait Walk {
     /// The level [`query`] runs the walk compiled for.
     fn isa(&self) -> Isa;
 
-    /// The closest hit, or with `ANY_HIT` any hit.
-    fn walk<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit>;
+    /// The closest hit, or with `ANY_HIT` any hit, at `level` (handed to the leaf tests).
+    fn walk<const ANY_HIT: bool, L: Level>(&self, ray: &Ray, level: L) -> Option<Hit>;
 }
 
 /// `w.walk::<ANY_HIT>(ray)` compiled for `w.isa()`, or for the best level below it that this
@@ -193,25 +352,25 @@ struct Query<'a, W: ?Sized, const ANY_HIT: bool> {
 impl<W: Walk + ?Sized, const ANY_HIT: bool> Kernel for Query<'_, W, ANY_HIT> {
     type Output = Option<Hit>;
     #[inline(always)]
-    fn run(self) -> Option<Hit> {
-        self.w.walk::<ANY_HIT>(self.ray)
+    fn run<L: Level>(self, level: L) -> Option<Hit> {
+        self.w.walk::<ANY_HIT, L>(self.ray, level)
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
-    use super::Kernel;
+    use super::{Avx2Level, Kernel};
 
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     pub(super) fn run_v3<K: Kernel>(k: K) -> K::Output {
-        k.run()
+        k.run(Avx2Level(()))
     }
 
     #[target_feature(
         enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq,avx512cd"
     )]
     pub(super) fn run_v4<K: Kernel>(k: K) -> K::Output {
-        k.run()
+        k.run(Avx2Level(()))
     }
 }
 

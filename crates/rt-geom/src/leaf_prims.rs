@@ -1,5 +1,5 @@
 //! Primitives stored leaf by leaf for the leaf test: [`TriangleSoa`], triangles as structure
-//! of arrays tested four or eight at a time ([`watertight_rows`]) with exactly the answers of the
+//! of arrays tested four or eight at a time ([`watertight_rows`](crate::triangle::watertight_rows)) with exactly the answers of the
 //! scalar kernel (the leaves of rt's wide BVHs over triangles), and [`LeafPrims`], the same
 //! for structures whose leaves list primitives by id (kd-trees, BSP trees, octrees, grids):
 //! a copy of each listed primitive in listing order, so that a leaf test reads its leaf's
@@ -14,9 +14,10 @@
 //! the [`LANES`] floats of padding at the end) and are masked off. Eight-lane windows are
 //! taken only while more than four triangles remain, so they stay inside the same bounds.
 
-use crate::triangle::{SimdLanes, lane_edges, proven_hit, watertight_rows};
+use crate::isa::{BaseLevel, Level};
+use crate::triangle::{SimdLanes, lane_edges, proven_hit, watertight_rows_at};
 use crate::{Hit, PrimHit, Primitive, Ray, Triangle, Vec3, keep_hit};
-use wide::{f32x4, f32x8};
+use wide::f32x4;
 
 /// Triangles tested together in the narrow window (and the floats of padding at the end).
 pub const LANES: usize = 4;
@@ -109,9 +110,13 @@ impl TriangleSoa {
     /// triangle whose hit [`proven_hit`] proves inside the ray's interval is handed over
     /// with Woop's `f32` estimates of `t`, `u`, `v` instead of the refined ones: the same
     /// answer, without the `f64` refinement.
+    ///
+    /// The eight-lane windows run on `level`'s vectors ([`Level`]: one AVX register at the
+    /// AVX2 level, inside a walk [`crate::isa::run`] runs there).
     #[inline(always)]
-    pub fn test_range<const ANY_HIT: bool>(
+    pub fn test_range<const ANY_HIT: bool, V: Level>(
         &self,
+        level: V,
         (first, count): (usize, usize),
         ids: &[u32],
         r: &mut Ray,
@@ -123,9 +128,9 @@ impl TriangleSoa {
         let mut k = 0;
         while k < count {
             let over = if count - k > LANES {
-                self.test_window::<f32x8, ANY_HIT>(leaf, k, ids, r, &mut skip, &mut keep)
+                level.window8::<ANY_HIT>(self, leaf, k, ids, r, &mut skip, &mut keep)
             } else {
-                self.test_window::<f32x4, ANY_HIT>(leaf, k, ids, r, &mut skip, &mut keep)
+                self.test_window::<f32x4, V, ANY_HIT>(level, leaf, k, ids, r, &mut skip, &mut keep)
             };
             if over {
                 return true;
@@ -139,8 +144,10 @@ impl TriangleSoa {
     /// [`Self::test_range`] tests them. Windows of eight stay inside the leaf's rows and the
     /// padding (they are taken only while more than four triangles remain).
     #[inline(always)]
-    fn test_window<L: SimdLanes, const ANY_HIT: bool>(
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn test_window<L: SimdLanes, V: Level, const ANY_HIT: bool>(
         &self,
+        level: V,
         (first, count): (usize, usize),
         k: usize,
         ids: &[u32],
@@ -158,7 +165,8 @@ impl TriangleSoa {
         }
         crate::counters::prims(lanes.count_ones());
         // Row `j` straight from the leaf (the ray's axes pick which rows are read).
-        let (may_hit, sheared) = watertight_rows(
+        let (may_hit, sheared) = watertight_rows_at(
+            level,
             #[inline(always)]
             |j| L::load(&leaf[j * count + k..]),
             r,
@@ -186,7 +194,11 @@ impl TriangleSoa {
                     continue;
                 }
             }
-            if let Some(h) = self.get(first, count, k + l).finish_watertight(r, edges) {
+            let (u, v, w) = edges;
+            if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+                continue;
+            }
+            if let Some(h) = level.finish(&self.get(first, count, k + l), r, edges) {
                 if keep(h, ids[k + l], r) {
                     return true;
                 }
@@ -198,15 +210,17 @@ impl TriangleSoa {
     /// [`Self::test_range`] keeping the closest hit in `best` (ties by [`crate::replaces`]) and
     /// lowering `r.tmax` to it; with `ANY_HIT`, the first hit ends the search (true).
     #[inline(always)]
-    pub fn intersect_range<const ANY_HIT: bool>(
+    pub fn intersect_range<const ANY_HIT: bool, V: Level>(
         &self,
+        level: V,
         first: usize,
         count: usize,
         r: &mut Ray,
         ids: &[u32],
         best: &mut Option<Hit>,
     ) -> bool {
-        self.test_range::<ANY_HIT>(
+        self.test_range::<ANY_HIT, V>(
+            level,
             (first, count),
             ids,
             r,
@@ -261,7 +275,14 @@ impl<P: Primitive> LeafPrims<P> {
     ) -> bool {
         let keep = |h, id, r: &mut Ray| keep_hit::<ANY_HIT>(h, id, &mut r.tmax, best);
         if let Some(soa) = &self.soa {
-            return soa.test_range::<ANY_HIT>((first, count), indices, ray, skip, keep);
+            return soa.test_range::<ANY_HIT, _>(
+                BaseLevel,
+                (first, count),
+                indices,
+                ray,
+                skip,
+                keep,
+            );
         }
         let mut keep = keep;
         let ids = &indices[first..first + count];

@@ -59,7 +59,7 @@ pub use brute::BruteForce;
 pub use cone::Cone;
 pub use frame::Frame;
 pub use glam::{self, DVec3, Vec3};
-pub use isa::{Isa, Kernel, Walk};
+pub use isa::{Avx2Level, BaseLevel, Isa, Kernel, Level, Walk};
 pub use leaf_prims::{LeafPrims, TriangleSoa};
 pub use mesh::{Mesh, MeshError, MeshGroup, load_obj, parse_obj};
 pub use primitive::Primitive;

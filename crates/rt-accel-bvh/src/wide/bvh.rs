@@ -5,7 +5,7 @@ use crate::refit::{Refit, check_moved, in_leaf_order, leaf_bounds};
 use crate::stats::check_leaf_primitive;
 use crate::{Bvh, BvhParams};
 use rt_geom::all_referenced;
-use rt_geom::{Accel, AccelStats, BuildError, Hit, Isa, Primitive, Ray, Walk};
+use rt_geom::{Accel, AccelStats, BuildError, Hit, Isa, Level, Primitive, Ray, Walk};
 
 /// A BVH with `N` children per node (`N` = 4 or 8) in the layout `Node` (exact boxes by
 /// default), sharing the leaf-ordered primitives of the binary tree it was collapsed from.
@@ -76,8 +76,9 @@ impl<P: Primitive, const N: usize, Node: NodeLayout<N>> Walk for WideBvh<P, N, N
     }
 
     #[inline(always)]
-    fn walk<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        self.tree.traverse::<ANY_HIT>(
+    fn walk<const ANY_HIT: bool, L: Level>(&self, ray: &Ray, level: L) -> Option<Hit> {
+        self.tree.traverse::<ANY_HIT, L>(
+            level,
             ray,
             #[inline(always)]
             |first, count, r, best| {

@@ -13,8 +13,8 @@
 //! fallback on any target.
 
 use super::traverse::lane_entries;
-use rt_geom::Aabb;
 use rt_geom::aabb::SlabRay;
+use rt_geom::{Aabb, Level};
 
 /// A wide node layout as build, walk, check, stats and refit see it: one entry distance per
 /// lane, each lane's child, its box. [`WideNode`] stores boxes exactly;
@@ -27,7 +27,8 @@ pub trait NodeLayout<const N: usize>: Copy + Send + Sync + std::fmt::Debug {
     fn from_exact(node: &WideNode<N>) -> Self;
     /// The lanes the ray enters within `[tmin, tmax]` (bit `lane`), and the entry distance
     /// per lane (meaningful for those).
-    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; N]);
+    /// on `level`'s vectors.
+    fn entries<V: Level>(&self, level: V, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; N]);
     /// Inner child: node index; leaf: first primitive; `u32::MAX` for an empty lane.
     fn child(&self, lane: usize) -> u32;
     /// 0 for an inner child, else the leaf's primitive count.
@@ -91,8 +92,8 @@ impl<const N: usize> NodeLayout<N> for WideNode<N> {
     }
 
     #[inline(always)]
-    fn entries(&self, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; N]) {
-        lane_entries(&self.min, &self.max, ray, tmin, tmax)
+    fn entries<V: Level>(&self, level: V, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; N]) {
+        lane_entries(level, &self.min, &self.max, ray, tmin, tmax)
     }
 
     #[inline(always)]

@@ -4,7 +4,7 @@
 
 use super::NodeLayout;
 use rt_geom::aabb::{SlabRay, pad_interval};
-use rt_geom::{Aabb, Hit, Primitive, Ray, keep_hit};
+use rt_geom::{Aabb, Hit, Level, Primitive, Ray, keep_hit};
 
 /// Tests the leaf-ordered primitives `first..first + count` (closest hit, or any hit),
 /// keeping the hit with the caller's id.
@@ -29,13 +29,13 @@ pub(crate) fn test_leaf<P: Primitive, const ANY_HIT: bool>(
 }
 
 /// Bit `lane` set where `t0 <= t1` (false for NaN): one SIMD compare and mask extraction for
-/// 4 and 8 lanes.
+/// 4 and 8 lanes (eight in one compare of `level`'s vectors).
 #[inline(always)]
-fn le_lanes<const N: usize>(t0: &[f32; N], t1: &[f32; N]) -> u32 {
-    use wide::{CmpLe, f32x4, f32x8};
+fn le_lanes<const N: usize, V: Level>(level: V, t0: &[f32; N], t1: &[f32; N]) -> u32 {
+    use wide::{CmpLe, f32x4};
     let (a, b) = (&t0[..], &t1[..]);
-    if let (Ok(a), Ok(b)) = (<[f32; 8]>::try_from(a), <[f32; 8]>::try_from(b)) {
-        return f32x8::from(a).cmp_le(f32x8::from(b)).move_mask() as u32;
+    if let (Ok(a), Ok(b)) = (<&[f32; 8]>::try_from(a), <&[f32; 8]>::try_from(b)) {
+        return level.le_bits8(a, b);
     }
     if let (Ok(a), Ok(b)) = (<[f32; 4]>::try_from(a), <[f32; 4]>::try_from(b)) {
         return f32x4::from(a).cmp_le(f32x4::from(b)).move_mask() as u32;
@@ -53,7 +53,9 @@ fn le_lanes<const N: usize>(t0: &[f32; N], t1: &[f32; N]) -> u32 {
 ///
 /// Popped entries whose entry distance lies beyond the closest hit found since are skipped.
 #[inline(always)]
-pub(crate) fn traverse_nodes<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool>(
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn traverse_nodes<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level>(
+    level: V,
     nodes: &[Node],
     root_bounds: &Aabb,
     root_leaf: Option<(u32, u32)>,
@@ -84,14 +86,23 @@ pub(crate) fn traverse_nodes<Node: NodeLayout<N>, const N: usize, const ANY_HIT:
     if stack.len() < need {
         stack.resize(need, (0, 0, 0.0));
     }
-    walk_stack::<Node, N, ANY_HIT>(nodes, &slab, &mut stack[..need], &mut r, &mut best, leaf);
+    walk_stack::<Node, N, ANY_HIT, V>(
+        level,
+        nodes,
+        &slab,
+        &mut stack[..need],
+        &mut r,
+        &mut best,
+        leaf,
+    );
     STACK.set(stack);
     best
 }
 
 /// The stack loop of [`traverse_nodes`] from the root, over `stack` (large enough).
 #[inline(always)]
-fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool>(
+fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level>(
+    level: V,
     nodes: &[Node],
     slab: &SlabRay,
     stack: &mut [(u32, u32, f32)],
@@ -114,7 +125,7 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool>(
                     let used = (0..N).filter(|&l| node.child(l) != u32::MAX).count();
                     rt_geom::counters::nodes(used as u32);
                 }
-                let (entered, t) = node.entries(slab, r.tmin, r.tmax);
+                let (entered, t) = node.entries(level, slab, r.tmin, r.tmax);
                 let mut mask = entered & node.used_mask();
                 if mask != 0 {
                     let lane = mask.trailing_zeros() as usize;
@@ -178,7 +189,8 @@ thread_local! {
 /// tested again. Conservative like [`SlabRay::entry`]: the entry returned is never later
 /// than the true one and never before `tmin`.
 #[inline(always)]
-pub(crate) fn lane_entries<const N: usize>(
+pub(crate) fn lane_entries<const N: usize, V: Level>(
+    level: V,
     min: &[[f32; N]; 3],
     max: &[[f32; N]; 3],
     ray: &SlabRay,
@@ -207,5 +219,5 @@ pub(crate) fn lane_entries<const N: usize>(
             (t0[l], t1[l]) = pad_interval(t0[l], t1[l], tmin);
         }
     }
-    (le_lanes(&t0, &t1), t0)
+    (le_lanes(level, &t0, &t1), t0)
 }

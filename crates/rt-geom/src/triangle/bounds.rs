@@ -38,6 +38,12 @@ pub fn hits_before_tmin<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32) -> u32 {
 /// every lane culled. Out of line, as [`hits_before_tmin`].
 #[inline(never)]
 pub fn hits_outside<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
+    outside_lanes(t, tmin, tmax)
+}
+
+/// [`hits_outside`]'s body, inlined where a level's own out-of-line copy is compiled.
+#[inline(always)]
+pub(crate) fn outside_lanes<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
     let b = EstimateBounds::of(t);
     let two = L::splat(2.0);
     let mut out = 0;

@@ -1,9 +1,9 @@
 //! The lane kernel: the watertight test's edge functions and sign test for four or eight
 //! triangles at once, with exactly the scalar kernel's numbers, and the batched leaf test.
 
-use super::bounds::hits_outside;
 use super::simd::{ShearedLanes, SimdLanes, TriangleLanes};
 use super::{Triangle, watertight_edges};
+use crate::isa::{BaseLevel, Level};
 use crate::{Hit, Ray, keep_hit};
 use wide::f32x4;
 
@@ -24,7 +24,7 @@ pub fn lane_edges<A: std::ops::Index<usize, Output = f32>>(
 /// ray's [`Ray::watertight_shear`] along its [`Ray::watertight_axes`]), and their sign test.
 /// Returns the lanes the sign test cannot reject (signs that agree, or an edge function
 /// exactly zero, which [`watertight_edges`] recomputes in `f64`) and that
-/// [`hits_outside`] does not prove to lie outside `[tmin, tmax]`, as bits, and the sheared
+/// [`hits_outside`](super::hits_outside) does not prove to lie outside `[tmin, tmax]`, as bits, and the sheared
 /// coordinates `[ax, ay, bx, by, cx, cy]` of every lane: for such a lane `l`,
 /// `tri.finish_watertight(ray, lane_edges(&sheared, l))` is exactly what
 /// [`Triangle::intersect_watertight`] returns, and for every other lane that is `None`.
@@ -42,6 +42,16 @@ pub fn watertight_lanes<L: SimdLanes>(tris: &TriangleLanes<L>, ray: &Ray) -> (u3
 /// instead of first storing all nine in an array that the axes index.
 #[inline(always)]
 pub fn watertight_rows<L: SimdLanes>(row: impl Fn(usize) -> L, ray: &Ray) -> (u32, [L::Array; 6]) {
+    watertight_rows_at(BaseLevel, row, ray)
+}
+
+/// [`watertight_rows`] at `level`, whose copy of the out-of-line bounds it calls.
+#[inline(always)]
+pub(crate) fn watertight_rows_at<L: SimdLanes, V: Level>(
+    level: V,
+    row: impl Fn(usize) -> L,
+    ray: &Ray,
+) -> (u32, [L::Array; 6]) {
     // The lanes hold one coordinate per row, so the ray's axes pick rows (loads at a
     // run-time offset) and the shear takes two products per vertex, not the six of the dot
     // products with the shear rows that the scalar kernel computes: the same numbers, since
@@ -106,7 +116,7 @@ pub fn watertight_rows<L: SimdLanes>(row: impl Fn(usize) -> L, ray: &Ray) -> (u3
                 num,
                 den,
             };
-            may_hit &= !hits_outside(&sheared, tmin, tmax);
+            may_hit &= !level.outside(&sheared, tmin, tmax);
         }
     }
     // Spelled out: `.map(L::to_lanes)` compiled to a call that copies every lane.

@@ -5,17 +5,22 @@
 //! |---|---|
 //! | `clip.rs` | [`Triangle::clipped_bounds`]: the part of a triangle inside a box (perfect kd-tree splits) |
 //! | `simd.rs` | [`SimdLanes`]: the vectors of four or eight lanes the kernel runs on; the lanes' triangles and sheared frame |
-//! | `simd.rs` | [`SimdLanes`]: the vectors of four or eight lanes the kernel runs on; the lanes' triangles and sheared frame |
+//! | `avx.rs` | `Avx8`: eight lanes in one AVX register, the leaf test's vectors at the AVX2 level |
 //! | `lanes.rs` | the lane kernel: four or eight triangles' edge functions and sign test at once ([`watertight_lanes`]), the batched leaf test |
 //! | `bounds.rs` | the error bounds that decide a lane without the `f64` refinement: [`hits_before_tmin`], [`hits_outside`], [`proven_hit`] |
 
+#[cfg(target_arch = "x86_64")]
+mod avx;
 mod bounds;
 mod clip;
 mod lanes;
 mod simd;
 
+#[cfg(target_arch = "x86_64")]
+pub(crate) use avx::{Avx8, finish_avx2, outside_avx2};
 pub use bounds::{hits_before_tmin, hits_outside, proven_hit};
 pub(crate) use lanes::test_triangles;
+pub(crate) use lanes::watertight_rows_at;
 pub use lanes::{lane_edges, watertight_lanes, watertight_rows};
 pub use simd::{ShearedLanes, SimdLanes, TriangleLanes};
 
@@ -162,7 +167,18 @@ impl Triangle {
     /// functions decide nothing (they all underflow to zero, for tiny triangles, or overflow,
     /// for vertices near the largest floats), the `f64` ones decide alone.
     #[inline(never)]
-    fn finish_accepted(&self, ray: &Ray, (u, v, w): (f32, f32, f32)) -> Option<PrimHit> {
+    pub(crate) fn finish_accepted(&self, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
+        self.finish_accepted_inline(ray, e)
+    }
+
+    /// [`Self::finish_accepted`]'s body, inlined where a level's own out-of-line copy is
+    /// compiled.
+    #[inline(always)]
+    pub(crate) fn finish_accepted_inline(
+        &self,
+        ray: &Ray,
+        (u, v, w): (f32, f32, f32),
+    ) -> Option<PrimHit> {
         if self.is_degenerate() {
             return None;
         }
