@@ -5,11 +5,12 @@ use rt_testkit::{conformance, scenes};
 use xtask::registry::REGISTRY;
 
 /// Every structure in the registry (so every structure `verify`, `bench` and `trace` know) on
-/// `scene`, held to its registered tolerance.
+/// `scene`, held to its registered tolerance; peers that answer otherwise by design on these
+/// scenes (`conformance: false`: not watertight) are checked on the meshes by `verify`.
 fn every_registered_structure_conforms(scene: &str) {
     let scene = scenes::triangle_scene(scene);
     let mut failures = Vec::new();
-    for entry in REGISTRY {
+    for entry in REGISTRY.iter().filter(|e| e.conformance) {
         match conformance::check_scene(&scene, entry.build, entry.tolerance) {
             Ok(r) if r.is_ok() => {}
             Ok(r) => failures.push(format!(
