@@ -5,10 +5,9 @@
 //!
 //! Not exact, and not held to be: tinybvh's triangle test is Möller and Trumbore's (not
 //! watertight) and its rays have no `tmin` (hits at `t > 0` count: a ray's origin is moved to
-//! its `tmin`). `tinybvh-rs` 0.1 offers
-//! `BVH8_CPU`'s closest-hit query only, and only in builds with AVX2 enabled (`bench
-//! --native`); shadow rays therefore ask for the closest hit before `tmax` rather than
-//! tinybvh's `IsOccluded`, which stops at the first one.
+//! its `tmin`). `tinybvh-rs` 0.1 offers `BVH8_CPU`'s closest-hit query only, and only in
+//! builds with AVX2 enabled (`bench --native`); shadow rays therefore ask for the closest hit
+//! before `tmax` rather than tinybvh's `IsOccluded`, which stops at the first one.
 
 use rt_geom::{Accel, AccelStats, BuildError, Hit, Ray, Triangle, check_primitives};
 

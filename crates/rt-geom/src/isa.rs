@@ -13,9 +13,10 @@
 //! that the CPU has. `RT_ISA=baseline|avx2|avx512` sets the request ([`Isa::selected`]) for
 //! tests and measurements.
 //!
-//! Inside, the work is handed the level it runs at as a value ([`Level`]), which the leaf
-//! tests pass on ([`TriangleSoa::intersect_range`](crate::TriangleSoa::intersect_range)) to
-//! pick their eight-lane vectors: `wide`'s (SSE pairs in a plain build) at the baseline, one
+//! Inside, the work is handed the level it runs at as a value ([`Level`]), which the walk's
+//! node tests and the leaf tests
+//! ([`TriangleSoa::intersect_range`](crate::TriangleSoa::intersect_range)) pick their
+//! eight-lane vectors by: `wide`'s (SSE pairs in a plain build) at the baseline, one
 //! AVX register at the AVX2 and AVX-512 levels. Only [`run`] makes an AVX2 level value, after
 //! checking the CPU, so the AVX instructions never run where they are missing.
 
@@ -308,7 +309,8 @@ pub trait Kernel {
     fn run<L: Level>(self, level: L) -> Self::Output;
 }
 
-/// `k.run()` compiled for `isa`, or for the best level below it that this CPU runs.
+/// `k.run(level)` compiled for `isa`, or for the best level below it that this CPU runs, with
+/// that level's value.
 #[inline]
 pub fn run<K: Kernel>(isa: Isa, k: K) -> K::Output {
     match isa.or_best() {
@@ -335,9 +337,9 @@ pub trait Walk {
     fn walk<const ANY_HIT: bool, L: Level>(&self, ray: &Ray, level: L) -> Option<Hit>;
 }
 
-/// `w.walk::<ANY_HIT>(ray)` compiled for `w.isa()`, or for the best level below it that this
-/// CPU runs: the answers are the same on every level (the kernels' arithmetic is the same
-/// sequence of IEEE operations; only the width of the instructions differs).
+/// `w.walk::<ANY_HIT, _>(ray, level)` compiled for `w.isa()`, or for the best level below it
+/// that this CPU runs: the answers are the same on every level (the kernels' arithmetic is the
+/// same sequence of IEEE operations; only the width of the instructions differs).
 #[inline]
 pub fn query<W: Walk + ?Sized, const ANY_HIT: bool>(w: &W, ray: &Ray) -> Option<Hit> {
     run(w.isa(), Query::<W, ANY_HIT> { w, ray })

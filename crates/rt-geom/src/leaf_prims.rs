@@ -1,5 +1,6 @@
 //! Primitives stored leaf by leaf for the leaf test: [`TriangleSoa`], triangles as structure
-//! of arrays tested four or eight at a time ([`watertight_rows`](crate::triangle::watertight_rows)) with exactly the answers of the
+//! of arrays tested four or eight at a time
+//! ([`watertight_rows`](crate::triangle::watertight_rows)) with exactly the answers of the
 //! scalar kernel (the leaves of rt's wide BVHs over triangles), and [`LeafPrims`], the same
 //! for structures whose leaves list primitives by id (kd-trees, BSP trees, octrees, grids):
 //! a copy of each listed primitive in listing order, so that a leaf test reads its leaf's
@@ -15,7 +16,7 @@
 //! taken only while more than four triangles remain, so they stay inside the same bounds.
 
 use crate::isa::{BaseLevel, Level};
-use crate::triangle::{SimdLanes, lane_edges, proven_hit, watertight_rows_at};
+use crate::triangle::{SimdLanes, lane_edges, proven_hit, signs_agree, watertight_rows_at};
 use crate::{Hit, PrimHit, Primitive, Ray, Triangle, Vec3, keep_hit};
 use wide::f32x4;
 
@@ -194,8 +195,7 @@ impl TriangleSoa {
                     continue;
                 }
             }
-            let (u, v, w) = edges;
-            if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            if !signs_agree(edges) {
                 continue;
             }
             if let Some(h) = level.finish(&self.get(first, count, k + l), r, edges) {

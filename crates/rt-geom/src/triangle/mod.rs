@@ -27,6 +27,13 @@ pub use simd::{ShearedLanes, SimdLanes, TriangleLanes};
 use crate::{Aabb, PrimHit, Ray};
 use glam::{DVec3, Vec3};
 
+/// Whether the `f32` edge functions do not disagree in sign (none below zero, or none above):
+/// the watertight test's acceptance, before the `f64` refinement.
+#[inline(always)]
+pub(crate) fn signs_agree((u, v, w): (f32, f32, f32)) -> bool {
+    !((u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0))
+}
+
 /// A triangle given by its three vertices.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct Triangle {
@@ -156,11 +163,11 @@ impl Triangle {
     /// The sign test (which rejects most triangles a traversal tries) is inlined into the
     /// caller; the rest runs out of line, only for the triangles it accepts.
     #[inline(always)]
-    pub fn finish_watertight(&self, ray: &Ray, (u, v, w): (f32, f32, f32)) -> Option<PrimHit> {
-        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+    pub fn finish_watertight(&self, ray: &Ray, edges: (f32, f32, f32)) -> Option<PrimHit> {
+        if !signs_agree(edges) {
             return None;
         }
-        self.finish_accepted(ray, (u, v, w))
+        self.finish_accepted(ray, edges)
     }
 
     /// [`Self::finish_watertight`] once the edge functions agree in sign. Where the `f32` edge
