@@ -433,15 +433,7 @@ impl Accel for EmbreeScene {
     }
 
     fn stats(&self) -> AccelStats {
-        AccelStats {
-            primitives: self.prims,
-            // Embree does not report its memory here; its input copy is a lower bound.
-            bytes: self.prims * 48,
-            nodes: 1,
-            leaves: 1,
-            references: self.prims,
-            ..AccelStats::default()
-        }
+        crate::registry::opaque_peer_stats(self.prims)
     }
 
     fn validate(&self) -> Result<(), String> {

@@ -259,10 +259,7 @@ const TINYBVH: &[AccelEntry] = &[AccelEntry {
     about: "tinybvh 1.6.8 BVH8_CPU (tinybvh-rs, C++ built with -march=native): default build, leaves of 4, its own AVX2 walk and Moeller-Trumbore test; no tmin, closest hit only",
     build: |p| boxed(crate::tinybvh::TinyBvh8::build(p)),
     build_shapes: None,
-    tolerance: Tolerance {
-        near_t: CWBVH_NEAR_T,
-        ..EMBREE_TOLERANCE
-    },
+    tolerance: MOLLER_TOLERANCE,
     external: true,
     bench_max_prims: usize::MAX,
     conformance: false,
@@ -283,6 +280,28 @@ pub const EMBREE_TOLERANCE: Tolerance = Tolerance {
     behind_origin_misses: true,
     lowest_on_ties: false,
     edge_band: 0.0,
+};
+
+/// The statistics of a peer that does not report its tree (Embree, tinybvh): its input copy
+/// of the triangles (48 bytes each) as a lower bound of its memory, one node.
+#[cfg(any(feature = "embree", feature = "tinybvh"))]
+pub fn opaque_peer_stats(prims: usize) -> rt_geom::AccelStats {
+    rt_geom::AccelStats {
+        primitives: prims,
+        bytes: prims * 48,
+        nodes: 1,
+        leaves: 1,
+        references: prims,
+        ..rt_geom::AccelStats::default()
+    }
+}
+
+/// What the peers with their own Möller-Trumbore test are held to on the meshes (obvhs's
+/// CwBvh, tinybvh): Embree's tolerance (neither is watertight), and no hits below
+/// [`CWBVH_NEAR_T`] (CwBvh's walk drops them; tinybvh has no `tmin`).
+pub const MOLLER_TOLERANCE: Tolerance = Tolerance {
+    near_t: CWBVH_NEAR_T,
+    ..EMBREE_TOLERANCE
 };
 
 const BASE: &[AccelEntry] = &[
@@ -563,10 +582,7 @@ const BASE: &[AccelEntry] = &[
         about: "obvhs 0.4 CwBvh (8-wide compressed), very_slow_build preset, its own Moeller-Trumbore triangle test: the speed peer as its users run it; drops hits below t = 1e-4",
         build: |p| boxed(ObvhsCwBvh::build(p)),
         build_shapes: None,
-        tolerance: Tolerance {
-            near_t: CWBVH_NEAR_T,
-            ..EMBREE_TOLERANCE
-        },
+        tolerance: MOLLER_TOLERANCE,
         external: true,
         bench_max_prims: usize::MAX,
         // Not watertight: a ray through a shared edge or vertex may miss both triangles.

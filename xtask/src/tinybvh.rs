@@ -148,15 +148,7 @@ impl Accel for TinyBvh8 {
     }
 
     fn stats(&self) -> AccelStats {
-        AccelStats {
-            primitives: self.prims,
-            // tinybvh-rs does not report BVH8_CPU's memory; its input copy is a lower bound.
-            bytes: self.prims * 48,
-            nodes: 1,
-            leaves: 1,
-            references: self.prims,
-            ..AccelStats::default()
-        }
+        crate::registry::opaque_peer_stats(self.prims)
     }
 
     fn validate(&self) -> Result<(), String> {

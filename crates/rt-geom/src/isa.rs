@@ -202,6 +202,25 @@ pub(crate) mod sealed {
     }
 }
 
+/// [`sealed::Sealed::window8`] on the eight-lane vectors `$lanes`.
+macro_rules! window8_on {
+    ($lanes:ty) => {
+        #[inline(always)]
+        fn window8<const ANY_HIT: bool>(
+            self,
+            soa: &TriangleSoa,
+            leaf: (usize, usize),
+            k: usize,
+            ids: &[u32],
+            r: &mut Ray,
+            skip: &mut impl FnMut(u32) -> bool,
+            keep: &mut impl FnMut(PrimHit, u32, &mut Ray) -> bool,
+        ) -> bool {
+            soa.test_window::<$lanes, Self, ANY_HIT>(self, leaf, k, ids, r, skip, keep)
+        }
+    };
+}
+
 impl sealed::Sealed for BaseLevel {
     #[inline(always)]
     fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32 {
@@ -209,19 +228,7 @@ impl sealed::Sealed for BaseLevel {
         f32x8::from(*a).cmp_le(f32x8::from(*b)).move_mask() as u32
     }
 
-    #[inline(always)]
-    fn window8<const ANY_HIT: bool>(
-        self,
-        soa: &TriangleSoa,
-        leaf: (usize, usize),
-        k: usize,
-        ids: &[u32],
-        r: &mut Ray,
-        skip: &mut impl FnMut(u32) -> bool,
-        keep: &mut impl FnMut(PrimHit, u32, &mut Ray) -> bool,
-    ) -> bool {
-        soa.test_window::<wide::f32x8, Self, ANY_HIT>(self, leaf, k, ids, r, skip, keep)
-    }
+    window8_on!(wide::f32x8);
 
     #[inline(always)]
     fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
@@ -241,19 +248,7 @@ impl sealed::Sealed for Avx2Level {
         crate::triangle::Avx8::le_bits(a, b)
     }
 
-    #[inline(always)]
-    fn window8<const ANY_HIT: bool>(
-        self,
-        soa: &TriangleSoa,
-        leaf: (usize, usize),
-        k: usize,
-        ids: &[u32],
-        r: &mut Ray,
-        skip: &mut impl FnMut(u32) -> bool,
-        keep: &mut impl FnMut(PrimHit, u32, &mut Ray) -> bool,
-    ) -> bool {
-        soa.test_window::<crate::triangle::Avx8, Self, ANY_HIT>(self, leaf, k, ids, r, skip, keep)
-    }
+    window8_on!(crate::triangle::Avx8);
 
     #[inline(always)]
     fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
@@ -275,19 +270,7 @@ impl sealed::Sealed for Avx2Level {
         BaseLevel.le8(a, b)
     }
 
-    #[inline(always)]
-    fn window8<const ANY_HIT: bool>(
-        self,
-        soa: &TriangleSoa,
-        leaf: (usize, usize),
-        k: usize,
-        ids: &[u32],
-        r: &mut Ray,
-        skip: &mut impl FnMut(u32) -> bool,
-        keep: &mut impl FnMut(PrimHit, u32, &mut Ray) -> bool,
-    ) -> bool {
-        soa.test_window::<wide::f32x8, Self, ANY_HIT>(self, leaf, k, ids, r, skip, keep)
-    }
+    window8_on!(wide::f32x8);
 
     #[inline(always)]
     fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
