@@ -437,3 +437,126 @@ fn bad_instances_get_clear_errors() {
     assert!(hollow.intersect(&probe).is_none());
     hollow.validate().unwrap();
 }
+
+/// Filtered queries and every hit through instances, against brute force asked the same
+/// question instance by instance in each object's space (the ray carried there as the
+/// scene carries it, so the answers are exact): the filter sees global ids.
+#[test]
+fn filters_and_all_hits_through_instances() {
+    use rt_geom::{FilteredAccel, Hit, Keep, sorted_hits};
+    use rt_testkit::conformance::FILTERS;
+    let (geometry, objects) = objects();
+    let mut rng = Rng::new(5);
+    let instances: Vec<Instance> = (0..24)
+        .map(|i| Instance {
+            object: (i % 4) as u32,
+            transform: random_transform(&mut rng, i % 3 == 0, 4.0),
+        })
+        .collect();
+    let scene = InstanceBvh::build(objects, &instances, BvhParams::balanced()).unwrap();
+    let brutes: Vec<BruteForce<Triangle>> = geometry
+        .iter()
+        .map(|g| BruteForce::build(g).unwrap())
+        .collect();
+    let mut first = Vec::new();
+    let mut at = 0;
+    for inst in &instances {
+        first.push(at);
+        at += geometry[inst.object as usize].len() as u32;
+    }
+    let n = at;
+    // Every instance's object asked in its own space, each hit offered with its global id.
+    let reference = |ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool, any: bool| {
+        let mut best: Option<Hit> = None;
+        let mut all = Vec::new();
+        for (i, inst) in instances.iter().enumerate() {
+            let to_object = inst.transform.inverse();
+            let tmax = if any {
+                ray.tmax
+            } else {
+                best.map_or(ray.tmax, |b| b.t)
+            };
+            let local = Ray::segment(
+                to_object.transform_point3(ray.origin()),
+                to_object.transform_vector3(ray.dir()),
+                ray.tmin,
+                tmax,
+            );
+            let brute = &brutes[inst.object as usize];
+            let mut global = |h: &Hit| {
+                let g = Hit {
+                    prim: first[i] + h.prim,
+                    ..*h
+                };
+                all.push(g);
+                filter(&g)
+            };
+            if let Some(h) = brute.intersect_filtered(&local, &mut global) {
+                let h = Hit {
+                    prim: first[i] + h.prim,
+                    ..h
+                };
+                if any {
+                    return (Some(h), all);
+                }
+                let mut t = tmax;
+                let ph = rt_geom::PrimHit {
+                    t: h.t,
+                    u: h.u,
+                    v: h.v,
+                };
+                best.record::<false>(ph, h.prim, &mut t);
+            }
+        }
+        (best, all)
+    };
+    let mut checked = 0;
+    for k in 0..600 {
+        let o = Vec3::new(
+            rng.range(-6.0, 6.0),
+            rng.range(-6.0, 6.0),
+            rng.range(-6.0, 6.0),
+        );
+        let target = if k % 2 == 0 {
+            Vec3::new(
+                rng.range(-3.0, 3.0),
+                rng.range(-3.0, 3.0),
+                rng.range(-3.0, 3.0),
+            )
+        } else {
+            Vec3::ZERO
+        };
+        let ray = Ray::new(o, target - o);
+        let closest = scene.intersect(&ray);
+        assert_eq!(
+            closest,
+            reference(&ray, &mut |_| true, false).0,
+            "ray {ray:?}"
+        );
+        for (name, accept) in FILTERS {
+            let mut filter = |h: &Hit| accept(h, closest, n);
+            let (want, _) = reference(&ray, &mut filter, false);
+            let got = scene.intersect_filtered(&ray, &mut filter);
+            assert_eq!(got, want, "intersect_filtered ({name}), ray {ray:?}");
+            let (want_any, _) = reference(&ray, &mut filter, true);
+            let got_any = scene.occluded_filtered(&ray, &mut filter);
+            assert_eq!(
+                got_any,
+                want_any.is_some(),
+                "occluded_filtered ({name}), ray {ray:?}"
+            );
+        }
+        let (_, all) = reference(&ray, &mut |_| false, false);
+        let mut got = Vec::new();
+        scene.for_each_hit(&ray, &mut |h| {
+            got.push(*h);
+            std::ops::ControlFlow::Continue(())
+        });
+        assert_eq!(got, sorted_hits(all), "for_each_hit, ray {ray:?}");
+        checked += got.len();
+    }
+    assert!(
+        checked > 600,
+        "{checked} hits: the rays must meet the instances"
+    );
+}

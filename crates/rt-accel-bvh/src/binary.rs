@@ -3,7 +3,9 @@
 //! `traverse`.
 
 use crate::{BvhBuilder, BvhNode, BvhParams, build};
-use rt_geom::{Aabb, Accel, AccelStats, BuildError, Frame, Primitive, check_primitives};
+use rt_geom::{
+    Aabb, Accel, AccelStats, BuildError, FilteredAccel, Frame, Primitive, check_primitives,
+};
 
 /// A binary BVH over primitives `P`, flattened depth-first, primitives stored in leaf order.
 #[derive(Clone, Debug)]
@@ -100,6 +102,10 @@ impl<P: Primitive> Bvh<P> {
     pub fn primitive_count(&self) -> usize {
         self.count
     }
+}
+
+impl<P: Primitive> FilteredAccel for Bvh<P> {
+    rt_geom::filtered_from_walk!();
 }
 
 impl<P: Primitive> Accel for Bvh<P> {

@@ -6,8 +6,8 @@
 
 use rt_geom::aabb::pad_up;
 use rt_geom::{
-    Aabb, Accel, AccelStats, BoundingVolume, BuildError, Frame, Hit, Primitive, Ray,
-    check_primitives, keep_hit,
+    Aabb, Accel, AccelStats, BoundingVolume, BuildError, FilteredAccel, Frame, Hit, Keep,
+    Primitive, Ray, check_primitives,
 };
 use std::cell::RefCell;
 use std::ops::Range;
@@ -189,7 +189,7 @@ impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
         &self,
         volumes: &[(f32, u32)],
         r: &mut Ray,
-        best: &mut Option<Hit>,
+        best: &mut impl Keep,
     ) -> bool {
         for &(t, v) in volumes {
             // Padded like the box tests: a volume entered a few ulps past the closest hit may
@@ -200,7 +200,7 @@ impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
             for i in self.ranges[v as usize].clone() {
                 if let Some(h) = self.prims[i as usize].intersect(r) {
                     let id = self.ids[i as usize];
-                    if keep_hit::<ANY_HIT>(h, id, &mut r.tmax, best) {
+                    if best.keep::<ANY_HIT>(h, id, &mut r.tmax) {
                         return true;
                     }
                 }
@@ -209,12 +209,11 @@ impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
         false
     }
 
-    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
+    fn traverse<const ANY_HIT: bool, K: Keep>(&self, ray: &Ray, mut best: K) -> Option<Hit> {
         if !ray.is_valid() || self.volumes.is_empty() {
             return None;
         }
         let mut r = *ray;
-        let mut best = None;
         let data = V::ray_data(ray, &self.frame);
         SCRATCH.with(|s| {
             let (outer, inner) = &mut *s.borrow_mut();
@@ -236,7 +235,7 @@ impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
                 }
             }
         });
-        best
+        best.best()
     }
 }
 
@@ -263,6 +262,10 @@ fn morton_order<P: Primitive>(prims: &[P]) -> Vec<u32> {
         .collect();
     keyed.sort_unstable();
     keyed.into_iter().map(|(_, i)| i).collect()
+}
+
+impl<P: Primitive, V: BoundingVolume> FilteredAccel for BvList<P, V> {
+    rt_geom::filtered_from_walk!();
 }
 
 impl<P: Primitive, V: BoundingVolume> Accel for BvList<P, V> {
@@ -339,6 +342,12 @@ mod tests {
             mod $name {
                 use super::*;
                 rt_testkit::conformance_tests!(
+                    triangles: |p: &[Triangle]| BvList::<_, $v>::build(p, $params),
+                    spheres: |p: &[Sphere]| BvList::<_, $v>::build(p, $params),
+                    shapes: |p: &[rt_geom::Shape]| BvList::<_, $v>::build(p, $params),
+                );
+                rt_testkit::disc_tests!(|p: &[rt_testkit::Disc]| BvList::<_, $v>::build(p, $params));
+                rt_testkit::filter_tests!(
                     triangles: |p: &[Triangle]| BvList::<_, $v>::build(p, $params),
                     spheres: |p: &[Sphere]| BvList::<_, $v>::build(p, $params),
                     shapes: |p: &[rt_geom::Shape]| BvList::<_, $v>::build(p, $params),

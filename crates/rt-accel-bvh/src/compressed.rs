@@ -189,10 +189,21 @@ mod tests {
         spheres: |p: &[Sphere]| CompressedBvh8::build(p, BvhParams::balanced()),
         shapes: |p: &[rt_geom::Shape]| CompressedBvh8::build(p, BvhParams::balanced()),
     );
+    rt_testkit::disc_tests!(|p: &[rt_testkit::Disc]| CompressedBvh8::build(
+        p,
+        BvhParams::balanced()
+    ));
 
     mod spatial {
         use super::*;
         rt_testkit::conformance_tests!(
+            triangles: |p: &[Triangle]| CompressedBvh8::build(p, BvhParams::spatial()),
+        );
+        rt_testkit::disc_tests!(|p: &[rt_testkit::Disc]| CompressedBvh8::build(
+            p,
+            BvhParams::spatial()
+        ));
+        rt_testkit::filter_tests!(
             triangles: |p: &[Triangle]| CompressedBvh8::build(p, BvhParams::spatial()),
         );
     }

@@ -38,8 +38,8 @@ use crate::refit::{Refit, check_moved};
 use crate::{Bvh, BvhParams};
 use rt_geom::glam::Affine3A;
 use rt_geom::{
-    Aabb, Accel, AccelStats, BuildError, Hit, PrimHit, Primitive, Ray, Vec3, check_primitives,
-    keep_hit,
+    Aabb, Accel, AccelStats, BuildError, FilteredAccel, Hit, Keep, PrimHit, Primitive, Ray, Vec3,
+    check_primitives,
 };
 use std::fmt;
 use std::sync::Arc;
@@ -47,7 +47,7 @@ use std::sync::Arc;
 /// A structure over an object's primitives (in the object's own space), its box and its
 /// primitive count.
 #[derive(Clone)]
-pub struct Object<O = Arc<dyn Accel>> {
+pub struct Object<O = Arc<dyn FilteredAccel>> {
     accel: O,
     bounds: Aabb,
     primitives: u32,
@@ -89,7 +89,7 @@ impl<O: Accel> Object<O> {
     }
 }
 
-impl<A: Accel + 'static> Object<A> {
+impl<A: FilteredAccel + 'static> Object<A> {
     /// The same object behind a shared, type-erased structure, so that objects of different
     /// structure types can sit in one scene.
     pub fn shared(self) -> Object {
@@ -131,7 +131,7 @@ pub struct InstanceHit {
 
 /// A two-level BVH over instances of objects (see the module documentation).
 #[derive(Clone)]
-pub struct InstanceBvh<O = Arc<dyn Accel>> {
+pub struct InstanceBvh<O = Arc<dyn FilteredAccel>> {
     objects: Vec<Object<O>>,
     instances: Vec<Instance>,
     /// World space to object space, per instance.
@@ -290,44 +290,105 @@ impl<O: Accel> InstanceBvh<O> {
         })
     }
 
-    /// The top-level walk; at each instance, the ray in object space asked of the object.
+    /// The top-level walk; at each instance, the ray in object space (same `t`) handed to
+    /// `ask(object, local ray, first global id, best, world ray)`, which asks the object and
+    /// offers its hit to `best`; it returns true to stop (any-hit queries).
     #[inline]
-    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        self.top.walk_ray::<ANY_HIT>(ray, |first, count, r, best| {
-            let first = first as usize;
-            for &i in &self.top.ids[first..first + count as usize] {
-                let i = i as usize;
-                let to_object = &self.to_object[i];
-                let local = Ray::segment(
-                    to_object.transform_point3(r.origin()),
-                    to_object.transform_vector3(r.dir()),
-                    r.tmin,
-                    r.tmax,
-                );
-                let accel = &self.objects[self.instances[i].object as usize].accel;
-                if ANY_HIT {
-                    if accel.occluded(&local) {
-                        let (t, u, v) = (r.tmin, 0.0, 0.0);
-                        *best = Some(Hit {
-                            t,
-                            u,
-                            v,
-                            prim: self.first_prim[i],
-                        });
+    fn walk<const ANY_HIT: bool, K: Keep>(
+        &self,
+        ray: &Ray,
+        best: K,
+        ask: impl Fn(&O, &Ray, u32, &mut K, &mut Ray) -> bool,
+    ) -> Option<Hit> {
+        self.top
+            .walk_ray::<ANY_HIT, K>(ray, best, |first, count, r, best| {
+                let first = first as usize;
+                for &i in &self.top.ids[first..first + count as usize] {
+                    let i = i as usize;
+                    let to_object = &self.to_object[i];
+                    let local = Ray::segment(
+                        to_object.transform_point3(r.origin()),
+                        to_object.transform_vector3(r.dir()),
+                        r.tmin,
+                        r.tmax,
+                    );
+                    let accel = &self.objects[self.instances[i].object as usize].accel;
+                    if ask(accel, &local, self.first_prim[i], best, r) {
                         return true;
                     }
-                } else if let Some(h) = accel.intersect(&local) {
-                    let (t, u, v) = (h.t, h.u, h.v);
-                    keep_hit::<false>(
-                        PrimHit { t, u, v },
-                        self.first_prim[i] + h.prim,
-                        &mut r.tmax,
-                        best,
-                    );
                 }
+                false
+            })
+    }
+
+    /// [`Self::walk`] asking each object its own query: any hit ends the walk (with the
+    /// ray's `tmin` as `t`: an any-hit query answers only whether), a closest hit is kept by
+    /// [`rt_geom::replaces`].
+    #[inline]
+    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
+        self.walk::<ANY_HIT, _>(ray, None, |accel, local, first, best, r| {
+            if ANY_HIT {
+                let hit = PrimHit {
+                    t: r.tmin,
+                    u: 0.0,
+                    v: 0.0,
+                };
+                accel.occluded(local) && best.record::<true>(hit, first, &mut r.tmax)
+            } else {
+                if let Some(h) = accel.intersect(local) {
+                    best.record::<false>(prim_hit(&h), first + h.prim, &mut r.tmax);
+                }
+                false
+            }
+        })
+    }
+}
+
+/// The `t`, `u`, `v` of a hit.
+fn prim_hit(h: &Hit) -> PrimHit {
+    PrimHit {
+        t: h.t,
+        u: h.u,
+        v: h.v,
+    }
+}
+
+/// Filtered queries through the objects' own: the filter sees each object's candidates with
+/// their global ids.
+impl<O: FilteredAccel> FilteredAccel for InstanceBvh<O> {
+    fn intersect_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> Option<Hit> {
+        let filter = std::cell::RefCell::new(filter);
+        self.walk::<false, _>(ray, None, |accel, local, first, best, r| {
+            let global = |h: &Hit| Hit {
+                prim: first + h.prim,
+                ..*h
+            };
+            let found = accel.intersect_filtered(local, &mut |h| (filter.borrow_mut())(&global(h)));
+            if let Some(h) = found {
+                best.record::<false>(prim_hit(&h), first + h.prim, &mut r.tmax);
             }
             false
         })
+    }
+
+    fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> bool {
+        let filter = std::cell::RefCell::new(filter);
+        let found = self.walk::<true, _>(ray, None, |accel, local, first, best, r| {
+            let mut accepted = None;
+            accel.occluded_filtered(local, &mut |h| {
+                let g = Hit {
+                    prim: first + h.prim,
+                    ..*h
+                };
+                let ok = (filter.borrow_mut())(&g);
+                if ok {
+                    accepted = Some(g);
+                }
+                ok
+            });
+            accepted.is_some_and(|g| best.record::<true>(prim_hit(&g), g.prim, &mut r.tmax))
+        });
+        found.is_some()
     }
 }
 
@@ -353,7 +414,13 @@ impl<O: Accel> fmt::Debug for InstanceBvh<O> {
 
 impl<O: Accel> Accel for InstanceBvh<O> {
     // `prim` of a hit is the global id (see the module documentation).
-    rt_geom::queries_from_walk!();
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.traverse::<false>(ray)
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        self.traverse::<true>(ray).is_some()
+    }
 
     /// `primitives` counts every instance's primitives; nodes, leaves, references and bytes
     /// count the top level, the instances, and each object once.

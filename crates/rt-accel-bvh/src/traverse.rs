@@ -7,7 +7,7 @@ use crate::node::BvhNode;
 use crate::params::MAX_DEPTH;
 use crate::wide::test_leaf;
 use rt_geom::aabb::SlabRay;
-use rt_geom::{Hit, Primitive, Ray};
+use rt_geom::{Hit, Keep, Primitive, Ray};
 
 /// Entry distance into the node's box within `[tmin, tmax]` ([`SlabRay::entry`]).
 #[inline(always)]
@@ -18,13 +18,15 @@ fn entry(boxes: &SlabRay, node: &BvhNode, tmin: f32, tmax: f32) -> Option<f32> {
 impl<P> Bvh<P> {
     /// Depth-first traversal with an explicit stack, nearer child first (by entry distance);
     /// subtrees entered beyond the closest hit so far are skipped. `leaf(first, count, ray,
-    /// best)` tests the leaf-ordered slots `first..first + count`, shrinking `ray.tmax` and
-    /// updating `best`; it returns true to stop (any-hit queries).
+    /// best)` tests the leaf-ordered slots `first..first + count`, offering its hits to `best`
+    /// ([`Keep`]), which shrinks `ray.tmax` to a kept one; it returns true to stop (any-hit
+    /// queries). Returns the hit `best` kept.
     #[inline(always)]
-    pub(crate) fn walk_ray<const ANY_HIT: bool>(
+    pub(crate) fn walk_ray<const ANY_HIT: bool, K: Keep>(
         &self,
         ray: &Ray,
-        mut leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<Hit>) -> bool,
+        mut best: K,
+        mut leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
     ) -> Option<Hit> {
         if self.nodes.is_empty() || !ray.is_valid() {
             return None;
@@ -33,7 +35,6 @@ impl<P> Bvh<P> {
         let mut r = *ray;
         rt_geom::counters::nodes(1);
         entry(&boxes, &self.nodes[0], r.tmin, r.tmax)?;
-        let mut best: Option<Hit> = None;
         // The build caps depth at MAX_DEPTH, so the far children pending never exceed it.
         let mut stack = [(0u32, 0.0f32); MAX_DEPTH + 1];
         let mut sp = 0;
@@ -42,7 +43,7 @@ impl<P> Bvh<P> {
             let node = &self.nodes[index];
             if node.is_leaf() {
                 if leaf(node.offset, node.count(), &mut r, &mut best) {
-                    return best;
+                    return best.best();
                 }
             } else {
                 rt_geom::counters::nodes(2);
@@ -71,7 +72,7 @@ impl<P> Bvh<P> {
             // Pop the next pending subtree; it may have been passed by the closest hit.
             loop {
                 if sp == 0 {
-                    return best;
+                    return best.best();
                 }
                 sp -= 1;
                 let (next, entry) = stack[sp];
@@ -87,8 +88,8 @@ impl<P> Bvh<P> {
 impl<P: Primitive> Bvh<P> {
     /// The walk over the tree's own primitives. With `ANY_HIT`, returns the first hit found.
     #[inline]
-    pub(crate) fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        self.walk_ray::<ANY_HIT>(ray, |first, count, r, best| {
+    pub(crate) fn traverse<const ANY_HIT: bool, K: Keep>(&self, ray: &Ray, best: K) -> Option<Hit> {
+        self.walk_ray::<ANY_HIT, K>(ray, best, |first, count, r, best| {
             test_leaf::<P, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
         })
     }

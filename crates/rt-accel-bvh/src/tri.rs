@@ -9,8 +9,8 @@ use crate::stats::check_leaf_primitive;
 use crate::wide::{NodeLayout, WideNode, WideTree};
 use crate::{Bvh, BvhParams};
 use rt_geom::{
-    Aabb, Accel, AccelStats, BuildError, Hit, Isa, Level, Ray, Triangle, TriangleSoa, Walk,
-    all_referenced,
+    Aabb, Accel, AccelStats, BuildError, FilteredAccel, Hit, Isa, Keep, Level, Ray, Triangle,
+    TriangleSoa, Walk, all_referenced,
 };
 
 /// Checks the triangles of leaf `(first, count)` against its `bounds` and marks their ids
@@ -111,10 +111,16 @@ impl<const N: usize, Node: NodeLayout<N>> Walk for TriBvh<N, Node> {
     }
 
     #[inline(always)]
-    fn walk<const ANY_HIT: bool, L: Level>(&self, ray: &Ray, level: L) -> Option<Hit> {
-        self.tree.traverse::<ANY_HIT, L>(
+    fn walk<const ANY_HIT: bool, L: Level, K: Keep>(
+        &self,
+        ray: &Ray,
+        level: L,
+        best: K,
+    ) -> Option<Hit> {
+        self.tree.traverse::<ANY_HIT, L, K>(
             level,
             ray,
+            best,
             #[inline(always)]
             |first, count, r, best| {
                 self.tris.intersect_range::<ANY_HIT, L>(
@@ -142,6 +148,10 @@ impl<const N: usize, Node: NodeLayout<N>> Refit<Triangle> for TriBvh<N, Node> {
         self.stats = stats;
         Ok(())
     }
+}
+
+impl<const N: usize, Node: NodeLayout<N>> FilteredAccel for TriBvh<N, Node> {
+    rt_geom::filtered_from_walk!(per_isa);
 }
 
 impl<const N: usize, Node: NodeLayout<N>> Accel for TriBvh<N, Node> {
@@ -177,6 +187,9 @@ mod tests {
         rt_testkit::conformance_tests!(
             triangles: |p: &[Triangle]| TriBvh4::build(p, BvhParams::balanced()),
         );
+        rt_testkit::filter_tests!(
+            triangles: |p: &[Triangle]| TriBvh4::build(p, BvhParams::balanced()),
+        );
     }
 
     mod tri8 {
@@ -196,6 +209,9 @@ mod tests {
     mod compressed_tri8_spatial {
         use super::*;
         rt_testkit::conformance_tests!(
+            triangles: |p: &[Triangle]| CompressedTriBvh8::build(p, BvhParams::spatial().for_soa_leaves()),
+        );
+        rt_testkit::filter_tests!(
             triangles: |p: &[Triangle]| CompressedTriBvh8::build(p, BvhParams::spatial().for_soa_leaves()),
         );
     }
@@ -218,6 +234,9 @@ mod tests {
                     rt_testkit::conformance_tests!(
                         triangles: |p: &[Triangle]| TriBvh8::build(p, BvhParams::balanced().for_soa_leaves()).map(|b| b.with_isa($isa)),
                     );
+                    rt_testkit::filter_tests!(
+                        triangles: |p: &[Triangle]| TriBvh8::build(p, BvhParams::balanced().for_soa_leaves()).map(|b| b.with_isa($isa)),
+                    );
                 }
                 mod tri4 {
                     use super::*;
@@ -228,6 +247,10 @@ mod tests {
                 mod bvh8 {
                     use super::*;
                     rt_testkit::conformance_tests!(
+                        triangles: |p: &[Triangle]| crate::Bvh8::build(p, BvhParams::balanced()).map(|b| b.with_isa($isa)),
+                        spheres: |p: &[rt_geom::Sphere]| crate::Bvh8::build(p, BvhParams::balanced()).map(|b| b.with_isa($isa)),
+                    );
+                    rt_testkit::filter_tests!(
                         triangles: |p: &[Triangle]| crate::Bvh8::build(p, BvhParams::balanced()).map(|b| b.with_isa($isa)),
                         spheres: |p: &[rt_geom::Sphere]| crate::Bvh8::build(p, BvhParams::balanced()).map(|b| b.with_isa($isa)),
                     );

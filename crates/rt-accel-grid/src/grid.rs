@@ -2,7 +2,9 @@
 
 use crate::level::NO_CHILD;
 use crate::{GridParams, Level, build};
-use rt_geom::{Aabb, Accel, BuildError, Frame, LeafPrims, Primitive, check_primitives};
+use rt_geom::{
+    Aabb, Accel, BuildError, FilteredAccel, Frame, LeafPrims, Primitive, check_primitives,
+};
 
 /// A grid over primitives `P`: uniform, two-level or adaptive (see [`GridKind`](crate::GridKind)).
 #[derive(Clone, Debug)]
@@ -128,6 +130,10 @@ impl<P: Primitive> Grid<P> {
         let (s, n) = self.cell_list(lv, c);
         &self.refs[s as usize..(s + n) as usize]
     }
+}
+
+impl<P: Primitive> FilteredAccel for Grid<P> {
+    rt_geom::filtered_from_walk!();
 }
 
 impl<P: Primitive> Accel for Grid<P> {

@@ -27,7 +27,7 @@
 use crate::Grid;
 use crate::level::{Level, NO_CHILD};
 use rt_geom::aabb::{pad_down, pad_up};
-use rt_geom::{Hit, Mailbox, Primitive, Ray};
+use rt_geom::{Hit, Keep, Mailbox, Primitive, Ray};
 
 /// Empty cells at this skip distance or more are left a whole empty cube at a time (cubes of
 /// 3x3x3 cells and up); starting at larger cubes skips less for the same bookkeeping.
@@ -36,17 +36,17 @@ const JUMP_MIN: u8 = 2;
 /// Mailbox slots per ray.
 const MAILBOX: usize = 8;
 
-struct Walk<'a, P> {
+struct Walk<'a, P, K> {
     grid: &'a Grid<P>,
     origin: [f32; 3],
     dir: [f32; 3],
     inv: [f32; 3],
     ray: Ray,
-    best: Option<Hit>,
+    best: K,
     mailbox: Mailbox<MAILBOX>,
 }
 
-impl<P: Primitive> Walk<'_, P> {
+impl<P: Primitive, K: Keep> Walk<'_, P, K> {
     /// Tests the primitives at places `s..e` of `refs` (a cell); true when `ANY_HIT` and
     /// something was hit.
     #[inline(always)]
@@ -129,7 +129,7 @@ impl<P: Primitive> Walk<'_, P> {
         });
         let walls: [f32; 3] = std::array::from_fn(|a| self.next_wall(lv, a, far[a]));
         let (exit, axis) = first_wall(&walls);
-        if self.best.is_some_and(|h| h.t < pad_down(exit)) || axis == 3 || exit > t1 {
+        if self.best.best().is_some_and(|h| h.t < pad_down(exit)) || axis == 3 || exit > t1 {
             return None;
         }
         // Along the other axes the ray is still inside the cube there: the cell that holds
@@ -207,7 +207,7 @@ impl<P: Primitive> Walk<'_, P> {
                     }
                 }
             }
-            if let Some(h) = self.best {
+            if let Some(h) = self.best.best() {
                 if h.t < pad_down(exit) {
                     return false;
                 }
@@ -242,7 +242,7 @@ fn first_wall(walls: &[f32; 3]) -> (f32, usize) {
 }
 
 impl<P: Primitive> Grid<P> {
-    pub(crate) fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
+    pub(crate) fn traverse<const ANY_HIT: bool, K: Keep>(&self, ray: &Ray, best: K) -> Option<Hit> {
         if self.levels.is_empty() || !ray.is_valid() {
             return None;
         }
@@ -258,7 +258,7 @@ impl<P: Primitive> Grid<P> {
             dir: ray.dir().to_array(),
             inv,
             ray: *ray,
-            best: None,
+            best,
             mailbox: Mailbox::default(),
         };
         if self.params.mailbox {
@@ -266,6 +266,6 @@ impl<P: Primitive> Grid<P> {
         } else {
             walk.level::<ANY_HIT, false>(0, t0, t1);
         }
-        walk.best
+        walk.best.best()
     }
 }

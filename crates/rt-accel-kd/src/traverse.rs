@@ -13,7 +13,7 @@ use crate::bsp::PlaneRay;
 use crate::params::{KdTraversal, MAX_DEPTH};
 use crate::{KdNode, KdTree};
 use rt_geom::aabb::{PAD, SlabRay};
-use rt_geom::{Aabb, Hit, LeafPrims, Primitive, Ray, test_primitives};
+use rt_geom::{Aabb, Hit, Keep, LeafPrims, Primitive, Ray, test_primitives};
 
 /// Which children of an inner node the ray visits, first = on the side of the origin.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -132,7 +132,7 @@ pub(crate) fn test_leaf<P: Primitive, const ANY_HIT: bool>(
     node: &KdNode,
     indices: &[u32],
     r: &mut Ray,
-    best: &mut Option<Hit>,
+    best: &mut impl Keep,
 ) -> bool {
     match node.list() {
         Some((first, count)) => {
@@ -146,17 +146,18 @@ pub(crate) fn test_leaf<P: Primitive, const ANY_HIT: bool>(
 /// Iterative front-to-back traversal with an explicit stack of pending far cells, from the
 /// ray's interval `[t0, t1]` inside the root cell. `on_leaf` sees each leaf before it is
 /// tested (queries pass one that does nothing; [`crate::KdTree::leaves_tested`] records them).
-pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Keep>(
     tree: &T,
     leaves: LeafData<'_, P>,
     ray: &Ray,
     data: T::RayData,
     (mut t0, mut t1): (f32, f32),
+    mut best: K,
     mut on_leaf: impl FnMut(usize),
 ) -> Option<Hit> {
     let (nodes, indices) = (tree.nodes(), tree.indices());
     let mut r = *ray;
-    let mut best = None;
     // One pending cell per level at most: the depth cap bounds the stack. On the call's own
     // stack, so the walk's state stays in registers (a thread-local stack, reached through
     // `LocalKey::with`, left it in memory where `with` was not inlined).
@@ -184,16 +185,16 @@ pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
         }
         on_leaf(i);
         if test_leaf::<P, ANY_HIT>(leaves, &nodes[i], indices, &mut r, &mut best) {
-            return best;
+            return best.best();
         }
         // The next pending cell that starts before the closest hit.
         loop {
             if sp == 0 {
-                return best;
+                return best.best();
             }
             sp -= 1;
             let (n, a, b) = stack[sp];
-            if best.is_none() || a <= r.tmax {
+            if best.best().is_none() || a <= r.tmax {
                 (i, t0, t1) = (n as usize, a, b);
                 break;
             }
@@ -203,21 +204,22 @@ pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
 
 /// The classic recursive traversal: the near child, then, unless a hit already lies before
 /// the far child, the far child.
-pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
+pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Keep>(
     tree: &T,
     leaves: LeafData<'_, P>,
     ray: &Ray,
     data: T::RayData,
     (t0, t1): (f32, f32),
+    best: K,
 ) -> Option<Hit> {
-    struct Walk<'a, T: SplitPlanes, P> {
+    struct Walk<'a, T: SplitPlanes, P, K> {
         tree: &'a T,
         leaves: LeafData<'a, P>,
         data: T::RayData,
         r: Ray,
-        best: Option<Hit>,
+        best: K,
     }
-    impl<T: SplitPlanes, P: Primitive> Walk<'_, T, P> {
+    impl<T: SplitPlanes, P: Primitive, K: Keep> Walk<'_, T, P, K> {
         /// Returns true when the search is over (any-hit found).
         fn visit<const ANY_HIT: bool>(&mut self, i: usize, t0: f32, t1: f32) -> bool {
             rt_geom::counters::nodes(1);
@@ -243,7 +245,7 @@ pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
                     if self.visit::<ANY_HIT>(first, t0, first_end) {
                         return true;
                     }
-                    if self.best.is_some() && second_start > self.r.tmax {
+                    if self.best.best().is_some() && second_start > self.r.tmax {
                         return false;
                     }
                     self.visit::<ANY_HIT>(second, second_start, t1)
@@ -256,10 +258,10 @@ pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
         leaves,
         data,
         r: *ray,
-        best: None,
+        best,
     };
     walk.visit::<ANY_HIT>(0, t0, t1);
-    walk.best
+    walk.best.best()
 }
 
 /// The ray as the kd-tree's planes need it. Arrays, not `Vec3`: indexing by the node's axis
@@ -337,24 +339,27 @@ impl<P: Primitive> SplitPlanes for InFrame<'_, P> {
 /// A whole query: empty trees and invalid rays miss; otherwise the ray is clipped to the root
 /// cell `bounds` and walked the configured way.
 #[inline]
-pub(crate) fn query<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
+pub(crate) fn query<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Keep>(
     tree: &T,
     leaves: LeafData<'_, P>,
     bounds: &Aabb,
     traversal: KdTraversal,
     ray: &Ray,
+    best: K,
 ) -> Option<Hit> {
-    query_with::<T, P, ANY_HIT>(tree, leaves, bounds, traversal, ray, |_| {})
+    query_with::<T, P, ANY_HIT, K>(tree, leaves, bounds, traversal, ray, best, |_| {})
 }
 
 /// [`query`], the iterative walk handing each leaf to `on_leaf` before testing it.
 #[inline(always)]
-pub(crate) fn query_with<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn query_with<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Keep>(
     tree: &T,
     leaves: LeafData<'_, P>,
     bounds: &Aabb,
     traversal: KdTraversal,
     ray: &Ray,
+    best: K,
     on_leaf: impl FnMut(usize),
 ) -> Option<Hit> {
     if tree.nodes().is_empty() || !ray.is_valid() {
@@ -365,9 +370,11 @@ pub(crate) fn query_with<T: SplitPlanes, P: Primitive, const ANY_HIT: bool>(
     let data = tree.ray_data(ray, inv);
     match traversal {
         KdTraversal::Iterative => {
-            iterative::<T, P, ANY_HIT>(tree, leaves, ray, data, span, on_leaf)
+            iterative::<T, P, ANY_HIT, K>(tree, leaves, ray, data, span, best, on_leaf)
         }
-        KdTraversal::Recursive => recursive::<T, P, ANY_HIT>(tree, leaves, ray, data, span),
+        KdTraversal::Recursive => {
+            recursive::<T, P, ANY_HIT, K>(tree, leaves, ray, data, span, best)
+        }
     }
 }
 

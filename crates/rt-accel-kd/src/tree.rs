@@ -1,7 +1,10 @@
 //! [`KdTree`]: the kd-tree over any primitive, its build entry points and queries.
 
 use crate::{KdBuilder, KdNode, KdParams, KdTraversal, build, node, traverse};
-use rt_geom::{Aabb, Accel, BuildError, Frame, Hit, LeafPrims, Primitive, Ray, check_primitives};
+use rt_geom::{
+    Aabb, Accel, BuildError, FilteredAccel, Frame, Hit, Keep, LeafPrims, Primitive, Ray,
+    check_primitives,
+};
 
 /// A kd-tree over primitives `P`: 8-byte nodes flattened depth-first, leaves referring to the
 /// primitives by index (a primitive cut by planes is in several leaves).
@@ -116,22 +119,24 @@ impl<P: Primitive> KdTree<P> {
         let iterative = KdTraversal::Iterative;
         let on_leaf = |i| tested.push(i as u32);
         let hit = if self.frame.is_world() {
-            traverse::query_with::<_, _, ANY_HIT>(
+            traverse::query_with::<_, _, ANY_HIT, _>(
                 self,
                 leaves,
                 &self.bounds,
                 iterative,
                 ray,
+                None,
                 on_leaf,
             )
         } else {
             let framed = &traverse::InFrame(self);
-            traverse::query_with::<_, _, ANY_HIT>(
+            traverse::query_with::<_, _, ANY_HIT, _>(
                 framed,
                 leaves,
                 &self.bounds,
                 iterative,
                 ray,
+                None,
                 on_leaf,
             )
         };
@@ -147,7 +152,7 @@ impl<P: Primitive> KdTree<P> {
         &self,
         node: usize,
         ray: &mut Ray,
-        best: &mut Option<Hit>,
+        best: &mut impl Keep,
     ) -> bool {
         let Some(leaf) = self.nodes.get(node).filter(|n| n.is_leaf()) else {
             return false;
@@ -160,18 +165,24 @@ impl<P: Primitive> KdTree<P> {
 impl<P: Primitive> KdTree<P> {
     /// The walk, for the closest hit or any hit.
     #[inline]
-    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
+    fn traverse<const ANY_HIT: bool, K: Keep>(&self, ray: &Ray, best: K) -> Option<Hit> {
         let (t, leaves) = (self.params.traversal, (self.prims.as_slice(), &self.listed));
+        let bounds = &self.bounds;
         if self.frame.is_world() {
-            traverse::query::<_, _, ANY_HIT>(self, leaves, &self.bounds, t, ray)
+            traverse::query::<_, _, ANY_HIT, K>(self, leaves, bounds, t, ray, best)
         } else {
-            traverse::query::<_, _, ANY_HIT>(&traverse::InFrame(self), leaves, &self.bounds, t, ray)
+            let framed = &traverse::InFrame(self);
+            traverse::query::<_, _, ANY_HIT, K>(framed, leaves, bounds, t, ray, best)
         }
     }
 }
 
 impl<P: Primitive> Accel for KdTree<P> {
     rt_geom::queries_from_walk!(stats: compute_stats, validate: check);
+}
+
+impl<P: Primitive> FilteredAccel for KdTree<P> {
+    rt_geom::filtered_from_walk!();
 }
 
 #[cfg(test)]

@@ -2,7 +2,9 @@
 
 use crate::node::{MAX_NODES, octant};
 use crate::{ChildRef, MAX_DEPTH, OctLeaf, OctNode, OctreeParams, OctreeTraversal, build};
-use rt_geom::{Aabb, Accel, BuildError, Frame, LeafPrims, Primitive, Vec3, check_primitives};
+use rt_geom::{
+    Aabb, Accel, BuildError, FilteredAccel, Frame, LeafPrims, Primitive, Vec3, check_primitives,
+};
 
 /// An octree over primitives `P`.
 #[derive(Clone, Debug)]
@@ -129,6 +131,10 @@ impl<P: Primitive> Octree<P> {
             }
         }
     }
+}
+
+impl<P: Primitive> FilteredAccel for Octree<P> {
+    rt_geom::filtered_from_walk!();
 }
 
 impl<P: Primitive> Accel for Octree<P> {

@@ -34,10 +34,10 @@ use crate::MAX_DEPTH;
 use crate::Octree;
 use crate::node::{ChildRef, OctNode, content_box, content_step, octant, octant_at};
 use rt_geom::aabb::{PAD, SlabRay};
-use rt_geom::{Aabb, Hit, Mailbox, Primitive, Ray, Vec3};
+use rt_geom::{Aabb, Hit, Keep, Mailbox, Primitive, Ray, Vec3};
 use wide::{CmpGt, CmpLe, CmpLt, CmpNe, f32x8, i32x8, u8x16, u16x8};
 
-struct Walk<'a, P> {
+struct Walk<'a, P, K> {
     tree: &'a Octree<P>,
     origin: [f32; 3],
     /// Per axis, the reciprocal direction for planes met as a cell's lower and upper plane,
@@ -60,12 +60,12 @@ struct Walk<'a, P> {
     /// The ray's reciprocal direction (the recursive walk's box tests).
     inv: [f32; 3],
     ray: Ray,
-    best: Option<Hit>,
+    best: K,
     /// With `params.mailbox`: primitives listed in several leaves are tested once per ray.
     mailbox: Mailbox<8>,
 }
 
-impl<P: Primitive> Walk<'_, P> {
+impl<P: Primitive, K: Keep> Walk<'_, P, K> {
     /// Tests leaf `i`; true when `ANY_HIT` and something was hit.
     #[inline(always)]
     fn leaf<const ANY_HIT: bool>(&mut self, i: usize) -> bool {
@@ -344,7 +344,7 @@ thread_local! {
 }
 
 impl<P: Primitive> Octree<P> {
-    pub(crate) fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
+    pub(crate) fn traverse<const ANY_HIT: bool, K: Keep>(&self, ray: &Ray, best: K) -> Option<Hit> {
         if self.leaves.is_empty() || !ray.is_valid() {
             return None;
         }
@@ -367,13 +367,13 @@ impl<P: Primitive> Octree<P> {
             upper_half: UPPER_HALF.map(f32x8::from).map(|l| l.cmp_ne(f32x8::ZERO)),
             inv,
             ray: *ray,
-            best: None,
+            best,
             mailbox: Mailbox::default(),
         };
         match self.params.traversal {
             crate::OctreeTraversal::Recursive => walk.recursive::<ANY_HIT>(self.root, &self.bounds),
             crate::OctreeTraversal::Parametric => walk.parametric::<ANY_HIT>(),
         };
-        walk.best
+        walk.best.best()
     }
 }

@@ -26,8 +26,10 @@ pub trait Accel: Send + Sync {
 }
 
 /// Writes the two queries of an [`Accel`] impl from one walk written for both (a method
-/// `traverse::<const ANY_HIT: bool>(&self, &Ray) -> Option<Hit>`): `intersect` is the walk
-/// for the closest hit, `occluded` the walk that stops at any hit.
+/// `traverse::<const ANY_HIT: bool, K: Keep>(&self, &Ray, K) -> Option<Hit>`, which offers
+/// its hits to the [`Keep`](crate::Keep) it is given): `intersect` is the walk for the
+/// closest hit, `occluded` the walk that stops at any hit, both keeping hits in an
+/// `Option<Hit>` (no filter).
 ///
 /// ```ignore
 /// impl Accel for MyTree {
@@ -35,23 +37,27 @@ pub trait Accel: Send + Sync {
 ///     fn stats(&self) -> AccelStats { ... }
 ///     fn validate(&self) -> Result<(), String> { ... }
 /// }
+/// impl FilteredAccel for MyTree {
+///     rt_geom::filtered_from_walk!();
+/// }
 /// ```
 ///
 /// `queries_from_walk!(stats: compute_stats, validate: check)` also forwards `stats` and
 /// `validate` to the inherent methods named. `queries_from_walk!(per_isa)` answers through
 /// [`crate::isa::query`] instead: the walk is the structure's [`crate::Walk`], compiled per
-/// instruction set.
+/// instruction set. [`filtered_from_walk!`](crate::filtered_from_walk) takes the same forms
+/// (without `stats` and `validate`) for [`FilteredAccel`](crate::FilteredAccel).
 #[macro_export]
 macro_rules! queries_from_walk {
     (per_isa) => {
         #[inline]
         fn intersect(&self, ray: &$crate::Ray) -> Option<$crate::Hit> {
-            $crate::isa::query::<_, false>(self, ray)
+            $crate::isa::query::<_, false, _>(self, ray, || None)
         }
 
         #[inline]
         fn occluded(&self, ray: &$crate::Ray) -> bool {
-            $crate::isa::query::<_, true>(self, ray).is_some()
+            $crate::isa::query::<_, true, _>(self, ray, || None).is_some()
         }
     };
     (stats: $stats:ident, validate: $validate:ident) => {
@@ -68,12 +74,53 @@ macro_rules! queries_from_walk {
     () => {
         #[inline]
         fn intersect(&self, ray: &$crate::Ray) -> Option<$crate::Hit> {
-            self.traverse::<false>(ray)
+            self.traverse::<false, _>(ray, None)
         }
 
         #[inline]
         fn occluded(&self, ray: &$crate::Ray) -> bool {
-            self.traverse::<true>(ray).is_some()
+            self.traverse::<true, _>(ray, None).is_some()
+        }
+    };
+}
+
+/// Writes the two queries of a [`FilteredAccel`](crate::FilteredAccel) impl from the walk
+/// [`queries_from_walk!`] uses, keeping hits in a [`Filtered`](crate::Filtered).
+#[macro_export]
+macro_rules! filtered_from_walk {
+    (per_isa) => {
+        fn intersect_filtered(
+            &self,
+            ray: &$crate::Ray,
+            filter: &mut dyn FnMut(&$crate::Hit) -> bool,
+        ) -> Option<$crate::Hit> {
+            $crate::isa::query::<_, false, _>(self, ray, || $crate::Filtered::new(filter))
+        }
+
+        fn occluded_filtered(
+            &self,
+            ray: &$crate::Ray,
+            filter: &mut dyn FnMut(&$crate::Hit) -> bool,
+        ) -> bool {
+            $crate::isa::query::<_, true, _>(self, ray, || $crate::Filtered::new(filter)).is_some()
+        }
+    };
+    () => {
+        fn intersect_filtered(
+            &self,
+            ray: &$crate::Ray,
+            filter: &mut dyn FnMut(&$crate::Hit) -> bool,
+        ) -> Option<$crate::Hit> {
+            self.traverse::<false, _>(ray, $crate::Filtered::new(filter))
+        }
+
+        fn occluded_filtered(
+            &self,
+            ray: &$crate::Ray,
+            filter: &mut dyn FnMut(&$crate::Hit) -> bool,
+        ) -> bool {
+            self.traverse::<true, _>(ray, $crate::Filtered::new(filter))
+                .is_some()
         }
     };
 }

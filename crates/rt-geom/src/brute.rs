@@ -1,7 +1,7 @@
 //! The O(n) baseline: test every primitive. The reference every structure is checked against.
 
 use crate::accel::check_primitives;
-use crate::{Accel, AccelStats, BuildError, Hit, Primitive, Ray, keep_hit};
+use crate::{Accel, AccelStats, BuildError, Filtered, FilteredAccel, Hit, Keep, Primitive, Ray};
 
 /// Tests every primitive against every ray.
 #[derive(Clone, Debug)]
@@ -25,20 +25,30 @@ impl<P: Primitive> BruteForce<P> {
     }
 }
 
-impl<P: Primitive> Accel for BruteForce<P> {
-    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+impl<P: Primitive> BruteForce<P> {
+    /// Every primitive in index order, each hit offered to `best`: in index order,
+    /// [`crate::replaces`] keeps the first of equal-`t` hits.
+    fn query<const ANY_HIT: bool>(&self, ray: &Ray, mut best: impl Keep) -> Option<Hit> {
         if !ray.is_valid() {
             return None;
         }
         let mut r = *ray;
-        let mut best = None;
         for (i, p) in self.prims.iter().enumerate() {
+            // Any-hit queries ask each primitive over the whole interval, as the structures'
+            // any-hit walks (whose `tmax` never shrinks) do.
             if let Some(h) = p.intersect(&r) {
-                // In index order, `replaces` keeps the first of equal-t hits.
-                keep_hit::<false>(h, i as u32, &mut r.tmax, &mut best);
+                if best.keep::<ANY_HIT>(h, i as u32, &mut r.tmax) {
+                    break;
+                }
             }
         }
-        best
+        best.best()
+    }
+}
+
+impl<P: Primitive> Accel for BruteForce<P> {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.query::<false>(ray, None)
     }
 
     fn occluded(&self, ray: &Ray) -> bool {
@@ -62,6 +72,17 @@ impl<P: Primitive> Accel for BruteForce<P> {
             Some(i) => Err(format!("primitive {i} is not finite")),
             None => Ok(()),
         }
+    }
+}
+
+/// The reference of filtered queries: the closest accepted hit, or whether one is accepted.
+impl<P: Primitive> FilteredAccel for BruteForce<P> {
+    fn intersect_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> Option<Hit> {
+        self.query::<false>(ray, Filtered::new(filter))
+    }
+
+    fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> bool {
+        self.query::<true>(ray, Filtered::new(filter)).is_some()
     }
 }
 

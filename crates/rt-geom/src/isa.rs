@@ -21,7 +21,7 @@
 //! checking the CPU, so the AVX instructions never run where they are missing.
 
 use crate::triangle::{ShearedLanes, SimdLanes, Triangle};
-use crate::{Hit, PrimHit, Ray, TriangleSoa};
+use crate::{Hit, Keep, PrimHit, Ray, TriangleSoa};
 use std::sync::atomic::{AtomicU8, Ordering};
 
 /// An instruction-set level the kernels are compiled for.
@@ -175,7 +175,7 @@ impl Level for Avx2Level {}
 /// The hooks behind [`Level`]: not nameable outside rt-geom.
 pub(crate) mod sealed {
     use crate::triangle::{ShearedLanes, SimdLanes, Triangle};
-    use crate::{PrimHit, Ray, TriangleSoa};
+    use crate::{Keep, PrimHit, Ray, TriangleSoa};
 
     /// What a level gives the leaf tests (see [`Level`](super::Level)). Every hook takes the
     /// level's value, the proof that the CPU runs it.
@@ -191,7 +191,7 @@ pub(crate) mod sealed {
             ids: &[u32],
             r: &mut Ray,
             skip: &mut impl FnMut(u32) -> bool,
-            keep: &mut impl FnMut(PrimHit, u32, &mut Ray) -> bool,
+            best: &mut impl Keep,
         ) -> bool;
         /// [`Level::le_bits8`](super::Level::le_bits8).
         fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32;
@@ -214,9 +214,9 @@ macro_rules! window8_on {
             ids: &[u32],
             r: &mut Ray,
             skip: &mut impl FnMut(u32) -> bool,
-            keep: &mut impl FnMut(PrimHit, u32, &mut Ray) -> bool,
+            best: &mut impl Keep,
         ) -> bool {
-            soa.test_window::<$lanes, Self, ANY_HIT>(self, leaf, k, ids, r, skip, keep)
+            soa.test_window::<$lanes, Self, _, ANY_HIT>(self, leaf, k, ids, r, skip, best)
         }
     };
 }
@@ -305,7 +305,7 @@ pub fn run<K: Kernel>(isa: Isa, k: K) -> K::Output {
         // SAFETY: `or_best` returned AVX-512, so this CPU has every feature it enables.
         Isa::Avx512 => unsafe { x86::run_v4(k) },
         #[cfg(not(target_arch = "x86_64"))]
-        _ => k.run(),
+        _ => k.run(BaseLevel),
     }
 }
 
@@ -316,29 +316,44 @@ pub trait Walk {
     /// The level [`query`] runs the walk compiled for.
     fn isa(&self) -> Isa;
 
-    /// The closest hit, or with `ANY_HIT` any hit, at `level` (handed to the leaf tests).
-    fn walk<const ANY_HIT: bool, L: Level>(&self, ray: &Ray, level: L) -> Option<Hit>;
+    /// The closest hit, or with `ANY_HIT` any hit, at `level` (handed to the leaf tests),
+    /// its candidates offered to `best` ([`Keep`]: plain, or through a filter).
+    fn walk<const ANY_HIT: bool, L: Level, K: Keep>(
+        &self,
+        ray: &Ray,
+        level: L,
+        best: K,
+    ) -> Option<Hit>;
 }
 
-/// `w.walk::<ANY_HIT, _>(ray, level)` compiled for `w.isa()`, or for the best level below it
-/// that this CPU runs: the answers are the same on every level (the kernels' arithmetic is the
-/// same sequence of IEEE operations; only the width of the instructions differs).
+/// `w.walk::<ANY_HIT, _, _>(ray, level, best())` compiled for `w.isa()`, or for the best
+/// level below it that this CPU runs: the answers are the same on every level (the kernels'
+/// arithmetic is the same sequence of IEEE operations; only the width of the instructions
+/// differs). The keeper is made inside the compiled walk (`|| None` for plain queries), so
+/// that the walk starts from a known empty one.
 #[inline]
-pub fn query<W: Walk + ?Sized, const ANY_HIT: bool>(w: &W, ray: &Ray) -> Option<Hit> {
-    run(w.isa(), Query::<W, ANY_HIT> { w, ray })
+pub fn query<W: Walk + ?Sized, const ANY_HIT: bool, K: Keep>(
+    w: &W,
+    ray: &Ray,
+    best: impl FnOnce() -> K,
+) -> Option<Hit> {
+    run(w.isa(), Query::<W, _, ANY_HIT> { w, ray, best })
 }
 
 /// One query as [`Kernel`] work.
-struct Query<'a, W: ?Sized, const ANY_HIT: bool> {
+struct Query<'a, W: ?Sized, B, const ANY_HIT: bool> {
     w: &'a W,
     ray: &'a Ray,
+    best: B,
 }
 
-impl<W: Walk + ?Sized, const ANY_HIT: bool> Kernel for Query<'_, W, ANY_HIT> {
+impl<W: Walk + ?Sized, K: Keep, B: FnOnce() -> K, const ANY_HIT: bool> Kernel
+    for Query<'_, W, B, ANY_HIT>
+{
     type Output = Option<Hit>;
     #[inline(always)]
     fn run<L: Level>(self, level: L) -> Option<Hit> {
-        self.w.walk::<ANY_HIT, L>(self.ray, level)
+        self.w.walk::<ANY_HIT, L, K>(self.ray, level, (self.best)())
     }
 }
 

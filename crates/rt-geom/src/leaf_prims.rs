@@ -17,7 +17,7 @@
 
 use crate::isa::{BaseLevel, Level};
 use crate::triangle::{SimdLanes, lane_edges, proven_hit, signs_agree, watertight_rows_at};
-use crate::{Hit, PrimHit, Primitive, Ray, Triangle, Vec3, keep_hit};
+use crate::{Keep, Primitive, Ray, Triangle, Vec3};
 use wide::f32x4;
 
 /// Triangles tested together in the narrow window (and the floats of padding at the end).
@@ -102,15 +102,15 @@ impl TriangleSoa {
     /// Tests triangles `first .. first + count` against the ray, in order: the edge functions
     /// and their sign test for eight triangles at once while more than four remain, then
     /// four (SIMD lanes, one bit mask), then the scalar kernel's own
-    /// [`Triangle::finish_watertight`] for the lanes that may hit, each hit handed to
-    /// `keep(hit, id, ray)` (ids from `ids[first..]`), which records it and says whether the
+    /// [`Triangle::finish_watertight`] for the lanes that may hit, each hit offered to
+    /// `best` ([`Keep::keep`], ids from `ids[first..]`), which records it and says whether the
     /// search is over. Triangles whose id `skip` names (mailboxes: asked in order, before
-    /// their window is tested) are not tested. Returns true when `keep` did.
+    /// their window is tested) are not tested. Returns true when `best` did.
     ///
-    /// With `ANY_HIT` (queries that stop at the first hit, whose `keep` always says so), a
-    /// triangle whose hit [`proven_hit`] proves inside the ray's interval is handed over
-    /// with Woop's `f32` estimates of `t`, `u`, `v` instead of the refined ones: the same
-    /// answer, without the `f64` refinement.
+    /// With `ANY_HIT` (queries that stop at the first hit) and no filter, a triangle whose
+    /// hit [`proven_hit`] proves inside the ray's interval is handed over with Woop's `f32`
+    /// estimates of `t`, `u`, `v` instead of the refined ones: the same answer, without the
+    /// `f64` refinement.
     ///
     /// The eight-lane windows run on `level`'s vectors ([`Level`]: one AVX register at the
     /// AVX2 level, inside a walk [`crate::isa::run`] runs there).
@@ -122,16 +122,16 @@ impl TriangleSoa {
         ids: &[u32],
         r: &mut Ray,
         mut skip: impl FnMut(u32) -> bool,
-        mut keep: impl FnMut(PrimHit, u32, &mut Ray) -> bool,
+        best: &mut impl Keep,
     ) -> bool {
         let leaf = (first, count);
         let ids = &ids[first..first + count];
         let mut k = 0;
         while k < count {
             let over = if count - k > LANES {
-                level.window8::<ANY_HIT>(self, leaf, k, ids, r, &mut skip, &mut keep)
+                level.window8::<ANY_HIT>(self, leaf, k, ids, r, &mut skip, best)
             } else {
-                self.test_window::<f32x4, V, ANY_HIT>(level, leaf, k, ids, r, &mut skip, &mut keep)
+                self.test_window::<f32x4, V, _, ANY_HIT>(level, leaf, k, ids, r, &mut skip, best)
             };
             if over {
                 return true;
@@ -146,7 +146,7 @@ impl TriangleSoa {
     /// padding (they are taken only while more than four triangles remain).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    pub(crate) fn test_window<L: SimdLanes, V: Level, const ANY_HIT: bool>(
+    pub(crate) fn test_window<L: SimdLanes, V: Level, K: Keep, const ANY_HIT: bool>(
         &self,
         level: V,
         (first, count): (usize, usize),
@@ -154,7 +154,7 @@ impl TriangleSoa {
         ids: &[u32],
         r: &mut Ray,
         skip: &mut impl FnMut(u32) -> bool,
-        keep: &mut impl FnMut(PrimHit, u32, &mut Ray) -> bool,
+        best: &mut K,
     ) -> bool {
         let leaf = &self.data[9 * first..9 * (first + count) + LANES];
         // Lanes past the leaf belong to the next one.
@@ -181,7 +181,7 @@ impl TriangleSoa {
             let l = may_hit.trailing_zeros() as usize;
             may_hit &= may_hit - 1;
             let edges = lane_edges(&sheared, l);
-            if ANY_HIT && r.tmin > 0.0 {
+            if ANY_HIT && !K::FILTERED && r.tmin > 0.0 {
                 let [_, _, kz] = r.watertight_axes();
                 let oz = r.origin().to_array()[kz];
                 let dz = |v: usize| leaf[(3 * v + kz) * count + k + l] - oz;
@@ -189,7 +189,7 @@ impl TriangleSoa {
                 let x = [ax[l], bx[l], cx[l]];
                 let y = [ay[l], by[l], cy[l]];
                 if let Some(h) = proven_hit(x, y, [dz(0), dz(1), dz(2)], edges, r) {
-                    if keep(h, ids[k + l], r) {
+                    if best.keep::<ANY_HIT>(h, ids[k + l], &mut r.tmax) {
                         return true;
                     }
                     continue;
@@ -199,7 +199,7 @@ impl TriangleSoa {
                 continue;
             }
             if let Some(h) = level.finish(&self.get(first, count, k + l), r, edges) {
-                if keep(h, ids[k + l], r) {
+                if best.keep::<ANY_HIT>(h, ids[k + l], &mut r.tmax) {
                     return true;
                 }
             }
@@ -207,8 +207,9 @@ impl TriangleSoa {
         false
     }
 
-    /// [`Self::test_range`] keeping the closest hit in `best` (ties by [`crate::replaces`]) and
-    /// lowering `r.tmax` to it; with `ANY_HIT`, the first hit ends the search (true).
+    /// [`Self::test_range`] of every triangle of the range: the closest hit kept in `best`
+    /// (ties by [`crate::replaces`]) and `r.tmax` lowered to it; with `ANY_HIT`, the first
+    /// hit ends the search (true).
     #[inline(always)]
     pub fn intersect_range<const ANY_HIT: bool, V: Level>(
         &self,
@@ -217,16 +218,9 @@ impl TriangleSoa {
         count: usize,
         r: &mut Ray,
         ids: &[u32],
-        best: &mut Option<Hit>,
+        best: &mut impl Keep,
     ) -> bool {
-        self.test_range::<ANY_HIT, V>(
-            level,
-            (first, count),
-            ids,
-            r,
-            |_| false,
-            |h, id, r| keep_hit::<ANY_HIT>(h, id, &mut r.tmax, best),
-        )
+        self.test_range::<ANY_HIT, V>(level, (first, count), ids, r, |_| false, best)
     }
 }
 
@@ -270,10 +264,9 @@ impl<P: Primitive> LeafPrims<P> {
         (first, count): (usize, usize),
         indices: &[u32],
         ray: &mut Ray,
-        best: &mut Option<Hit>,
+        best: &mut impl Keep,
         mut skip: impl FnMut(u32) -> bool,
     ) -> bool {
-        let keep = |h, id, r: &mut Ray| keep_hit::<ANY_HIT>(h, id, &mut r.tmax, best);
         if let Some(soa) = &self.soa {
             return soa.test_range::<ANY_HIT, _>(
                 BaseLevel,
@@ -281,17 +274,16 @@ impl<P: Primitive> LeafPrims<P> {
                 indices,
                 ray,
                 skip,
-                keep,
+                best,
             );
         }
-        let mut keep = keep;
         let ids = &indices[first..first + count];
         for (p, &id) in self.listed[first..first + count].iter().zip(ids) {
             if skip(id) {
                 continue;
             }
             if let Some(h) = p.intersect(ray) {
-                if keep(h, id, ray) {
+                if best.keep::<ANY_HIT>(h, id, &mut ray.tmax) {
                     return true;
                 }
             }

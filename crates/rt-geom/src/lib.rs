@@ -17,6 +17,7 @@
 //! | [`primitive`] | [`Primitive`]: what structures need of their elements |
 //! | [`accel`] | [`Accel`], [`AccelStats`], [`BuildError`] |
 //! | [`brute`] | [`BruteForce`] |
+//! | [`filter`] | [`FilteredAccel`]: queries with a filter on each candidate hit, and every hit along a ray; [`Keep`], what a walk keeps of its hits |
 //! | [`isa`] | [`Isa`] and [`Walk`]: walks and leaf tests compiled for AVX2 and AVX-512 too, chosen at run time |
 //! | [`leaf_prims`] | [`TriangleSoa`] (triangles leaf by leaf as structure of arrays, tested four at a time) and [`LeafPrims`] (the listed primitives of kd-trees, octrees and grids, laid out for the leaf test) |
 //! | [`mesh`] | [`Mesh`], [`load_obj`] (through tobj), [`MeshError`] |
@@ -39,6 +40,7 @@ pub mod accel;
 pub mod brute;
 pub mod cone;
 pub mod counters;
+pub mod filter;
 pub mod frame;
 pub mod isa;
 pub mod leaf_prims;
@@ -57,6 +59,7 @@ pub use accel::{
 };
 pub use brute::BruteForce;
 pub use cone::Cone;
+pub use filter::{Filtered, FilteredAccel, Keep, sorted_hits};
 pub use frame::Frame;
 pub use glam::{self, DVec3, Vec3};
 pub use isa::{Avx2Level, BaseLevel, Isa, Kernel, Level, Walk};

@@ -1,27 +1,80 @@
 //! The `Primitive` trait: what every acceleration structure needs to know about its elements.
 
 use crate::aabb::{f32_at_or_above, f32_at_or_below};
-use crate::{Aabb, Hit, PrimHit, Ray, Sphere, Triangle};
+use crate::{Aabb, PrimHit, Ray, Sphere, Triangle};
 use glam::{DVec3, Vec3};
 
-/// Something a ray can hit. Structures are generic over it; triangles and spheres implement it.
+/// Something a ray can hit. Structures are generic over it; triangles, spheres, cones and
+/// [`crate::Shape`] implement it, and so can a user's own geometry with two methods:
+/// [`bounds`](Self::bounds) and [`intersect`](Self::intersect). The rest is derived from the
+/// box by default (conservative: a primitive is never culled where it could be hit), and a
+/// primitive that knows more (triangles clipped to a cell, a sphere's extent along a normal)
+/// overrides it for tighter kd-tree cells and bounding volumes.
+///
+/// The contract every structure relies on to answer exactly what [`crate::BruteForce`]
+/// answers: `intersect` is a function of the primitive and the ray (the same answer each time
+/// it is asked), and every hit it reports lies in `bounds()`, rounding of the hit included.
+///
+/// ```
+/// use rt_geom::{Aabb, Accel, BruteForce, PrimHit, Primitive, Ray, Vec3};
+///
+/// /// A square of side 2 at height `z`, facing up: user geometry in two methods.
+/// #[derive(Clone)]
+/// struct Square {
+///     z: f32,
+/// }
+///
+/// impl Primitive for Square {
+///     fn bounds(&self) -> Aabb {
+///         Aabb::new(Vec3::new(-1.0, -1.0, self.z), Vec3::new(1.0, 1.0, self.z))
+///     }
+///     fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
+///         let t = (self.z - ray.origin().z) / ray.dir().z;
+///         let p = ray.origin() + t * ray.dir();
+///         let inside = p.x.abs() <= 1.0 && p.y.abs() <= 1.0;
+///         (inside && t >= ray.tmin && t <= ray.tmax).then_some(PrimHit { t, u: p.x, v: p.y })
+///     }
+/// }
+///
+/// let squares = [Square { z: 0.0 }, Square { z: -1.0 }];
+/// let scene = BruteForce::build(&squares).unwrap();
+/// let hit = scene.intersect(&Ray::new(Vec3::new(0.5, 0.5, 2.0), -Vec3::Z)).unwrap();
+/// assert_eq!((hit.prim, hit.t), (0, 2.0));
+/// ```
 pub trait Primitive: Clone + Send + Sync + 'static {
-    /// Tight axis-aligned bounds.
+    /// Axis-aligned bounds holding every hit [`Self::intersect`] reports (as tight as that
+    /// allows: structures cull by it).
     fn bounds(&self) -> Aabb;
-
-    /// The point builders sort by.
-    fn centroid(&self) -> Vec3;
 
     /// Nearest hit with `t` in `[ray.tmin, ray.tmax]`.
     fn intersect(&self, ray: &Ray) -> Option<PrimHit>;
 
+    /// The point builders sort by. The box's centre by default.
+    fn centroid(&self) -> Vec3 {
+        self.bounds().center()
+    }
+
     /// Bounds of the part of the primitive inside `clip` (empty if none). May be larger than the
-    /// exact answer, never smaller: kd-trees with perfect splits rely on it.
-    fn clipped_bounds(&self, clip: &Aabb) -> Aabb;
+    /// exact answer, never smaller: kd-trees with perfect splits rely on it. The box's part
+    /// inside `clip` by default.
+    fn clipped_bounds(&self, clip: &Aabb) -> Aabb {
+        self.bounds().intersection(*clip)
+    }
 
     /// `(min, max)` of `n . p` over the points `p` of the primitive: the slab the primitive
-    /// occupies along `n` (k-DOPs are built from it).
-    fn extent_along(&self, n: Vec3) -> (f32, f32);
+    /// occupies along `n` (k-DOPs are built from it). The box's slab by default, rounded
+    /// outward.
+    fn extent_along(&self, n: Vec3) -> (f32, f32) {
+        let b = self.bounds();
+        let (mut lo, mut hi) = (0.0f64, 0.0f64);
+        for a in 0..3 {
+            let k = n[a] as f64;
+            let (p, q) = (k * b.min[a] as f64, k * b.max[a] as f64);
+            lo += p.min(q);
+            hi += p.max(q);
+        }
+        (f32_at_or_below(lo), f32_at_or_above(hi))
+    }
 
     /// `(min, max)` of `n . (p - origin)` over the points `p` of the primitive, rounded
     /// outward: [`Self::extent_along`] measured from `origin`, as precise as the result's own
@@ -42,11 +95,19 @@ pub trait Primitive: Clone + Send + Sync + 'static {
 
     /// The largest distance from `p` to a point of the primitive, rounded up (bounding
     /// spheres). The point is in `f64` so that a centre near a scene far from the origin keeps
-    /// the precision of the scene's own size.
-    fn farthest_distance(&self, p: DVec3) -> f32;
+    /// the precision of the scene's own size. The box's farthest corner by default.
+    fn farthest_distance(&self, p: DVec3) -> f32 {
+        let b = self.bounds();
+        let (lo, hi) = (b.min.as_dvec3() - p, b.max.as_dvec3() - p);
+        f32_at_or_above(lo.abs().max(hi.abs()).length())
+    }
 
-    /// All coordinates finite (builders reject the rest with `BuildError::NonFinite`).
-    fn is_finite(&self) -> bool;
+    /// All coordinates finite (builders reject the rest with `BuildError::NonFinite`). The
+    /// box's corners by default.
+    fn is_finite(&self) -> bool {
+        let b = self.bounds();
+        b.min.is_finite() && b.max.is_finite()
+    }
 
     /// The plane a flat primitive lies in, as `(unit normal n, d)` with `n . p = d` for its
     /// points; `None` for primitives that are not flat (or have no area). BSP trees take
@@ -73,7 +134,7 @@ pub trait Primitive: Clone + Send + Sync + 'static {
         prims: &[Self],
         ids: &[u32],
         ray: &mut Ray,
-        best: &mut Option<Hit>,
+        best: &mut impl crate::Keep,
         skip: impl FnMut(u32) -> bool,
     ) -> bool {
         crate::ray::test_each::<Self, ANY_HIT>(prims, ids, ray, best, skip)
@@ -92,7 +153,7 @@ impl Primitive for Triangle {
         prims: &[Self],
         ids: &[u32],
         ray: &mut Ray,
-        best: &mut Option<Hit>,
+        best: &mut impl crate::Keep,
         skip: impl FnMut(u32) -> bool,
     ) -> bool {
         crate::triangle::test_triangles::<ANY_HIT>(prims, ids, ray, best, skip)

@@ -240,7 +240,8 @@ pub fn keep_hit<const ANY_HIT: bool>(
 }
 
 /// Tests primitives `ids` of `prims` against `ray` in order, skipping ids for which `skip`
-/// says so (mailboxes), updating `best` by [`replaces`] and shrinking `ray.tmax` to it. With
+/// says so (mailboxes), offering each hit to `best` ([`crate::Keep`]: by [`replaces`],
+/// through its filter if it has one) and shrinking `ray.tmax` to the kept one. With
 /// `ANY_HIT`, stops at the first hit and returns true. The leaf test of every structure that
 /// lists primitive ids in its cells; [`Primitive::test_all`](crate::Primitive::test_all),
 /// so that a primitive with a SIMD kernel (triangles) runs it.
@@ -249,7 +250,7 @@ pub fn test_primitives<P: crate::Primitive, const ANY_HIT: bool>(
     prims: &[P],
     ids: &[u32],
     ray: &mut Ray,
-    best: &mut Option<Hit>,
+    best: &mut impl crate::Keep,
     skip: impl FnMut(u32) -> bool,
 ) -> bool {
     P::test_all::<ANY_HIT>(prims, ids, ray, best, skip)
@@ -261,7 +262,7 @@ pub fn test_each<P: crate::Primitive, const ANY_HIT: bool>(
     prims: &[P],
     ids: &[u32],
     ray: &mut Ray,
-    best: &mut Option<Hit>,
+    best: &mut impl crate::Keep,
     mut skip: impl FnMut(u32) -> bool,
 ) -> bool {
     for &p in ids {
@@ -269,7 +270,7 @@ pub fn test_each<P: crate::Primitive, const ANY_HIT: bool>(
             continue;
         }
         if let Some(h) = prims[p as usize].intersect(ray) {
-            if keep_hit::<ANY_HIT>(h, p, &mut ray.tmax, best) {
+            if best.keep::<ANY_HIT>(h, p, &mut ray.tmax) {
                 return true;
             }
         }

@@ -138,6 +138,17 @@ impl<Pk: Accel, S: Accel> Accel for WithSingleRays<Pk, S> {
     }
 }
 
+/// Filtered single rays go through the single-ray structure.
+impl<Pk: Accel, S: rt_geom::FilteredAccel> rt_geom::FilteredAccel for WithSingleRays<Pk, S> {
+    fn intersect_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> Option<Hit> {
+        self.singles.intersect_filtered(ray, filter)
+    }
+
+    fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> bool {
+        self.singles.occluded_filtered(ray, filter)
+    }
+}
+
 impl<Pk: PacketTraversal, S> PacketTraversal for WithSingleRays<Pk, S> {
     fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [Option<Hit>; N] {
         self.packets.intersect_packet(packet)

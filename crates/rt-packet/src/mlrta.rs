@@ -330,6 +330,17 @@ impl<P: PacketPrimitive> rt_geom::Accel for MlrtaKdTree<P> {
     }
 }
 
+/// Single rays go through the kd-tree, filtered or not.
+impl<P: PacketPrimitive> rt_geom::FilteredAccel for MlrtaKdTree<P> {
+    fn intersect_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> Option<Hit> {
+        self.tree.intersect_filtered(ray, filter)
+    }
+
+    fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> bool {
+        self.tree.occluded_filtered(ray, filter)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -8,7 +8,7 @@
 
 use crate::rays::{RayKind, SamplePoints, TestRay, conformance_rays};
 use crate::scenes::Scene;
-use rt_geom::{Accel, BruteForce, BuildError, Hit, Primitive, Ray};
+use rt_geom::{Accel, BruteForce, BuildError, FilteredAccel, Hit, Primitive, Ray};
 use std::any::TypeId;
 use std::collections::HashMap;
 use std::fmt;
@@ -324,14 +324,7 @@ struct Reference {
 fn reference<P: SamplePoints>(scene: &Scene<P>) -> Result<Arc<Reference>, String> {
     type Cache = Mutex<HashMap<(TypeId, String, u64), Arc<Reference>>>;
     static CACHE: OnceLock<Cache> = OnceLock::new();
-    let mut hash = std::hash::DefaultHasher::new();
-    for p in &scene.prims {
-        let b = p.bounds();
-        for x in b.min.to_array().into_iter().chain(b.max.to_array()) {
-            x.to_bits().hash(&mut hash);
-        }
-    }
-    let key = (TypeId::of::<P>(), scene.name.clone(), hash.finish());
+    let key = scene_key(scene);
     let cache = CACHE.get_or_init(Default::default);
     if let Some(r) = cache.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
         return Ok(r.clone());
@@ -345,6 +338,18 @@ fn reference<P: SamplePoints>(scene: &Scene<P>) -> Result<Arc<Reference>, String
         .unwrap_or_else(|e| e.into_inner())
         .insert(key, r.clone());
     Ok(r)
+}
+
+/// A scene told apart by name, primitive type and the bits of every primitive's box.
+fn scene_key<P: Primitive>(scene: &Scene<P>) -> (TypeId, String, u64) {
+    let mut hash = std::hash::DefaultHasher::new();
+    for p in &scene.prims {
+        let b = p.bounds();
+        for x in b.min.to_array().into_iter().chain(b.max.to_array()) {
+            x.to_bits().hash(&mut hash);
+        }
+    }
+    (TypeId::of::<P>(), scene.name.clone(), hash.finish())
 }
 
 /// [`check_scene`] with [`Tolerance::EXACT`], panicking with reproducers on any disagreement.
@@ -395,6 +400,209 @@ where
         Err(e) => panic!("expected NonFinite {{ prim: {at} }}, got {e}"),
         Ok(_) => panic!("a non-finite primitive was accepted"),
     }
+}
+
+/// The filters [`check_filters`] asks with, by name: whether each accepts `hit` for `ray`,
+/// whose unfiltered closest hit (brute force's) is `closest`, in a scene of `n` primitives.
+pub const FILTERS: [(&str, fn(&Hit, Option<Hit>, u32) -> bool); 4] = [
+    // Alpha-test-like: a fixed pseudo-random third of the primitives is cut out.
+    ("a hash of the id", |h, _, _| {
+        (h.prim.wrapping_mul(0x9e37_79b9) >> 29) % 3 != 0
+    }),
+    // The nearest surface skipped (and everything at its `t`): the walk must go on past it.
+    ("t beyond the unfiltered closest hit", |h, closest, _| {
+        closest.is_none_or(|c| h.t > c.t)
+    }),
+    // The primitive a secondary ray leaves.
+    ("skip primitive n / 2", |h, _, n| h.prim != n / 2),
+    // Nothing accepted: every query misses.
+    ("reject all", |_, _, _| false),
+];
+
+/// Filtered queries and every hit along a ray, against [`BruteForce`] asked the same on the
+/// scene's conformance rays: for each of [`FILTERS`], `intersect_filtered` gives brute
+/// force's hit exactly (the same `t`, `u`, `v` and primitive), `occluded_filtered` its
+/// answer, and `for_each_hit` brute force's sorted
+/// list of every primitive's hit (each once, even where a structure lists a primitive in
+/// several cells). `Err` names the first disagreement with a reproducer.
+pub fn check_filters<P, A, F>(scene: &Scene<P>, build: F) -> Result<usize, String>
+where
+    P: SamplePoints,
+    A: FilteredAccel,
+    F: Fn(&[P]) -> Result<A, BuildError>,
+{
+    let subject =
+        build(&scene.prims).map_err(|e| format!("build failed on {}: {e}", scene.name))?;
+    let reference = reference(scene)?;
+    let expected = filtered_reference(scene, &reference)?;
+    let n = scene.prims.len() as u32;
+    let mut checked = 0;
+    for ((test, closest), want) in reference
+        .rays
+        .iter()
+        .zip(&reference.expected)
+        .zip(&*expected)
+    {
+        let ray = &test.ray;
+        let at = |what: &str, expected: &dyn fmt::Debug, got: &dyn fmt::Debug| {
+            format!(
+                "{what} on scene {} ({:?} ray {ray:?}): expected {expected:?}, got {got:?}",
+                scene.name, test.kind
+            )
+        };
+        for (k, (name, accept)) in FILTERS.into_iter().enumerate() {
+            let mut filter = |h: &Hit| accept(h, *closest, n);
+            let got = subject.intersect_filtered(ray, &mut filter);
+            if !same_hits(got.as_slice(), want.closest[k].as_slice()) {
+                return Err(at(
+                    &format!("intersect_filtered ({name})"),
+                    &want.closest[k],
+                    &got,
+                ));
+            }
+            let got = subject.occluded_filtered(ray, &mut filter);
+            if got != want.occluded[k] {
+                return Err(at(
+                    &format!("occluded_filtered ({name})"),
+                    &want.occluded[k],
+                    &got,
+                ));
+            }
+            checked += 1;
+        }
+        let got = all_hits(&subject, ray);
+        if !same_hits(&got, &want.all) {
+            return Err(at("for_each_hit", &want.all, &got));
+        }
+        // Stopping after the first hit gives the closest.
+        let mut first = None;
+        subject.for_each_hit(ray, &mut |h| {
+            first = Some(*h);
+            std::ops::ControlFlow::Break(())
+        });
+        if !same_hits(first.as_slice(), closest.as_slice()) {
+            return Err(at("for_each_hit, stopped at the first", closest, &first));
+        }
+    }
+    Ok(checked)
+}
+
+/// The same hits bit for bit (a user primitive's `u`, `v` may be NaN).
+fn same_hits(a: &[Hit], b: &[Hit]) -> bool {
+    let key = |h: &Hit| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim);
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| key(x) == key(y))
+}
+
+/// Every hit `for_each_hit` hands over, in its order.
+fn all_hits(a: &dyn FilteredAccel, ray: &Ray) -> Vec<Hit> {
+    let mut hits = Vec::new();
+    a.for_each_hit(ray, &mut |h| {
+        hits.push(*h);
+        std::ops::ControlFlow::Continue(())
+    });
+    hits
+}
+
+/// Brute force's answers to one ray's filtered questions ([`FILTERS`] in order).
+struct FilteredAnswers {
+    closest: Vec<Option<Hit>>,
+    occluded: Vec<bool>,
+    all: Vec<Hit>,
+}
+
+/// Brute force's [`FilteredAnswers`] for the rays of `reference`, computed once per scene and
+/// process, as [`reference`] is.
+fn filtered_reference<P: SamplePoints>(
+    scene: &Scene<P>,
+    reference: &Reference,
+) -> Result<Arc<Vec<FilteredAnswers>>, String> {
+    type Cache = Mutex<HashMap<(TypeId, String, u64), Arc<Vec<FilteredAnswers>>>>;
+    static CACHE: OnceLock<Cache> = OnceLock::new();
+    let key = scene_key(scene);
+    let cache = CACHE.get_or_init(Default::default);
+    if let Some(r) = cache.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
+        return Ok(r.clone());
+    }
+    let brute = BruteForce::build(&scene.prims).map_err(|e| e.to_string())?;
+    let n = scene.prims.len() as u32;
+    let answers: Vec<FilteredAnswers> = reference
+        .rays
+        .iter()
+        .zip(&reference.expected)
+        .map(|(test, closest)| {
+            let ray = &test.ray;
+            let mut answers = FilteredAnswers {
+                closest: Vec::new(),
+                occluded: Vec::new(),
+                all: all_hits(&brute, ray),
+            };
+            for (_, accept) in FILTERS {
+                let mut filter = |h: &Hit| accept(h, *closest, n);
+                answers
+                    .closest
+                    .push(brute.intersect_filtered(ray, &mut filter));
+                answers
+                    .occluded
+                    .push(brute.occluded_filtered(ray, &mut filter));
+            }
+            answers
+        })
+        .collect();
+    let r = Arc::new(answers);
+    cache
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .insert(key, r.clone());
+    Ok(r)
+}
+
+/// [`check_filters`], panicking with the reproducer.
+pub fn assert_filters_conform<P, A, F>(scene: &Scene<P>, build: F)
+where
+    P: SamplePoints,
+    A: FilteredAccel,
+    F: Fn(&[P]) -> Result<A, BuildError>,
+{
+    match check_filters(scene, build) {
+        Ok(checked) => assert!(checked > 0 || scene.prims.is_empty()),
+        Err(e) => panic!("{e}"),
+    }
+}
+
+/// Stamps out the [`check_filters`] tests of a structure: triangle scenes with shared edges,
+/// duplicates, coplanar and far-away triangles, and, where given, spheres and mixed shapes.
+///
+/// ```ignore
+/// rt_testkit::filter_tests!(
+///     triangles: |p: &[Triangle]| MyTree::build(p),
+///     spheres: |p: &[Sphere]| MyTree::build(p),
+/// );
+/// ```
+#[macro_export]
+macro_rules! filter_tests {
+    (triangles: $tri:expr $(, spheres: $sph:expr)? $(, shapes: $shp:expr)? $(,)?) => {
+        #[test]
+        fn filters_and_all_hits_on_triangles() {
+            for scene in ["soup", "duplicates", "overlapping_fan", "far_soup", "empty"] {
+                $crate::conformance::assert_filters_conform(
+                    &$crate::scenes::triangle_scene(scene), $tri);
+            }
+        }
+        $(
+            #[test]
+            fn filters_and_all_hits_on_spheres() {
+                $crate::conformance::assert_filters_conform(
+                    &$crate::scenes::sphere_scene("spheres"), $sph);
+            }
+        )?
+        $(
+            #[test]
+            fn filters_and_all_hits_on_shapes() {
+                $crate::conformance::assert_filters_conform(
+                    &$crate::scenes::shape_scene("shapes"), $shp);
+            }
+        )?
+    };
 }
 
 /// Stamps out one `#[test]` per conformance scene for a structure.
@@ -512,6 +720,26 @@ macro_rules! conformance_tests {
     };
 }
 
+/// Stamps out the conformance tests of a structure over [`Disc`](crate::Disc)s, user
+/// geometry that implements only `bounds` and `intersect`: the disc scenes against brute
+/// force, and the filters on them.
+///
+/// ```ignore
+/// rt_testkit::disc_tests!(|p: &[rt_testkit::Disc]| MyTree::build(p));
+/// ```
+#[macro_export]
+macro_rules! disc_tests {
+    ($build:expr) => {
+        #[test]
+        fn user_geometry_discs() {
+            for scene in ["discs", "one_disc", "far_discs"] {
+                $crate::conformance::assert_conforms(&$crate::disc::disc_scene(scene), $build);
+            }
+            $crate::conformance::assert_filters_conform(&$crate::disc::disc_scene("discs"), $build);
+        }
+    };
+}
+
 /// One module of [`conformance_tests!`] per named parameter set of a builder that takes
 /// `(prims, params)`, over triangles, spheres and mixed shapes:
 ///
@@ -531,6 +759,12 @@ macro_rules! conformance_per_params {
                 spheres: |p: &[$crate::rt_geom::Sphere]| $ty::$build(p, $params),
                 shapes: |p: &[$crate::rt_geom::Shape]| $ty::$build(p, $params),
             );
+            $crate::filter_tests!(
+                triangles: |p: &[$crate::rt_geom::Triangle]| $ty::$build(p, $params),
+                spheres: |p: &[$crate::rt_geom::Sphere]| $ty::$build(p, $params),
+                shapes: |p: &[$crate::rt_geom::Shape]| $ty::$build(p, $params),
+            );
+            $crate::disc_tests!(|p: &[$crate::Disc]| $ty::$build(p, $params));
         }
     )*};
 }
@@ -547,6 +781,48 @@ mod tests {
             spheres: |p: &[Sphere]| BruteForce::build(p),
             shapes: |p: &[rt_geom::Shape]| BruteForce::build(p),
         );
+        crate::disc_tests!(|p: &[crate::Disc]| BruteForce::build(p));
+    }
+
+    /// Filtered queries written the wrong ways must fail [`check_filters`]: the filter
+    /// ignored, and the filter asked only of the unfiltered closest hit (a rejected nearest
+    /// surface then hides everything behind it).
+    #[test]
+    fn filter_check_catches_wrong_filtering() {
+        struct PostHoc(BruteForce<Triangle>, bool);
+        impl Accel for PostHoc {
+            fn intersect(&self, ray: &Ray) -> Option<Hit> {
+                self.0.intersect(ray)
+            }
+            fn occluded(&self, ray: &Ray) -> bool {
+                self.0.occluded(ray)
+            }
+            fn stats(&self) -> AccelStats {
+                self.0.stats()
+            }
+            fn validate(&self) -> Result<(), String> {
+                self.0.validate()
+            }
+        }
+        impl FilteredAccel for PostHoc {
+            fn intersect_filtered(
+                &self,
+                ray: &Ray,
+                filter: &mut dyn FnMut(&Hit) -> bool,
+            ) -> Option<Hit> {
+                let ignore = self.1;
+                self.0.intersect(ray).filter(|h| ignore || filter(h))
+            }
+            fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> bool {
+                self.intersect_filtered(ray, filter).is_some()
+            }
+        }
+        let scene = crate::scenes::triangle_scene("duplicates");
+        for ignore in [true, false] {
+            let err = check_filters(&scene, |p| Ok(PostHoc(BruteForce::build(p)?, ignore)));
+            assert!(err.is_err(), "ignore = {ignore}: the check passed");
+        }
+        assert!(check_filters(&scene, BruteForce::build).is_ok());
     }
 
     /// A deliberately broken structure: it forgets every other primitive.

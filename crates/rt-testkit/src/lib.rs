@@ -5,6 +5,7 @@
 //! | [`rng`] | [`Rng`], a seeded generator: every scene and ray set is reproducible |
 //! | [`scenes`] | procedural and adversarial scenes ([`Scene`]): soups, tessellated spheres and tori, planar and sliver scenes, duplicates, teapot in a stadium, huge and tiny coordinates, spheres, one primitive, nothing |
 //! | [`rays`] | conformance ray families ([`RayKind`]), the standard camera ([`View`]) and the primary / shadow / diffuse sets ([`RaySets`]) |
+//! | [`disc`] | [`Disc`], user geometry with only the two required methods of `Primitive`, and its scenes |
 //! | [`conformance`] | the one generic check against brute force, and [`conformance_tests!`] |
 //! | [`rayfile`] | `.rays` and `.hits` files, read and written (exchanging rays and answers with other engines) |
 //! | `props` | the generated-property suites' case count and lattice coordinates (feature `proptest`) |
@@ -20,6 +21,7 @@
 //! ```
 
 pub mod conformance;
+pub mod disc;
 pub mod models;
 #[cfg(feature = "proptest")]
 pub mod props;
@@ -29,6 +31,7 @@ pub mod rng;
 pub mod scenes;
 
 pub use conformance::{Report, Tolerance};
+pub use disc::Disc;
 pub use rays::{RayKind, RaySets, TestRay, View};
 pub use rng::Rng;
 /// For the macros (`$crate::rt_geom::Triangle`).

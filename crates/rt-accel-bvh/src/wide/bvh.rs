@@ -5,7 +5,9 @@ use crate::refit::{Refit, check_moved, in_leaf_order, leaf_bounds};
 use crate::stats::check_leaf_primitive;
 use crate::{Bvh, BvhParams};
 use rt_geom::all_referenced;
-use rt_geom::{Accel, AccelStats, BuildError, Hit, Isa, Level, Primitive, Ray, Walk};
+use rt_geom::{
+    Accel, AccelStats, BuildError, FilteredAccel, Hit, Isa, Keep, Level, Primitive, Ray, Walk,
+};
 
 /// A BVH with `N` children per node (`N` = 4 or 8) in the layout `Node` (exact boxes by
 /// default), sharing the leaf-ordered primitives of the binary tree it was collapsed from.
@@ -76,10 +78,16 @@ impl<P: Primitive, const N: usize, Node: NodeLayout<N>> Walk for WideBvh<P, N, N
     }
 
     #[inline(always)]
-    fn walk<const ANY_HIT: bool, L: Level>(&self, ray: &Ray, level: L) -> Option<Hit> {
-        self.tree.traverse::<ANY_HIT, L>(
+    fn walk<const ANY_HIT: bool, L: Level, K: Keep>(
+        &self,
+        ray: &Ray,
+        level: L,
+        best: K,
+    ) -> Option<Hit> {
+        self.tree.traverse::<ANY_HIT, L, K>(
             level,
             ray,
+            best,
             #[inline(always)]
             |first, count, r, best| {
                 test_leaf::<P, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
@@ -97,6 +105,10 @@ impl<P: Primitive, const N: usize, Node: NodeLayout<N>> Refit<P> for WideBvh<P, 
             .refit(&|first, count| leaf_bounds(prims, first, count));
         Ok(())
     }
+}
+
+impl<P: Primitive, const N: usize, Node: NodeLayout<N>> FilteredAccel for WideBvh<P, N, Node> {
+    rt_geom::filtered_from_walk!(per_isa);
 }
 
 impl<P: Primitive, const N: usize, Node: NodeLayout<N>> Accel for WideBvh<P, N, Node> {
@@ -136,6 +148,12 @@ mod tests {
             spheres: |p: &[Sphere]| Bvh4::build(p, BvhParams::balanced()),
             shapes: |p: &[rt_geom::Shape]| Bvh4::build(p, BvhParams::balanced()),
         );
+        rt_testkit::disc_tests!(|p: &[rt_testkit::Disc]| Bvh4::build(p, BvhParams::balanced()));
+        rt_testkit::filter_tests!(
+            triangles: |p: &[Triangle]| Bvh4::build(p, BvhParams::balanced()),
+            spheres: |p: &[Sphere]| Bvh4::build(p, BvhParams::balanced()),
+            shapes: |p: &[rt_geom::Shape]| Bvh4::build(p, BvhParams::balanced()),
+        );
     }
 
     mod bvh8 {
@@ -145,6 +163,7 @@ mod tests {
             spheres: |p: &[Sphere]| Bvh8::build(p, BvhParams::balanced()),
             shapes: |p: &[rt_geom::Shape]| Bvh8::build(p, BvhParams::balanced()),
         );
+        rt_testkit::disc_tests!(|p: &[rt_testkit::Disc]| Bvh8::build(p, BvhParams::balanced()));
     }
 
     mod bvh8_pure_sah_collapse {

@@ -23,7 +23,7 @@ pub use bvh::{Bvh4, Bvh8, WideBvh};
 pub use node::{NodeLayout, WideNode};
 pub(crate) use traverse::{lane_entries, test_leaf};
 
-use rt_geom::{Aabb, Hit, Isa, Level, Ray};
+use rt_geom::{Aabb, Hit, Isa, Keep, Level, Ray};
 
 /// The topology of a wide BVH over a node layout (`N` lanes of [`WideNode<N>`] by default):
 /// nodes, root box, depth. Leaves are ranges of a leaf-ordered primitive array kept by the
@@ -85,24 +85,27 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
     }
 
     /// Stack traversal; all children of a node are tested at once and pushed far to near.
-    /// `leaf(first, count, ray, best)` tests a leaf, shrinking `ray.tmax` and updating `best`
-    /// `(hit, caller's id)`; it returns true to stop (any-hit queries).
+    /// `leaf(first, count, ray, best)` tests a leaf, offering its hits (with the caller's
+    /// ids) to `best` ([`Keep`]), which shrinks `ray.tmax` to a kept one; it returns true to
+    /// stop (any-hit queries). Returns the hit `best` kept.
     /// The node tests run on `level`'s vectors ([`Level`]: inside a walk [`rt_geom::isa::run`]
     /// runs, the level it runs at; else [`rt_geom::BaseLevel`]).
     #[inline(always)]
-    pub fn traverse<const ANY_HIT: bool, V: Level>(
+    pub fn traverse<const ANY_HIT: bool, V: Level, K: Keep>(
         &self,
         level: V,
         ray: &Ray,
-        leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<Hit>) -> bool,
+        best: K,
+        leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
     ) -> Option<Hit> {
-        traverse::traverse_nodes::<_, N, ANY_HIT, V>(
+        traverse::traverse_nodes::<_, N, ANY_HIT, V, K>(
             level,
             &self.nodes,
             &self.root_bounds,
             self.root_leaf,
             self.depth,
             ray,
+            best,
             leaf,
         )
     }

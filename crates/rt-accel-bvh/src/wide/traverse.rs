@@ -4,10 +4,10 @@
 
 use super::NodeLayout;
 use rt_geom::aabb::{SlabRay, pad_interval};
-use rt_geom::{Aabb, Hit, Level, Primitive, Ray, keep_hit};
+use rt_geom::{Aabb, Hit, Keep, Level, Primitive, Ray};
 
 /// Tests the leaf-ordered primitives `first..first + count` (closest hit, or any hit),
-/// keeping the hit with the caller's id.
+/// offering each hit to `best` with the caller's id.
 #[inline(always)]
 pub(crate) fn test_leaf<P: Primitive, const ANY_HIT: bool>(
     prims: &[P],
@@ -15,12 +15,12 @@ pub(crate) fn test_leaf<P: Primitive, const ANY_HIT: bool>(
     first: u32,
     count: u32,
     r: &mut Ray,
-    best: &mut Option<Hit>,
+    best: &mut impl Keep,
 ) -> bool {
     let first = first as usize;
     for i in first..first + count as usize {
         if let Some(h) = prims[i].intersect(r) {
-            if keep_hit::<ANY_HIT>(h, ids[i], &mut r.tmax, best) {
+            if best.keep::<ANY_HIT>(h, ids[i], &mut r.tmax) {
                 return true;
             }
         }
@@ -54,24 +54,30 @@ fn le_lanes<const N: usize, V: Level>(level: V, t0: &[f32; N], t1: &[f32; N]) ->
 /// Popped entries whose entry distance lies beyond the closest hit found since are skipped.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn traverse_nodes<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level>(
+pub(crate) fn traverse_nodes<
+    Node: NodeLayout<N>,
+    const N: usize,
+    const ANY_HIT: bool,
+    V: Level,
+    K: Keep,
+>(
     level: V,
     nodes: &[Node],
     root_bounds: &Aabb,
     root_leaf: Option<(u32, u32)>,
     depth: usize,
     ray: &Ray,
-    mut leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<Hit>) -> bool,
+    mut best: K,
+    mut leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
 ) -> Option<Hit> {
     if !ray.is_valid() {
         return None;
     }
     let mut r = *ray;
-    let mut best = None;
     if let Some((first, count)) = root_leaf {
         root_bounds.clip_ray(&r)?;
         leaf(first, count, &mut r, &mut best);
-        return best;
+        return best.best();
     }
     if nodes.is_empty() {
         return None;
@@ -86,7 +92,7 @@ pub(crate) fn traverse_nodes<Node: NodeLayout<N>, const N: usize, const ANY_HIT:
     if stack.len() < need {
         stack.resize(need, (0, 0, 0.0));
     }
-    walk_stack::<Node, N, ANY_HIT, V>(
+    walk_stack::<Node, N, ANY_HIT, V, K>(
         level,
         nodes,
         &slab,
@@ -96,19 +102,19 @@ pub(crate) fn traverse_nodes<Node: NodeLayout<N>, const N: usize, const ANY_HIT:
         leaf,
     );
     STACK.set(stack);
-    best
+    best.best()
 }
 
 /// The stack loop of [`traverse_nodes`] from the root, over `stack` (large enough).
 #[inline(always)]
-fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level>(
+fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level, K: Keep>(
     level: V,
     nodes: &[Node],
     slab: &SlabRay,
     stack: &mut [(u32, u32, f32)],
     r: &mut Ray,
-    best: &mut Option<Hit>,
-    mut leaf: impl FnMut(u32, u32, &mut Ray, &mut Option<Hit>) -> bool,
+    best: &mut K,
+    mut leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
 ) {
     let mut sp = 0usize;
     let mut next = (0u32, 0u32, r.tmin);

@@ -6,7 +6,8 @@ use crate::build::{BuildNode, MAX_LOCAL, flatten, root_budget};
 use crate::params::MAX_DEPTH;
 use crate::{KdNode, KdParams};
 use rt_geom::{
-    Aabb, Accel, AccelStats, BuildError, Frame, LeafPrims, Primitive, Vec3, check_primitives,
+    Aabb, Accel, AccelStats, BuildError, FilteredAccel, Frame, LeafPrims, Primitive, Vec3,
+    check_primitives,
 };
 
 /// A splitting plane `normal . p = d` (unit normal), with the band `|normal . p - d| <=
@@ -150,6 +151,10 @@ impl<P: Primitive> BspTree<P> {
             );
         }
     }
+}
+
+impl<P: Primitive> FilteredAccel for BspTree<P> {
+    rt_geom::filtered_from_walk!();
 }
 
 impl<P: Primitive> Accel for BspTree<P> {

@@ -6,7 +6,7 @@ use crate::KdNode;
 use crate::traverse::{self, SplitPlanes, Step, ordered_children};
 use rt_geom::aabb::{pad_down, pad_up};
 use rt_geom::glam::DVec3;
-use rt_geom::{Frame, Hit, Primitive, Ray};
+use rt_geom::{Frame, Hit, Keep, Primitive, Ray};
 
 /// The ray in `f64`, where the crossing with an arbitrary plane is computed, its origin in
 /// the tree's frame (exact: two `f32` subtracted in `f64`).
@@ -79,8 +79,8 @@ impl<P: Primitive> SplitPlanes for BspTree<P> {
 impl<P: Primitive> BspTree<P> {
     /// The walk, for the closest hit or any hit.
     #[inline]
-    pub(super) fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        let t = self.params.traversal;
-        traverse::query::<_, _, ANY_HIT>(self, (&self.prims, &self.listed), &self.bounds, t, ray)
+    pub(super) fn traverse<const ANY_HIT: bool, K: Keep>(&self, ray: &Ray, best: K) -> Option<Hit> {
+        let (t, leaves) = (self.params.traversal, (self.prims.as_slice(), &self.listed));
+        traverse::query::<_, _, ANY_HIT, K>(self, leaves, &self.bounds, t, ray, best)
     }
 }

@@ -4,7 +4,7 @@
 use super::simd::{ShearedLanes, SimdLanes, TriangleLanes};
 use super::{Triangle, watertight_edges};
 use crate::isa::{BaseLevel, Level};
-use crate::{Hit, Ray, keep_hit};
+use crate::{Keep, Ray};
 use wide::f32x4;
 
 /// [`watertight_edges`] of lane `l` of [`watertight_lanes`]' sheared coordinates. Reads the
@@ -144,7 +144,7 @@ pub(crate) fn test_triangles<const ANY_HIT: bool>(
     tris: &[Triangle],
     ids: &[u32],
     ray: &mut Ray,
-    best: &mut Option<Hit>,
+    best: &mut impl Keep,
     skip: impl FnMut(u32) -> bool,
 ) -> bool {
     if ids.len() < 4 {
@@ -160,7 +160,7 @@ fn test_in_batches<const ANY_HIT: bool>(
     tris: &[Triangle],
     ids: &[u32],
     ray: &mut Ray,
-    best: &mut Option<Hit>,
+    best: &mut impl Keep,
     mut skip: impl FnMut(u32) -> bool,
 ) -> bool {
     if !ray.is_valid() {
@@ -186,7 +186,7 @@ fn test_in_batches<const ANY_HIT: bool>(
                 may_hit &= may_hit - 1;
                 let edges = lane_edges(&sheared, l);
                 if let Some(h) = lanes[l].finish_watertight(ray, edges) {
-                    if keep_hit::<ANY_HIT>(h, batch[l], &mut ray.tmax, best) {
+                    if best.keep::<ANY_HIT>(h, batch[l], &mut ray.tmax) {
                         return true;
                     }
                 }
@@ -196,7 +196,7 @@ fn test_in_batches<const ANY_HIT: bool>(
     crate::counters::prims(n as u32);
     for &p in &batch[..n] {
         if let Some(h) = tris[p as usize].intersect_watertight(ray) {
-            if keep_hit::<ANY_HIT>(h, p, &mut ray.tmax, best) {
+            if best.keep::<ANY_HIT>(h, p, &mut ray.tmax) {
                 return true;
             }
         }

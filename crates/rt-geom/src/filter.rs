@@ -1,0 +1,199 @@
+//! Filtered queries and all hits along a ray: what a renderer asks on top of the closest and
+//! any hit (alpha-tested leaves, the triangle a secondary ray leaves, transparency, volumes).
+//!
+//! A filter sees each candidate hit as the query would report it (`t`, `u`, `v` exact, the
+//! primitive as the caller's id; an instance scene's global id) and accepts or rejects it. A
+//! rejected hit neither shortens the ray nor ends an any-hit query. The answer is brute
+//! force's asked the same question: the closest accepted hit (ties by [`replaces`]), or
+//! whether some hit is accepted. Each primitive offers one candidate, its nearest hit within
+//! the ray's interval (the hit [`Primitive::intersect`](crate::Primitive::intersect) gives);
+//! a filter may see the same candidate more than once (structures that list a primitive in
+//! several cells) and must answer the same each time.
+//!
+//! Every structure writes its leaf tests against [`Keep`], which `Option<Hit>` implements
+//! without a filter (today's queries, the same code) and [`Filtered`] with one.
+//!
+//! ```
+//! use rt_geom::{Accel, BruteForce, FilteredAccel, Ray, Triangle, Vec3};
+//!
+//! // Two triangles, one behind the other.
+//! let tris = [
+//!     Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y),
+//!     Triangle::new(-Vec3::Z, Vec3::X - Vec3::Z, Vec3::Y - Vec3::Z),
+//! ];
+//! let scene = BruteForce::build(&tris).unwrap();
+//! let ray = Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z);
+//! assert_eq!(scene.intersect(&ray).unwrap().prim, 0);
+//! // Triangle 0 is cut out (an alpha test, or the triangle a ray leaves): the ray goes on.
+//! let hit = scene.intersect_filtered(&ray, &mut |h| h.prim != 0).unwrap();
+//! assert_eq!((hit.prim, hit.t), (1, 2.0));
+//! assert!(!scene.occluded_filtered(&ray, &mut |_| false));
+//! // Every hit along the ray, in order of `t`.
+//! let mut seen = Vec::new();
+//! scene.for_each_hit(&ray, &mut |h| {
+//!     seen.push(h.prim);
+//!     std::ops::ControlFlow::Continue(())
+//! });
+//! assert_eq!(seen, [0, 1]);
+//! ```
+
+use crate::{Accel, Hit, PrimHit, replaces};
+use std::ops::ControlFlow;
+
+/// What a query keeps of the hits its leaf tests find: the closest (or any) hit, through a
+/// filter or not. `Option<Hit>` is the unfiltered keeper every structure's plain queries use;
+/// [`Filtered`] asks a filter first.
+pub trait Keep {
+    /// Whether candidates go through a filter: they must then carry their exact `t`, `u`,
+    /// `v` (an any-hit query may otherwise end on a hit proven in `f32`, not refined).
+    const FILTERED: bool;
+
+    /// The hit kept so far.
+    fn best(&self) -> Option<Hit>;
+
+    /// Whether the filter accepts `hit` (true without a filter).
+    fn accepts(&mut self, hit: &Hit) -> bool;
+
+    /// Records hit `h` of primitive `prim`, already accepted, as [`crate::keep_hit`] does:
+    /// with `ANY_HIT` the search is over (true); else it replaces the best hit when
+    /// [`replaces`] says so, and `tmax` shrinks to it.
+    fn record<const ANY_HIT: bool>(&mut self, h: PrimHit, prim: u32, tmax: &mut f32) -> bool;
+
+    /// Offers the candidate hit `h` of primitive `prim`: the filter is asked only for a
+    /// candidate that would be kept (any hit, or one that [`replaces`] the best so far), and
+    /// an accepted one is [recorded](Self::record). True when the search is over.
+    #[inline(always)]
+    fn keep<const ANY_HIT: bool>(&mut self, h: PrimHit, prim: u32, tmax: &mut f32) -> bool {
+        if Self::FILTERED {
+            if !ANY_HIT && !replaces(h.t, prim, self.best().as_ref().map(Hit::key)) {
+                return false;
+            }
+            if !self.accepts(&Hit::new(h, prim)) {
+                return false;
+            }
+        }
+        self.record::<ANY_HIT>(h, prim, tmax)
+    }
+}
+
+impl Keep for Option<Hit> {
+    const FILTERED: bool = false;
+
+    #[inline(always)]
+    fn best(&self) -> Option<Hit> {
+        *self
+    }
+
+    #[inline(always)]
+    fn accepts(&mut self, _: &Hit) -> bool {
+        true
+    }
+
+    #[inline(always)]
+    fn record<const ANY_HIT: bool>(&mut self, h: PrimHit, prim: u32, tmax: &mut f32) -> bool {
+        crate::keep_hit::<ANY_HIT>(h, prim, tmax, self)
+    }
+}
+
+/// The best hit a filter accepted so far, and the filter.
+pub struct Filtered<F> {
+    hit: Option<Hit>,
+    filter: F,
+}
+
+impl<F: FnMut(&Hit) -> bool> Filtered<F> {
+    /// No hit yet.
+    #[inline(always)]
+    pub fn new(filter: F) -> Self {
+        Self { hit: None, filter }
+    }
+}
+
+impl<F: FnMut(&Hit) -> bool> Keep for Filtered<F> {
+    const FILTERED: bool = true;
+
+    #[inline(always)]
+    fn best(&self) -> Option<Hit> {
+        self.hit
+    }
+
+    #[inline(always)]
+    fn accepts(&mut self, hit: &Hit) -> bool {
+        (self.filter)(hit)
+    }
+
+    #[inline(always)]
+    fn record<const ANY_HIT: bool>(&mut self, h: PrimHit, prim: u32, tmax: &mut f32) -> bool {
+        crate::keep_hit::<ANY_HIT>(h, prim, tmax, &mut self.hit)
+    }
+}
+
+/// Queries with a filter on each candidate hit, and every hit along a ray. Every rt structure
+/// implements it (through [`crate::queries_from_walk!`]); see the [module](self) for the
+/// contract.
+pub trait FilteredAccel: Accel {
+    /// The closest hit in `[ray.tmin, ray.tmax]` that `filter` accepts.
+    fn intersect_filtered(
+        &self,
+        ray: &crate::Ray,
+        filter: &mut dyn FnMut(&Hit) -> bool,
+    ) -> Option<Hit>;
+
+    /// Whether some hit in `[ray.tmin, ray.tmax]` is accepted by `filter` (which may stop
+    /// being asked at the first it accepts).
+    fn occluded_filtered(&self, ray: &crate::Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> bool;
+
+    /// Hands every hit in `[ray.tmin, ray.tmax]` to `visit` in order of `t` (ties by
+    /// primitive id), each primitive once (its nearest hit in the interval), until `visit`
+    /// breaks. The order is known only once the ray's whole interval is walked: the hits are
+    /// gathered first (a filter that rejects every candidate), then sorted.
+    fn for_each_hit(&self, ray: &crate::Ray, visit: &mut dyn FnMut(&Hit) -> ControlFlow<()>) {
+        let mut hits = Vec::new();
+        self.intersect_filtered(ray, &mut |h| {
+            hits.push(*h);
+            false
+        });
+        for h in sorted_hits(hits) {
+            if visit(&h).is_break() {
+                return;
+            }
+        }
+    }
+}
+
+/// `hits` in order of `(t, prim)`, each primitive once: the list [`FilteredAccel::for_each_hit`]
+/// visits, from candidates a structure may have offered more than once (the same hit each
+/// time).
+pub fn sorted_hits(mut hits: Vec<Hit>) -> Vec<Hit> {
+    hits.sort_by(|a, b| a.t.total_cmp(&b.t).then(a.prim.cmp(&b.prim)));
+    let mut seen = std::collections::HashSet::with_capacity(hits.len());
+    hits.retain(|h| seen.insert(h.prim));
+    hits
+}
+
+/// Boxed and shared structures answer as the structure they hold.
+macro_rules! forward_filtered {
+    ($($ptr:ident)::+) => {
+        impl<A: FilteredAccel + ?Sized> FilteredAccel for $($ptr)::+<A> {
+            #[inline]
+            fn intersect_filtered(
+                &self,
+                ray: &crate::Ray,
+                filter: &mut dyn FnMut(&Hit) -> bool,
+            ) -> Option<Hit> {
+                (**self).intersect_filtered(ray, filter)
+            }
+            #[inline]
+            fn occluded_filtered(
+                &self,
+                ray: &crate::Ray,
+                filter: &mut dyn FnMut(&Hit) -> bool,
+            ) -> bool {
+                (**self).occluded_filtered(ray, filter)
+            }
+        }
+    };
+}
+
+forward_filtered!(Box);
+forward_filtered!(std::sync::Arc);
