@@ -466,10 +466,13 @@ fn filters_and_all_hits_through_instances() {
     }
     let n = at;
     // Every instance's object asked in its own space, each hit offered with its global id.
-    let reference = |ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool, any: bool| {
+    let reference = |ray: &Ray, filter: &mut dyn rt_geom::HitFilter, any: bool| {
         let mut best: Option<Hit> = None;
         let mut all = Vec::new();
         for (i, inst) in instances.iter().enumerate() {
+            if filter.skips_instance(i as u32) {
+                continue;
+            }
             let to_object = inst.transform.inverse();
             let tmax = if any {
                 ray.tmax
@@ -489,7 +492,7 @@ fn filters_and_all_hits_through_instances() {
                     ..*h
                 };
                 all.push(g);
-                filter(&g)
+                filter.accepts(&g)
             };
             if let Some(h) = brute.intersect_filtered(&local, &mut global) {
                 let h = Hit {
@@ -530,7 +533,7 @@ fn filters_and_all_hits_through_instances() {
         let closest = scene.intersect(&ray);
         assert_eq!(
             closest,
-            reference(&ray, &mut |_| true, false).0,
+            reference(&ray, &mut |_: &Hit| true, false).0,
             "ray {ray:?}"
         );
         for (name, accept) in FILTERS {
@@ -546,7 +549,26 @@ fn filters_and_all_hits_through_instances() {
                 "occluded_filtered ({name}), ray {ray:?}"
             );
         }
-        let (_, all) = reference(&ray, &mut |_| false, false);
+        // Instance masks: instance i has bit i % 3; the query's mask picks some.
+        let instance_masks: Vec<u32> = (0..instances.len()).map(|i| 1 << (i % 3)).collect();
+        for ray_mask in [0b001, 0b110, 0] {
+            let mut masked = rt_geom::Masked {
+                prims: &[],
+                instances: &instance_masks,
+                ray: ray_mask,
+                inner: |_: &Hit| true,
+            };
+            let (want, _) = reference(&ray, &mut masked, false);
+            assert_eq!(
+                scene.intersect_filtered(&ray, &mut masked),
+                want,
+                "mask {ray_mask:#b}"
+            );
+            let (want_any, _) = reference(&ray, &mut masked, true);
+            let got_any = scene.occluded_filtered(&ray, &mut masked);
+            assert_eq!(got_any, want_any.is_some(), "occluded, mask {ray_mask:#b}");
+        }
+        let (_, all) = reference(&ray, &mut |_: &Hit| false, false);
         let mut got = Vec::new();
         scene.for_each_hit(&ray, &mut |h| {
             got.push(*h);

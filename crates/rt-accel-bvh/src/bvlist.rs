@@ -198,8 +198,11 @@ impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
                 break;
             }
             for i in self.ranges[v as usize].clone() {
+                let id = self.ids[i as usize];
+                if best.skips(id) {
+                    continue;
+                }
                 if let Some(h) = self.prims[i as usize].intersect(r) {
-                    let id = self.ids[i as usize];
                     if best.keep::<ANY_HIT>(h, id, &mut r.tmax) {
                         return true;
                     }

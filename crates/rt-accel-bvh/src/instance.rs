@@ -38,8 +38,8 @@ use crate::refit::{Refit, check_moved};
 use crate::{Bvh, BvhParams};
 use rt_geom::glam::Affine3A;
 use rt_geom::{
-    Aabb, Accel, AccelStats, BuildError, FilteredAccel, Hit, Keep, PrimHit, Primitive, Ray, Vec3,
-    check_primitives,
+    Aabb, Accel, AccelStats, BuildError, FilteredAccel, Hit, HitFilter, Keep, PrimHit, Primitive,
+    Ray, Vec3, check_primitives,
 };
 use std::fmt;
 use std::sync::Arc;
@@ -291,14 +291,15 @@ impl<O: Accel> InstanceBvh<O> {
     }
 
     /// The top-level walk; at each instance, the ray in object space (same `t`) handed to
-    /// `ask(object, local ray, first global id, best, world ray)`, which asks the object and
-    /// offers its hit to `best`; it returns true to stop (any-hit queries).
+    /// `ask(object, local ray, instance, best, world ray)`, which asks the object and offers
+    /// its hit (global id: the instance's first plus the object's) to `best`; it returns true
+    /// to stop (any-hit queries).
     #[inline]
     fn walk<const ANY_HIT: bool, K: Keep>(
         &self,
         ray: &Ray,
         best: K,
-        ask: impl Fn(&O, &Ray, u32, &mut K, &mut Ray) -> bool,
+        mut ask: impl FnMut(&O, &Ray, u32, &mut K, &mut Ray) -> bool,
     ) -> Option<Hit> {
         self.top
             .walk_ray::<ANY_HIT, K>(ray, best, |first, count, r, best| {
@@ -313,7 +314,7 @@ impl<O: Accel> InstanceBvh<O> {
                         r.tmax,
                     );
                     let accel = &self.objects[self.instances[i].object as usize].accel;
-                    if ask(accel, &local, self.first_prim[i], best, r) {
+                    if ask(accel, &local, i as u32, best, r) {
                         return true;
                     }
                 }
@@ -326,14 +327,10 @@ impl<O: Accel> InstanceBvh<O> {
     /// [`rt_geom::replaces`].
     #[inline]
     fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        self.walk::<ANY_HIT, _>(ray, None, |accel, local, first, best, r| {
+        self.walk::<ANY_HIT, _>(ray, None, |accel, local, i, best, r| {
+            let first = self.first_prim[i as usize];
             if ANY_HIT {
-                let hit = PrimHit {
-                    t: r.tmin,
-                    u: 0.0,
-                    v: 0.0,
-                };
-                accel.occluded(local) && best.record::<true>(hit, first, &mut r.tmax)
+                accel.occluded(local) && best.record::<true>(any_hit(r), first, &mut r.tmax)
             } else {
                 if let Some(h) = accel.intersect(local) {
                     best.record::<false>(prim_hit(&h), first + h.prim, &mut r.tmax);
@@ -341,6 +338,16 @@ impl<O: Accel> InstanceBvh<O> {
                 false
             }
         })
+    }
+}
+
+/// What an any-hit query through an object records: the ray's `tmin` as `t` (it answers only
+/// whether).
+fn any_hit(r: &Ray) -> PrimHit {
+    PrimHit {
+        t: r.tmin,
+        u: 0.0,
+        v: 0.0,
     }
 }
 
@@ -353,42 +360,65 @@ fn prim_hit(h: &Hit) -> PrimHit {
     }
 }
 
-/// Filtered queries through the objects' own: the filter sees each object's candidates with
-/// their global ids.
-impl<O: FilteredAccel> FilteredAccel for InstanceBvh<O> {
-    fn intersect_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> Option<Hit> {
-        let filter = std::cell::RefCell::new(filter);
-        self.walk::<false, _>(ray, None, |accel, local, first, best, r| {
-            let global = |h: &Hit| Hit {
-                prim: first + h.prim,
-                ..*h
-            };
-            let found = accel.intersect_filtered(local, &mut |h| (filter.borrow_mut())(&global(h)));
-            if let Some(h) = found {
-                best.record::<false>(prim_hit(&h), first + h.prim, &mut r.tmax);
-            }
-            false
-        })
+/// The user's filter as an object's query sees it: primitive ids made global.
+struct Global<'a, 'f> {
+    filter: &'a mut &'f mut dyn HitFilter,
+    first: u32,
+}
+
+impl HitFilter for Global<'_, '_> {
+    fn skips(&self, prim: u32) -> bool {
+        self.filter.skips(self.first + prim)
     }
 
-    fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> bool {
-        let filter = std::cell::RefCell::new(filter);
-        let found = self.walk::<true, _>(ray, None, |accel, local, first, best, r| {
-            let mut accepted = None;
-            accel.occluded_filtered(local, &mut |h| {
-                let g = Hit {
-                    prim: first + h.prim,
-                    ..*h
-                };
-                let ok = (filter.borrow_mut())(&g);
-                if ok {
-                    accepted = Some(g);
+    fn accepts(&mut self, hit: &Hit) -> bool {
+        let global = Hit {
+            prim: self.first + hit.prim,
+            ..*hit
+        };
+        self.filter.accepts(&global)
+    }
+}
+
+/// Filtered queries through the objects' own: the filter sees each object's candidates with
+/// their global ids; an instance it skips is not asked.
+impl<O: FilteredAccel> FilteredAccel for InstanceBvh<O> {
+    fn intersect_filtered(&self, ray: &Ray, filter: &mut dyn HitFilter) -> Option<Hit> {
+        self.filtered::<false>(ray, filter)
+    }
+
+    fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn HitFilter) -> bool {
+        self.filtered::<true>(ray, filter).is_some()
+    }
+}
+
+impl<O: FilteredAccel> InstanceBvh<O> {
+    /// [`Self::walk`] asking each object its filtered query, as [`Self::traverse`] asks the
+    /// plain one.
+    fn filtered<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        mut filter: &mut dyn HitFilter,
+    ) -> Option<Hit> {
+        self.walk::<ANY_HIT, _>(ray, None, |accel, local, i, best, r| {
+            if filter.skips_instance(i) {
+                return false;
+            }
+            let first = self.first_prim[i as usize];
+            let mut global = Global {
+                filter: &mut filter,
+                first,
+            };
+            if ANY_HIT {
+                accel.occluded_filtered(local, &mut global)
+                    && best.record::<true>(any_hit(r), first, &mut r.tmax)
+            } else {
+                if let Some(h) = accel.intersect_filtered(local, &mut global) {
+                    best.record::<false>(prim_hit(&h), first + h.prim, &mut r.tmax);
                 }
-                ok
-            });
-            accepted.is_some_and(|g| best.record::<true>(prim_hit(&g), g.prim, &mut r.tmax))
-        });
-        found.is_some()
+                false
+            }
+        })
     }
 }
 

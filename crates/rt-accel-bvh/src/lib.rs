@@ -18,6 +18,7 @@
 //! | [`wide`] | [`Bvh4`], [`Bvh8`]: collapsed wide BVHs, all children tested at once ([`WideTree`]); node, build, traverse and stats in files of those names |
 //! | [`compressed`] | [`CompressedNode`]: child boxes quantized to 8 bits per plane, 128-byte nodes; [`CompressedBvh8`] and [`CompressedTree`] are the wide BVH and its topology over that layout |
 //! | [`instance`] | [`InstanceBvh`]: two-level ray tracing, a top-level BVH over [`Instance`]s (affine transforms) of [`Object`]s with their own structures; moving instances and refit objects |
+//! | [`save`] | saved structures: a built [`TriBvh`] as versioned bytes and back, checked on load ([`LoadError`]) |
 //! | [`tri`] | [`TriBvh4`], [`TriBvh8`], [`CompressedTriBvh8`]: wide BVHs over triangles stored leaf by leaf as SoA ([`TriangleSoa`], from rt-geom), four tested at once |
 //!
 //! ```
@@ -49,6 +50,7 @@ pub mod instance;
 pub mod node;
 pub mod params;
 mod refit;
+pub mod save;
 mod stats;
 mod traverse;
 pub mod tri;
@@ -62,5 +64,6 @@ pub use node::BvhNode;
 pub use params::{BvhBuilder, BvhParams, MAX_DEPTH, WideCollapse};
 pub use refit::Refit;
 pub use rt_geom::TriangleSoa;
+pub use save::LoadError;
 pub use tri::{CompressedTriBvh8, TriBvh, TriBvh4, TriBvh8};
 pub use wide::{Bvh4, Bvh8, NodeLayout, WideBvh, WideNode, WideTree};

@@ -90,7 +90,7 @@ impl<P: Primitive> Bvh<P> {
     #[inline]
     pub(crate) fn traverse<const ANY_HIT: bool, K: Keep>(&self, ray: &Ray, best: K) -> Option<Hit> {
         self.walk_ray::<ANY_HIT, K>(ray, best, |first, count, r, best| {
-            test_leaf::<P, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
+            test_leaf::<P, _, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
         })
     }
 }

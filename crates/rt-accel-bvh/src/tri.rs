@@ -10,7 +10,7 @@ use crate::wide::{NodeLayout, WideNode, WideTree};
 use crate::{Bvh, BvhParams};
 use rt_geom::{
     Aabb, Accel, AccelStats, BuildError, FilteredAccel, Hit, Isa, Keep, Level, Ray, Triangle,
-    TriangleSoa, Walk, all_referenced,
+    TriangleSoa, Vec3, Walk, all_referenced,
 };
 
 /// Checks the triangles of leaf `(first, count)` against its `bounds` and marks their ids
@@ -38,11 +38,11 @@ fn check_leaf(
 /// the layout `Node` (exact boxes by default, or the quantized [`CompressedNode`]).
 #[derive(Clone, Debug)]
 pub struct TriBvh<const N: usize, Node = WideNode<N>> {
-    tree: WideTree<N, Node>,
+    pub(crate) tree: WideTree<N, Node>,
     tris: TriangleSoa,
-    ids: Vec<u32>,
-    count: usize,
-    params: BvhParams,
+    pub(crate) ids: Vec<u32>,
+    pub(crate) count: usize,
+    pub(crate) params: BvhParams,
     stats: AccelStats,
 }
 
@@ -71,16 +71,40 @@ impl<const N: usize, Node: NodeLayout<N>> TriBvh<N, Node> {
     pub fn from_binary(bvh: Bvh<Triangle>) -> Self {
         let tree = WideTree::<N, Node>::collapse(&bvh.nodes, &bvh.params);
         let tris = TriangleSoa::new(&bvh.prims, tree.leaves());
-        let mut stats = tree.stats(bvh.count, &bvh.params);
-        stats.bytes += tris.bytes() + std::mem::size_of_val(bvh.ids.as_slice());
+        Self::assemble(tree, tris, bvh.ids, bvh.count, bvh.params)
+    }
+
+    /// The structure of a tree, its leaf-ordered triangles and their ids, with its stats.
+    pub(crate) fn assemble(
+        tree: WideTree<N, Node>,
+        tris: TriangleSoa,
+        ids: Vec<u32>,
+        count: usize,
+        params: BvhParams,
+    ) -> Self {
+        let mut stats = tree.stats(count, &params);
+        stats.bytes += tris.bytes() + std::mem::size_of_val(ids.as_slice());
         Self {
             tree,
             tris,
-            ids: bvh.ids,
-            count: bvh.count,
-            params: bvh.params,
+            ids,
+            count,
+            params,
             stats,
         }
+    }
+
+    /// The triangles in the caller's order, from the leaves (each once, wherever a spatial
+    /// split listed it twice).
+    pub(crate) fn caller_triangles(&self) -> Vec<Triangle> {
+        let mut out = vec![Triangle::new(Vec3::ZERO, Vec3::ZERO, Vec3::ZERO); self.count];
+        for (first, count) in self.tree.leaves() {
+            let (first, count) = (first as usize, count as usize);
+            for k in 0..count {
+                out[self.ids[first + k] as usize] = self.tris.get(first, count, k);
+            }
+        }
+        out
     }
 
     /// The wide topology.

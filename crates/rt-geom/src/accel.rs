@@ -92,16 +92,12 @@ macro_rules! filtered_from_walk {
         fn intersect_filtered(
             &self,
             ray: &$crate::Ray,
-            filter: &mut dyn FnMut(&$crate::Hit) -> bool,
+            filter: &mut dyn $crate::HitFilter,
         ) -> Option<$crate::Hit> {
             $crate::isa::query::<_, false, _>(self, ray, || $crate::Filtered::new(filter))
         }
 
-        fn occluded_filtered(
-            &self,
-            ray: &$crate::Ray,
-            filter: &mut dyn FnMut(&$crate::Hit) -> bool,
-        ) -> bool {
+        fn occluded_filtered(&self, ray: &$crate::Ray, filter: &mut dyn $crate::HitFilter) -> bool {
             $crate::isa::query::<_, true, _>(self, ray, || $crate::Filtered::new(filter)).is_some()
         }
     };
@@ -109,16 +105,12 @@ macro_rules! filtered_from_walk {
         fn intersect_filtered(
             &self,
             ray: &$crate::Ray,
-            filter: &mut dyn FnMut(&$crate::Hit) -> bool,
+            filter: &mut dyn $crate::HitFilter,
         ) -> Option<$crate::Hit> {
             self.traverse::<false, _>(ray, $crate::Filtered::new(filter))
         }
 
-        fn occluded_filtered(
-            &self,
-            ray: &$crate::Ray,
-            filter: &mut dyn FnMut(&$crate::Hit) -> bool,
-        ) -> bool {
+        fn occluded_filtered(&self, ray: &$crate::Ray, filter: &mut dyn $crate::HitFilter) -> bool {
             self.traverse::<true, _>(ray, $crate::Filtered::new(filter))
                 .is_some()
         }

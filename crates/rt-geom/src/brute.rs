@@ -34,6 +34,9 @@ impl<P: Primitive> BruteForce<P> {
         }
         let mut r = *ray;
         for (i, p) in self.prims.iter().enumerate() {
+            if best.skips(i as u32) {
+                continue;
+            }
             // Any-hit queries ask each primitive over the whole interval, as the structures'
             // any-hit walks (whose `tmax` never shrinks) do.
             if let Some(h) = p.intersect(&r) {
@@ -77,11 +80,11 @@ impl<P: Primitive> Accel for BruteForce<P> {
 
 /// The reference of filtered queries: the closest accepted hit, or whether one is accepted.
 impl<P: Primitive> FilteredAccel for BruteForce<P> {
-    fn intersect_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> Option<Hit> {
+    fn intersect_filtered(&self, ray: &Ray, filter: &mut dyn crate::HitFilter) -> Option<Hit> {
         self.query::<false>(ray, Filtered::new(filter))
     }
 
-    fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> bool {
+    fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn crate::HitFilter) -> bool {
         self.query::<true>(ray, Filtered::new(filter)).is_some()
     }
 }

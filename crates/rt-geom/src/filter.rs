@@ -14,7 +14,7 @@
 //! without a filter (today's queries, the same code) and [`Filtered`] with one.
 //!
 //! ```
-//! use rt_geom::{Accel, BruteForce, FilteredAccel, Ray, Triangle, Vec3};
+//! use rt_geom::{Accel, BruteForce, FilteredAccel, Hit, Ray, Triangle, Vec3};
 //!
 //! // Two triangles, one behind the other.
 //! let tris = [
@@ -25,9 +25,9 @@
 //! let ray = Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z);
 //! assert_eq!(scene.intersect(&ray).unwrap().prim, 0);
 //! // Triangle 0 is cut out (an alpha test, or the triangle a ray leaves): the ray goes on.
-//! let hit = scene.intersect_filtered(&ray, &mut |h| h.prim != 0).unwrap();
+//! let hit = scene.intersect_filtered(&ray, &mut |h: &Hit| h.prim != 0).unwrap();
 //! assert_eq!((hit.prim, hit.t), (1, 2.0));
-//! assert!(!scene.occluded_filtered(&ray, &mut |_| false));
+//! assert!(!scene.occluded_filtered(&ray, &mut |_: &Hit| false));
 //! // Every hit along the ray, in order of `t`.
 //! let mut seen = Vec::new();
 //! scene.for_each_hit(&ray, &mut |h| {
@@ -39,6 +39,75 @@
 
 use crate::{Accel, Hit, PrimHit, replaces};
 use std::ops::ControlFlow;
+
+/// What a filtered query asks: which primitives (and instances) to leave untested, as ray
+/// masks do, and which candidate hits to accept. Any `FnMut(&Hit) -> bool` is a filter that
+/// tests everything; [`Masked`] adds masks to one.
+pub trait HitFilter {
+    /// Whether primitive `prim` (the caller's id; an instance scene's global id) is left
+    /// untested. None is, by default.
+    #[inline(always)]
+    fn skips(&self, prim: u32) -> bool {
+        let _ = prim;
+        false
+    }
+
+    /// Whether instance `instance` of an instance scene is left untested, its whole object.
+    /// None is, by default.
+    #[inline(always)]
+    fn skips_instance(&self, instance: u32) -> bool {
+        let _ = instance;
+        false
+    }
+
+    /// Whether the candidate `hit` is accepted.
+    fn accepts(&mut self, hit: &Hit) -> bool;
+}
+
+impl<F: FnMut(&Hit) -> bool> HitFilter for F {
+    #[inline(always)]
+    fn accepts(&mut self, hit: &Hit) -> bool {
+        self(hit)
+    }
+}
+
+/// Ray masks (as Embree's and OptiX's): a 32-bit mask per primitive (of its geometry, as
+/// [`crate::Geometries`] lays them out) and per instance, and one per query; a primitive or
+/// instance whose mask shares no bit with the query's is not tested. Candidates of the rest
+/// go to `inner`.
+pub struct Masked<'a, F> {
+    /// Per primitive (the caller's ids), its mask; primitives past the end are tested.
+    pub prims: &'a [u32],
+    /// Per instance, its mask; instances past the end are tested.
+    pub instances: &'a [u32],
+    /// The query's mask.
+    pub ray: u32,
+    /// The filter of the primitives tested.
+    pub inner: F,
+}
+
+impl<F: HitFilter> HitFilter for Masked<'_, F> {
+    #[inline(always)]
+    fn skips(&self, prim: u32) -> bool {
+        self.prims
+            .get(prim as usize)
+            .is_some_and(|m| m & self.ray == 0)
+            || self.inner.skips(prim)
+    }
+
+    #[inline(always)]
+    fn skips_instance(&self, instance: u32) -> bool {
+        self.instances
+            .get(instance as usize)
+            .is_some_and(|m| m & self.ray == 0)
+            || self.inner.skips_instance(instance)
+    }
+
+    #[inline(always)]
+    fn accepts(&mut self, hit: &Hit) -> bool {
+        self.inner.accepts(hit)
+    }
+}
 
 /// What a query keeps of the hits its leaf tests find: the closest (or any) hit, through a
 /// filter or not. `Option<Hit>` is the unfiltered keeper every structure's plain queries use;
@@ -53,6 +122,10 @@ pub trait Keep {
 
     /// Whether the filter accepts `hit` (true without a filter).
     fn accepts(&mut self, hit: &Hit) -> bool;
+
+    /// Whether primitive `prim` is left untested ([`HitFilter::skips`]; false without a
+    /// filter). Leaf tests ask it before testing, where `FILTERED`.
+    fn skips(&self, prim: u32) -> bool;
 
     /// Records hit `h` of primitive `prim`, already accepted, as [`crate::keep_hit`] does:
     /// with `ANY_HIT` the search is over (true); else it replaces the best hit when
@@ -90,26 +163,31 @@ impl Keep for Option<Hit> {
     }
 
     #[inline(always)]
+    fn skips(&self, _: u32) -> bool {
+        false
+    }
+
+    #[inline(always)]
     fn record<const ANY_HIT: bool>(&mut self, h: PrimHit, prim: u32, tmax: &mut f32) -> bool {
         crate::keep_hit::<ANY_HIT>(h, prim, tmax, self)
     }
 }
 
 /// The best hit a filter accepted so far, and the filter.
-pub struct Filtered<F> {
+pub struct Filtered<'a, F: ?Sized> {
     hit: Option<Hit>,
-    filter: F,
+    filter: &'a mut F,
 }
 
-impl<F: FnMut(&Hit) -> bool> Filtered<F> {
+impl<'a, F: HitFilter + ?Sized> Filtered<'a, F> {
     /// No hit yet.
     #[inline(always)]
-    pub fn new(filter: F) -> Self {
+    pub fn new(filter: &'a mut F) -> Self {
         Self { hit: None, filter }
     }
 }
 
-impl<F: FnMut(&Hit) -> bool> Keep for Filtered<F> {
+impl<F: HitFilter + ?Sized> Keep for Filtered<'_, F> {
     const FILTERED: bool = true;
 
     #[inline(always)]
@@ -119,7 +197,12 @@ impl<F: FnMut(&Hit) -> bool> Keep for Filtered<F> {
 
     #[inline(always)]
     fn accepts(&mut self, hit: &Hit) -> bool {
-        (self.filter)(hit)
+        self.filter.accepts(hit)
+    }
+
+    #[inline(always)]
+    fn skips(&self, prim: u32) -> bool {
+        self.filter.skips(prim)
     }
 
     #[inline(always)]
@@ -132,16 +215,13 @@ impl<F: FnMut(&Hit) -> bool> Keep for Filtered<F> {
 /// implements it (through [`crate::queries_from_walk!`]); see the [module](self) for the
 /// contract.
 pub trait FilteredAccel: Accel {
-    /// The closest hit in `[ray.tmin, ray.tmax]` that `filter` accepts.
-    fn intersect_filtered(
-        &self,
-        ray: &crate::Ray,
-        filter: &mut dyn FnMut(&Hit) -> bool,
-    ) -> Option<Hit>;
+    /// The closest hit in `[ray.tmin, ray.tmax]` that `filter` accepts, among the primitives
+    /// it does not skip.
+    fn intersect_filtered(&self, ray: &crate::Ray, filter: &mut dyn HitFilter) -> Option<Hit>;
 
-    /// Whether some hit in `[ray.tmin, ray.tmax]` is accepted by `filter` (which may stop
-    /// being asked at the first it accepts).
-    fn occluded_filtered(&self, ray: &crate::Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> bool;
+    /// Whether some hit in `[ray.tmin, ray.tmax]` of a primitive `filter` does not skip is
+    /// accepted by it (which may stop being asked at the first it accepts).
+    fn occluded_filtered(&self, ray: &crate::Ray, filter: &mut dyn HitFilter) -> bool;
 
     /// Hands every hit in `[ray.tmin, ray.tmax]` to `visit` in order of `t` (ties by
     /// primitive id), each primitive once (its nearest hit in the interval), until `visit`
@@ -149,7 +229,7 @@ pub trait FilteredAccel: Accel {
     /// gathered first (a filter that rejects every candidate), then sorted.
     fn for_each_hit(&self, ray: &crate::Ray, visit: &mut dyn FnMut(&Hit) -> ControlFlow<()>) {
         let mut hits = Vec::new();
-        self.intersect_filtered(ray, &mut |h| {
+        self.intersect_filtered(ray, &mut |h: &Hit| {
             hits.push(*h);
             false
         });
@@ -179,16 +259,12 @@ macro_rules! forward_filtered {
             fn intersect_filtered(
                 &self,
                 ray: &crate::Ray,
-                filter: &mut dyn FnMut(&Hit) -> bool,
+                filter: &mut dyn HitFilter,
             ) -> Option<Hit> {
                 (**self).intersect_filtered(ray, filter)
             }
             #[inline]
-            fn occluded_filtered(
-                &self,
-                ray: &crate::Ray,
-                filter: &mut dyn FnMut(&Hit) -> bool,
-            ) -> bool {
+            fn occluded_filtered(&self, ray: &crate::Ray, filter: &mut dyn HitFilter) -> bool {
                 (**self).occluded_filtered(ray, filter)
             }
         }

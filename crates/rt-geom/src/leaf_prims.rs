@@ -160,7 +160,7 @@ impl TriangleSoa {
         // Lanes past the leaf belong to the next one.
         let mut lanes = (1u32 << (count - k).min(L::WIDTH)) - 1;
         for (l, &id) in ids[k..].iter().take(L::WIDTH).enumerate() {
-            if skip(id) {
+            if skip(id) || (K::FILTERED && best.skips(id)) {
                 lanes &= !(1 << l);
             }
         }
@@ -279,7 +279,7 @@ impl<P: Primitive> LeafPrims<P> {
         }
         let ids = &indices[first..first + count];
         for (p, &id) in self.listed[first..first + count].iter().zip(ids) {
-            if skip(id) {
+            if skip(id) || best.skips(id) {
                 continue;
             }
             if let Some(h) = p.intersect(ray) {

@@ -12,6 +12,7 @@
 //! | [`sphere`] | [`Sphere`], solved in the stable form of Ray Tracing Gems ch. 7 |
 //! | [`cone`] | [`Cone`]: open cones and cylinders (NFF's `c`), solved in `f64` |
 //! | [`shape`] | [`Shape`]: a triangle, sphere or cone, for scenes that mix them |
+//! | [`geometries`] | [`Geometries`]: several meshes and shape sets in one structure, each with a ray mask; hits name the geometry, the primitive in it and the normal |
 //! | [`frame`] | [`Frame`]: coordinates relative to a structure's own box, for cell walks far from the origin |
 //! | [`volume`] | [`BoundingVolume`]: [`BoundingSphere`], [`Aabb`], [`Kdop7`] (Kay & Kajiya 1986) |
 //! | [`primitive`] | [`Primitive`]: what structures need of their elements |
@@ -42,6 +43,7 @@ pub mod cone;
 pub mod counters;
 pub mod filter;
 pub mod frame;
+pub mod geometries;
 pub mod isa;
 pub mod leaf_prims;
 pub mod mesh;
@@ -59,8 +61,9 @@ pub use accel::{
 };
 pub use brute::BruteForce;
 pub use cone::Cone;
-pub use filter::{Filtered, FilteredAccel, Keep, sorted_hits};
+pub use filter::{Filtered, FilteredAccel, HitFilter, Keep, Masked, sorted_hits};
 pub use frame::Frame;
+pub use geometries::{Geometries, GeometryHit};
 pub use glam::{self, DVec3, Vec3};
 pub use isa::{Avx2Level, BaseLevel, Isa, Kernel, Level, Walk};
 pub use leaf_prims::{LeafPrims, TriangleSoa};

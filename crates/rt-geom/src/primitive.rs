@@ -109,6 +109,14 @@ pub trait Primitive: Clone + Send + Sync + 'static {
         b.min.is_finite() && b.max.is_finite()
     }
 
+    /// The unit geometric normal at the hit `h` of `ray` (a triangle's by its winding, the
+    /// outward normal of spheres and cones); `None` where the primitive gives none, the
+    /// default ([`crate::Geometries`] reports it in its hits).
+    fn normal(&self, ray: &Ray, h: &PrimHit) -> Option<Vec3> {
+        let _ = (ray, h);
+        None
+    }
+
     /// The plane a flat primitive lies in, as `(unit normal n, d)` with `n . p = d` for its
     /// points; `None` for primitives that are not flat (or have no area). BSP trees take
     /// their candidate planes from it.
@@ -179,6 +187,10 @@ impl Primitive for Triangle {
         Triangle::clipped_bounds(self, clip)
     }
 
+    fn normal(&self, _: &Ray, _: &PrimHit) -> Option<Vec3> {
+        Some(Triangle::normal(self))
+    }
+
     fn extent_along(&self, n: Vec3) -> (f32, f32) {
         let d = self.v.map(|p| p.dot(n));
         (d[0].min(d[1]).min(d[2]), d[0].max(d[1]).max(d[2]))
@@ -233,6 +245,10 @@ impl Primitive for Sphere {
 
     fn clipped_bounds(&self, clip: &Aabb) -> Aabb {
         self.bounds().intersection(*clip)
+    }
+
+    fn normal(&self, ray: &Ray, h: &PrimHit) -> Option<Vec3> {
+        Some(self.normal_at(ray.at(h.t)))
     }
 
     fn extent_along(&self, n: Vec3) -> (f32, f32) {

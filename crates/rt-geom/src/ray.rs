@@ -266,7 +266,7 @@ pub fn test_each<P: crate::Primitive, const ANY_HIT: bool>(
     mut skip: impl FnMut(u32) -> bool,
 ) -> bool {
     for &p in ids {
-        if skip(p) {
+        if skip(p) || best.skips(p) {
             continue;
         }
         if let Some(h) = prims[p as usize].intersect(ray) {

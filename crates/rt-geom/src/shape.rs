@@ -78,6 +78,10 @@ impl Primitive for Shape {
         each!(self, p => p.bounds())
     }
 
+    fn normal(&self, ray: &Ray, h: &PrimHit) -> Option<Vec3> {
+        each!(self, p => Primitive::normal(p, ray, h))
+    }
+
     fn centroid(&self) -> Vec3 {
         match self {
             Shape::Triangle(t) => t.centroid(),
@@ -127,6 +131,10 @@ impl Primitive for Cone {
     #[inline]
     fn bounds(&self) -> Aabb {
         Cone::bounds(self)
+    }
+
+    fn normal(&self, ray: &Ray, h: &PrimHit) -> Option<Vec3> {
+        Some(self.normal_at(ray.at(h.t)))
     }
 
     fn centroid(&self) -> Vec3 {

@@ -140,11 +140,11 @@ impl<Pk: Accel, S: Accel> Accel for WithSingleRays<Pk, S> {
 
 /// Filtered single rays go through the single-ray structure.
 impl<Pk: Accel, S: rt_geom::FilteredAccel> rt_geom::FilteredAccel for WithSingleRays<Pk, S> {
-    fn intersect_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> Option<Hit> {
+    fn intersect_filtered(&self, ray: &Ray, filter: &mut dyn rt_geom::HitFilter) -> Option<Hit> {
         self.singles.intersect_filtered(ray, filter)
     }
 
-    fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> bool {
+    fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn rt_geom::HitFilter) -> bool {
         self.singles.occluded_filtered(ray, filter)
     }
 }

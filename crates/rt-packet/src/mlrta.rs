@@ -332,11 +332,11 @@ impl<P: PacketPrimitive> rt_geom::Accel for MlrtaKdTree<P> {
 
 /// Single rays go through the kd-tree, filtered or not.
 impl<P: PacketPrimitive> rt_geom::FilteredAccel for MlrtaKdTree<P> {
-    fn intersect_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> Option<Hit> {
+    fn intersect_filtered(&self, ray: &Ray, filter: &mut dyn rt_geom::HitFilter) -> Option<Hit> {
         self.tree.intersect_filtered(ray, filter)
     }
 
-    fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> bool {
+    fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn rt_geom::HitFilter) -> bool {
         self.tree.occluded_filtered(ray, filter)
     }
 }

@@ -8,7 +8,9 @@
 
 use crate::rays::{RayKind, SamplePoints, TestRay, conformance_rays};
 use crate::scenes::Scene;
-use rt_geom::{Accel, BruteForce, BuildError, FilteredAccel, Hit, Primitive, Ray};
+use rt_geom::{
+    Accel, BruteForce, BuildError, FilteredAccel, Hit, HitFilter, Masked, Primitive, Ray,
+};
 use std::any::TypeId;
 use std::collections::HashMap;
 use std::fmt;
@@ -419,10 +421,40 @@ pub const FILTERS: [(&str, fn(&Hit, Option<Hit>, u32) -> bool); 4] = [
     ("reject all", |_, _, _| false),
 ];
 
+/// The query masks [`check_filters`] asks with, against primitive masks of one bit each
+/// ([`test_masks`]): one bit, two bits, none (every primitive masked out).
+pub const RAY_MASKS: [u32; 3] = [0b0001, 0b0110, 0];
+
+/// Per primitive, a mask of one of four bits, by a hash of its id.
+pub fn test_masks(n: u32) -> Vec<u32> {
+    (0..n)
+        .map(|p| 1 << (p.wrapping_mul(0x85eb_ca6b) >> 30))
+        .collect()
+}
+
+/// Accepts everything, and notes whether it was offered a hit of a primitive it skips.
+struct SkipWatch<'a> {
+    masks: &'a [u32],
+    ray: u32,
+    offered_skipped: bool,
+}
+
+impl HitFilter for SkipWatch<'_> {
+    fn skips(&self, prim: u32) -> bool {
+        self.masks[prim as usize] & self.ray == 0
+    }
+
+    fn accepts(&mut self, hit: &Hit) -> bool {
+        self.offered_skipped |= self.skips(hit.prim);
+        true
+    }
+}
+
 /// Filtered queries and every hit along a ray, against [`BruteForce`] asked the same on the
-/// scene's conformance rays: for each of [`FILTERS`], `intersect_filtered` gives brute
-/// force's hit exactly (the same `t`, `u`, `v` and primitive), `occluded_filtered` its
-/// answer, and `for_each_hit` brute force's sorted
+/// scene's conformance rays: for each of [`FILTERS`], and for ray masks ([`RAY_MASKS`] over
+/// [`test_masks`]), `intersect_filtered` gives brute force's hit exactly (the same `t`, `u`,
+/// `v` and primitive) and `occluded_filtered` its answer; a masked primitive is never
+/// offered to the filter; and `for_each_hit` gives brute force's sorted
 /// list of every primitive's hit (each once, even where a structure lists a primitive in
 /// several cells). `Err` names the first disagreement with a reproducer.
 pub fn check_filters<P, A, F>(scene: &Scene<P>, build: F) -> Result<usize, String>
@@ -436,6 +468,7 @@ where
     let reference = reference(scene)?;
     let expected = filtered_reference(scene, &reference)?;
     let n = scene.prims.len() as u32;
+    let masks = test_masks(n);
     let mut checked = 0;
     for ((test, closest), want) in reference
         .rays
@@ -450,25 +483,50 @@ where
                 scene.name, test.kind
             )
         };
+        // The closest accepted hit and the any-hit answer of `filter`, against brute force's.
+        let ask = |what: String, filter: &mut dyn HitFilter, closest: Option<Hit>, any: bool| {
+            let got = subject.intersect_filtered(ray, filter);
+            if !same_hits(got.as_slice(), closest.as_slice()) {
+                return Err(at(&format!("intersect_filtered ({what})"), &closest, &got));
+            }
+            let got = subject.occluded_filtered(ray, filter);
+            if got != any {
+                return Err(at(&format!("occluded_filtered ({what})"), &any, &got));
+            }
+            Ok(())
+        };
         for (k, (name, accept)) in FILTERS.into_iter().enumerate() {
             let mut filter = |h: &Hit| accept(h, *closest, n);
-            let got = subject.intersect_filtered(ray, &mut filter);
-            if !same_hits(got.as_slice(), want.closest[k].as_slice()) {
-                return Err(at(
-                    &format!("intersect_filtered ({name})"),
-                    &want.closest[k],
-                    &got,
-                ));
-            }
-            let got = subject.occluded_filtered(ray, &mut filter);
-            if got != want.occluded[k] {
-                return Err(at(
-                    &format!("occluded_filtered ({name})"),
-                    &want.occluded[k],
-                    &got,
-                ));
-            }
+            ask(
+                name.to_string(),
+                &mut filter,
+                want.closest[k],
+                want.occluded[k],
+            )?;
             checked += 1;
+        }
+        for (k, &mask) in RAY_MASKS.iter().enumerate() {
+            let mut masked = Masked {
+                prims: &masks,
+                instances: &[],
+                ray: mask,
+                inner: |_: &Hit| true,
+            };
+            let (closest, any) = (want.masked[k], want.masked[k].is_some());
+            ask(format!("mask {mask:#b}"), &mut masked, closest, any)?;
+            let mut watch = SkipWatch {
+                masks: &masks,
+                ray: mask,
+                offered_skipped: false,
+            };
+            subject.intersect_filtered(ray, &mut watch);
+            if watch.offered_skipped {
+                return Err(at(
+                    &format!("a masked primitive tested (mask {mask:#b})"),
+                    &"",
+                    &"",
+                ));
+            }
         }
         let got = all_hits(&subject, ray);
         if !same_hits(&got, &want.all) {
@@ -503,10 +561,12 @@ fn all_hits(a: &dyn FilteredAccel, ray: &Ray) -> Vec<Hit> {
     hits
 }
 
-/// Brute force's answers to one ray's filtered questions ([`FILTERS`] in order).
+/// Brute force's answers to one ray's filtered questions ([`FILTERS`] in order, then the
+/// closest hit under each of [`RAY_MASKS`]).
 struct FilteredAnswers {
     closest: Vec<Option<Hit>>,
     occluded: Vec<bool>,
+    masked: Vec<Option<Hit>>,
     all: Vec<Hit>,
 }
 
@@ -525,6 +585,7 @@ fn filtered_reference<P: SamplePoints>(
     }
     let brute = BruteForce::build(&scene.prims).map_err(|e| e.to_string())?;
     let n = scene.prims.len() as u32;
+    let masks = test_masks(n);
     let answers: Vec<FilteredAnswers> = reference
         .rays
         .iter()
@@ -534,8 +595,20 @@ fn filtered_reference<P: SamplePoints>(
             let mut answers = FilteredAnswers {
                 closest: Vec::new(),
                 occluded: Vec::new(),
+                masked: Vec::new(),
                 all: all_hits(&brute, ray),
             };
+            for mask in RAY_MASKS {
+                let mut masked = Masked {
+                    prims: &masks,
+                    instances: &[],
+                    ray: mask,
+                    inner: |_: &Hit| true,
+                };
+                answers
+                    .masked
+                    .push(brute.intersect_filtered(ray, &mut masked));
+            }
             for (_, accept) in FILTERS {
                 let mut filter = |h: &Hit| accept(h, *closest, n);
                 answers
@@ -808,12 +881,14 @@ mod tests {
             fn intersect_filtered(
                 &self,
                 ray: &Ray,
-                filter: &mut dyn FnMut(&Hit) -> bool,
+                filter: &mut dyn rt_geom::HitFilter,
             ) -> Option<Hit> {
                 let ignore = self.1;
-                self.0.intersect(ray).filter(|h| ignore || filter(h))
+                self.0
+                    .intersect(ray)
+                    .filter(|h| ignore || filter.accepts(h))
             }
-            fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn FnMut(&Hit) -> bool) -> bool {
+            fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn rt_geom::HitFilter) -> bool {
                 self.intersect_filtered(ray, filter).is_some()
             }
         }

@@ -13,12 +13,13 @@ use rt_testkit::rays::{RayKind, SamplePoints, TestRay, conformance_rays};
 use std::path::Path;
 
 /// The fuzz targets, by name: each is `fuzz/fuzz_targets/<name>.rs`.
-pub const TARGETS: [(&str, fn(&[u8]) -> Result<(), String>); 5] = [
+pub const TARGETS: [(&str, fn(&[u8]) -> Result<(), String>); 6] = [
     ("obj", obj),
     ("obj_scene", obj_scene),
     ("nff", nff),
     ("rays", rays),
     ("build_trace", build_trace),
+    ("load_bvh", load_bvh),
 ];
 
 /// The check of the target `name`.
@@ -108,6 +109,51 @@ pub fn rays(bytes: &[u8]) -> Result<(), String> {
     for name in ["bvh8-tri", "kd", "grid2", "octree", "bvh"] {
         let entry = crate::registry::find(name).ok_or(format!("no {name} entry"))?;
         check_entry(entry, &tris, &tests)?;
+    }
+    Ok(())
+}
+
+/// The triangles saved structures are loaded over in [`load_bvh`] (and its seeds built over).
+pub fn load_bvh_triangles() -> Vec<Triangle> {
+    rt_testkit::scenes::tessellated_sphere(40, Vec3::ZERO, 1.0)
+}
+
+/// The saved-structure loader (`TriBvh::from_bytes`): any bytes are refused with an error or
+/// load a structure that answers rays exactly as brute force does, and saves back to the
+/// same bytes. Tried as each layout (`TriBvh8`, `TriBvh4`, `CompressedTriBvh8`).
+pub fn load_bvh(bytes: &[u8]) -> Result<(), String> {
+    use rt_accel_bvh::{CompressedTriBvh8, TriBvh4, TriBvh8};
+    let tris = load_bvh_triangles();
+    let brute = rt_geom::BruteForce::build(&tris).map_err(|e| e.to_string())?;
+    let loaded: Vec<(Box<dyn Accel>, Vec<u8>)> = [
+        TriBvh8::from_bytes(bytes, &tris).map(|b| (b.to_bytes(), Box::new(b) as Box<dyn Accel>)),
+        TriBvh4::from_bytes(bytes, &tris).map(|b| (b.to_bytes(), Box::new(b) as Box<dyn Accel>)),
+        CompressedTriBvh8::from_bytes(bytes, &tris)
+            .map(|b| (b.to_bytes(), Box::new(b) as Box<dyn Accel>)),
+    ]
+    .into_iter()
+    .filter_map(Result::ok)
+    .map(|(saved, a)| (a, saved))
+    .collect();
+    if loaded.len() > 1 {
+        return Err("the bytes load as two layouts".into());
+    }
+    let Some((accel, saved)) = loaded.into_iter().next() else {
+        return Ok(());
+    };
+    if saved != bytes {
+        return Err("a loaded structure saves to other bytes".into());
+    }
+    let mut rng = rt_testkit::Rng::new(3);
+    for _ in 0..200 {
+        let o = rng.point_in(Vec3::splat(-2.0), Vec3::splat(2.0));
+        let ray = Ray::new(o, rng.point_in(Vec3::splat(-0.5), Vec3::splat(0.5)) - o);
+        let (want, got) = (brute.intersect(&ray), accel.intersect(&ray));
+        if want != got || brute.occluded(&ray) != accel.occluded(&ray) {
+            return Err(format!(
+                "loaded structure answers {got:?}, brute force {want:?} ({ray:?})"
+            ));
+        }
     }
     Ok(())
 }

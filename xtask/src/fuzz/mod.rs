@@ -178,6 +178,33 @@ pub fn generated_seeds(name: &str) -> Vec<(String, Vec<u8>)> {
             out.push(("gen-hits".into(), crate::rayfile::encode_hits(&hits)));
             out
         }
+        "load_bvh" => {
+            use rt_accel_bvh::{BvhParams, CompressedTriBvh8, TriBvh4, TriBvh8};
+            let tris = checks::load_bvh_triangles();
+            let spatial = BvhParams::spatial().for_soa_leaves();
+            let saved = [
+                (
+                    "gen-tri8",
+                    TriBvh8::build_for_tracing(&tris).map(|b| b.to_bytes()),
+                ),
+                (
+                    "gen-tri8-spatial",
+                    TriBvh8::build(&tris, spatial).map(|b| b.to_bytes()),
+                ),
+                (
+                    "gen-tri4",
+                    TriBvh4::build_for_tracing(&tris).map(|b| b.to_bytes()),
+                ),
+                (
+                    "gen-tri8c",
+                    CompressedTriBvh8::build_for_tracing(&tris).map(|b| b.to_bytes()),
+                ),
+            ];
+            saved
+                .into_iter()
+                .filter_map(|(name, b)| Some((name.to_string(), b.ok()?)))
+                .collect()
+        }
         "build_trace" => vec![
             // Triangles: two sharing an edge, one degenerate, rays down the axes.
             (

@@ -90,7 +90,7 @@ impl<P: Primitive, const N: usize, Node: NodeLayout<N>> Walk for WideBvh<P, N, N
             best,
             #[inline(always)]
             |first, count, r, best| {
-                test_leaf::<P, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
+                test_leaf::<P, _, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
             },
         )
     }

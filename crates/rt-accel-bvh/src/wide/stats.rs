@@ -3,7 +3,7 @@
 use super::{NodeLayout, WideTree};
 use crate::BvhParams;
 use crate::params::MAX_DEPTH;
-use rt_geom::{Aabb, AccelStats};
+use rt_geom::{Aabb, AccelStats, Vec3};
 
 impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
     /// Statistics of the topology (boxes as the walk sees them); `bytes` counts the nodes
@@ -52,26 +52,45 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
 
     /// Checks the topology: children after their parents, depth bounded, exact boxes inside
     /// their parents, and `leaf(first, count, bounds)` for each leaf, with `bounds` the
-    /// intersection of the boxes on the way down (what the walk relies on).
+    /// intersection of the boxes on the way down (what the walk relies on). Returns the
+    /// depth in nodes (the root's level is 1; 0 without nodes), what the walk's stack is sized
+    /// by.
     pub fn check(
         &self,
         mut leaf: impl FnMut(u32, u32, &Aabb) -> Result<(), String>,
-    ) -> Result<(), String> {
+    ) -> Result<usize, String> {
         if let Some((first, count)) = self.root_leaf {
-            return leaf(first, count, &self.root_bounds);
+            return leaf(first, count, &self.root_bounds).map(|()| 0);
         }
         if self.nodes.is_empty() {
-            return Ok(());
+            return Ok(0);
         }
         let mut stack = vec![(0usize, self.root_bounds, 0usize)];
+        let mut deepest = 0;
         while let Some((i, parent, depth)) = stack.pop() {
             if depth > MAX_DEPTH {
                 return Err(format!("node {i} deeper than {MAX_DEPTH}"));
             }
+            deepest = deepest.max(depth + 1);
             let n = self
                 .nodes
                 .get(i)
                 .ok_or(format!("child index {i} out of range"))?;
+            // The walk tests the lanes of `used_mask`: every lane with a child, and no other
+            // unless its box is empty (no ray enters it).
+            for lane in 0..N {
+                let walked = n.used_mask() >> lane & 1 == 1;
+                let empty = || {
+                    let b = n.bounds(lane);
+                    b.min.cmpeq(Vec3::INFINITY).all() && b.max.cmpeq(Vec3::NEG_INFINITY).all()
+                };
+                if n.is_used(lane) && !walked {
+                    return Err(format!("node {i} lane {lane} holds a child the walk skips"));
+                }
+                if !n.is_used(lane) && walked && !empty() {
+                    return Err(format!("node {i} lane {lane} is empty but has a box"));
+                }
+            }
             for lane in (0..N).filter(|&l| n.is_used(l)) {
                 let b = n.bounds(lane);
                 if Node::EXACT && !parent.contains(&b) {
@@ -88,6 +107,6 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
                 }
             }
         }
-        Ok(())
+        Ok(deepest)
     }
 }

@@ -9,16 +9,19 @@ use rt_geom::{Aabb, Hit, Keep, Level, Primitive, Ray};
 /// Tests the leaf-ordered primitives `first..first + count` (closest hit, or any hit),
 /// offering each hit to `best` with the caller's id.
 #[inline(always)]
-pub(crate) fn test_leaf<P: Primitive, const ANY_HIT: bool>(
+pub(crate) fn test_leaf<P: Primitive, K: Keep, const ANY_HIT: bool>(
     prims: &[P],
     ids: &[u32],
     first: u32,
     count: u32,
     r: &mut Ray,
-    best: &mut impl Keep,
+    best: &mut K,
 ) -> bool {
     let first = first as usize;
     for i in first..first + count as usize {
+        if K::FILTERED && best.skips(ids[i]) {
+            continue;
+        }
         if let Some(h) = prims[i].intersect(r) {
             if best.keep::<ANY_HIT>(h, ids[i], &mut r.tmax) {
                 return true;

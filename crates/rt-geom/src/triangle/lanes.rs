@@ -169,7 +169,7 @@ fn test_in_batches<const ANY_HIT: bool>(
     let mut batch = [0u32; 4];
     let mut n = 0;
     for &p in ids {
-        if skip(p) {
+        if skip(p) || best.skips(p) {
             continue;
         }
         batch[n] = p;

@@ -1,0 +1,741 @@
+//! Saved structures: a built [`TriBvh`] as bytes and back, so that a renderer builds a scene
+//! once. A plain little-endian layout, versioned:
+//!
+//! ```text
+//! magic     8 bytes  "rt-bvh\r\n"
+//! version   u32      1
+//! layout    u8, u8   lanes (4 or 8), node kind (0: exact boxes, 1: quantized)
+//! params    the build parameters (BvhParams), field by field
+//! triangles u64, u64 count, and a 64-bit FNV-1a hash (over 32-bit words) of every
+//!                    vertex coordinate's bits
+//! tree      root box (6 f32), root leaf (u8 flag, u32 first, u32 count), nodes (u64 count,
+//!           each node field by field)
+//! ids       u64 count, u32 each: the caller's index of each triangle in leaf order
+//! ```
+//!
+//! The triangles are not stored: [`TriBvh::from_bytes`] takes them again and checks them
+//! against the hash, so a file cannot be loaded over other geometry. Loading checks the
+//! magic, the version, the layout, every length against the bytes left, the topology before
+//! anything is indexed by it, and then the structure's own [`Accel::validate`]: a truncated,
+//! corrupted or foreign file is a [`LoadError`], never a panic or a wrong answer.
+//!
+//! ```
+//! use rt_accel_bvh::TriBvh8;
+//! use rt_geom::{Accel, Ray, Triangle, Vec3};
+//!
+//! let tris = [Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y)];
+//! let bvh = TriBvh8::build_for_tracing(&tris).unwrap();
+//! let bytes = bvh.to_bytes();
+//! let loaded = TriBvh8::from_bytes(&bytes, &tris).unwrap();
+//! let ray = Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z);
+//! assert_eq!(loaded.intersect(&ray), bvh.intersect(&ray));
+//! // Other triangles, or damaged bytes, are refused.
+//! assert!(TriBvh8::from_bytes(&bytes, &[Triangle::new(Vec3::ZERO, Vec3::Y, Vec3::X)]).is_err());
+//! assert!(TriBvh8::from_bytes(&bytes[..bytes.len() - 1], &tris).is_err());
+//! ```
+
+use crate::compressed::CompressedNode;
+use crate::refit::in_leaf_order;
+use crate::wide::{NodeLayout, WideNode, WideTree};
+use crate::{BvhBuilder, BvhParams, TriBvh, WideCollapse};
+use rt_geom::{Aabb, Accel, Isa, Triangle, TriangleSoa, Vec3};
+use std::fmt;
+
+const MAGIC: &[u8; 8] = b"rt-bvh\r\n";
+const VERSION: u32 = 1;
+
+/// Why saved bytes were refused.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LoadError {
+    /// Not an rt structure (the magic bytes differ).
+    NotASavedStructure,
+    /// Saved by another version of the format.
+    Version {
+        /// The version found.
+        found: u32,
+    },
+    /// A structure of another kind (width or node layout) than the one asked to load.
+    Layout {
+        /// Lanes and node kind found.
+        found: (u8, u8),
+        /// Lanes and node kind asked for.
+        expected: (u8, u8),
+    },
+    /// The bytes end before the structure does.
+    Truncated,
+    /// Bytes left after the structure.
+    TrailingBytes,
+    /// The triangles given are not the ones the structure was built over.
+    OtherTriangles,
+    /// A field holds a value no build writes, or the structure fails its checks.
+    Corrupt(String),
+}
+
+impl fmt::Display for LoadError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::NotASavedStructure => write!(f, "not a saved rt structure"),
+            Self::Version { found } => {
+                write!(
+                    f,
+                    "saved by format version {found}; this build reads {VERSION}"
+                )
+            }
+            Self::Layout { found, expected } => write!(
+                f,
+                "a {}-wide structure of node kind {}, not {}-wide of kind {}",
+                found.0, found.1, expected.0, expected.1
+            ),
+            Self::Truncated => write!(f, "the bytes end before the structure does"),
+            Self::TrailingBytes => write!(f, "bytes left after the structure"),
+            Self::OtherTriangles => {
+                write!(
+                    f,
+                    "the triangles are not the ones the structure was built over"
+                )
+            }
+            Self::Corrupt(why) => write!(f, "corrupt structure: {why}"),
+        }
+    }
+}
+
+impl std::error::Error for LoadError {}
+
+/// Little-endian writer.
+#[derive(Default)]
+struct Out(Vec<u8>);
+
+impl Out {
+    fn u8(&mut self, v: u8) {
+        self.0.push(v);
+    }
+    fn u32(&mut self, v: u32) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn u64(&mut self, v: u64) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn f32(&mut self, v: f32) {
+        self.u32(v.to_bits());
+    }
+}
+
+/// Little-endian reader over the bytes left; every read checks the length.
+struct In<'a>(&'a [u8]);
+
+impl In<'_> {
+    fn take<const K: usize>(&mut self) -> Result<[u8; K], LoadError> {
+        let (head, rest) = self
+            .0
+            .split_first_chunk::<K>()
+            .ok_or(LoadError::Truncated)?;
+        self.0 = rest;
+        Ok(*head)
+    }
+    fn u8(&mut self) -> Result<u8, LoadError> {
+        Ok(self.take::<1>()?[0])
+    }
+    fn u32(&mut self) -> Result<u32, LoadError> {
+        Ok(u32::from_le_bytes(self.take()?))
+    }
+    fn u64(&mut self) -> Result<u64, LoadError> {
+        Ok(u64::from_le_bytes(self.take()?))
+    }
+    fn f32(&mut self) -> Result<f32, LoadError> {
+        Ok(f32::from_bits(self.u32()?))
+    }
+    /// A count of items of `size` bytes each, no more than the bytes left hold.
+    fn count(&mut self, size: usize) -> Result<usize, LoadError> {
+        let n = self.u64()?;
+        if n > (self.0.len() / size.max(1)) as u64 {
+            return Err(LoadError::Truncated);
+        }
+        Ok(n as usize)
+    }
+}
+
+/// A node layout's fields as bytes.
+pub trait SavedNode: Sized {
+    /// The node kind byte of the format.
+    const KIND: u8;
+    /// Bytes per node in the format.
+    const SIZE: usize;
+    /// Writes the node.
+    #[doc(hidden)]
+    fn write(&self, out: &mut Vec<u8>);
+    /// Reads a node.
+    #[doc(hidden)]
+    fn read(bytes: &[u8; 256]) -> Self;
+}
+
+impl<const N: usize> SavedNode for WideNode<N> {
+    const KIND: u8 = 0;
+    const SIZE: usize = 32 * N;
+
+    fn write(&self, out: &mut Vec<u8>) {
+        let planes = self.min.iter().chain(&self.max).flatten();
+        out.extend(planes.flat_map(|x| x.to_bits().to_le_bytes()));
+        out.extend(
+            self.child
+                .iter()
+                .chain(&self.count)
+                .flat_map(|x| x.to_le_bytes()),
+        );
+    }
+
+    fn read(b: &[u8; 256]) -> Self {
+        let word =
+            |i: usize| u32::from_le_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]]);
+        let mut n = WideNode::<N>::EMPTY;
+        for a in 0..3 {
+            for l in 0..N {
+                n.min[a][l] = f32::from_bits(word(a * N + l));
+                n.max[a][l] = f32::from_bits(word((3 + a) * N + l));
+            }
+        }
+        for l in 0..N {
+            n.child[l] = word(6 * N + l);
+            n.count[l] = word(7 * N + l);
+        }
+        n
+    }
+}
+
+impl SavedNode for CompressedNode {
+    const KIND: u8 = 1;
+    const SIZE: usize = 12 + 3 + 1 + 48 + 64;
+
+    fn write(&self, out: &mut Vec<u8>) {
+        out.extend(self.origin.iter().flat_map(|x| x.to_bits().to_le_bytes()));
+        out.extend(self.exponent);
+        out.push(self.used);
+        out.extend(self.qmin.iter().chain(&self.qmax).flatten());
+        out.extend(
+            self.child
+                .iter()
+                .chain(&self.count)
+                .flat_map(|x| x.to_le_bytes()),
+        );
+    }
+
+    fn read(b: &[u8; 256]) -> Self {
+        let word = |at: usize| u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]]);
+        let byte8 = |at: usize| -> [u8; 8] { std::array::from_fn(|l| b[at + l]) };
+        CompressedNode {
+            origin: std::array::from_fn(|a| f32::from_bits(word(4 * a))),
+            exponent: [b[12], b[13], b[14]],
+            used: b[15],
+            qmin: std::array::from_fn(|a| byte8(16 + 8 * a)),
+            qmax: std::array::from_fn(|a| byte8(40 + 8 * a)),
+            child: std::array::from_fn(|l| word(64 + 4 * l)),
+            count: std::array::from_fn(|l| word(96 + 4 * l)),
+        }
+    }
+}
+
+impl<const N: usize, Node: NodeLayout<N>> TriBvh<N, Node> {
+    /// With spatial splits a triangle may lie in several leaves, each holding a part of it,
+    /// and `validate` only asks each leaf to overlap its triangles: here every triangle that
+    /// can be hit is asked to be covered by the union of its leaves' boxes (as the walk sees
+    /// them, intersected down the path), so that no part of it is out of every leaf the walk
+    /// enters.
+    fn check_coverage(&self, tris: &[Triangle]) -> Result<(), String> {
+        let mut boxes: Vec<Vec<Aabb>> = vec![Vec::new(); tris.len()];
+        self.tree.check(|first, count, bounds| {
+            for &id in &self.ids[first as usize..(first + count) as usize] {
+                boxes[id as usize].push(*bounds);
+            }
+            Ok(())
+        })?;
+        use rayon::prelude::*;
+        let uncovered = (0..tris.len())
+            .into_par_iter()
+            .find_first(|&i| !tris[i].is_degenerate() && !covered(&tris[i], &boxes[i]));
+        match uncovered {
+            Some(id) => Err(format!("triangle {id} is not covered by its leaves")),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Whether `boxes` cover the triangle: removing each box from it (clipping the rest to the
+/// six outer half-spaces, in `f64`) leaves nothing thicker than `1e-9` of the triangle's size,
+/// far below the `f32` resolution the box tests' padding covers.
+fn covered(t: &Triangle, boxes: &[Aabb]) -> bool {
+    use rt_geom::DVec3;
+    let tri: Vec<DVec3> = t.v.iter().map(|v| v.as_dvec3()).collect();
+    let size = tri
+        .iter()
+        .map(|p| p.abs().max_element())
+        .fold(0.0, f64::max)
+        + (tri[1] - tri[0]).length().max((tri[2] - tri[0]).length());
+    let mut left = vec![tri];
+    for b in boxes {
+        let mut rest = Vec::new();
+        for piece in left {
+            // The parts of `piece` beyond each face of `b`, in turn; what is within all six
+            // is removed.
+            let mut within = piece;
+            for (axis, bound, below) in
+                (0..3).flat_map(|a| [(a, b.min[a] as f64, true), (a, b.max[a] as f64, false)])
+            {
+                let (out, inn) = split(&within, axis, bound, below);
+                if thick(&out, size) {
+                    rest.push(out);
+                }
+                within = inn;
+                if within.len() < 3 {
+                    break;
+                }
+            }
+        }
+        left = rest;
+        if left.is_empty() {
+            return true;
+        }
+    }
+    left.is_empty()
+}
+
+/// The parts of convex polygon `p` beyond the plane `x[axis] = bound` (below it when
+/// `below`) and on the box's side of it.
+fn split(
+    p: &[rt_geom::DVec3],
+    axis: usize,
+    bound: f64,
+    below: bool,
+) -> (Vec<rt_geom::DVec3>, Vec<rt_geom::DVec3>) {
+    let side = |q: &rt_geom::DVec3| {
+        if below {
+            bound - q[axis]
+        } else {
+            q[axis] - bound
+        }
+    };
+    let (mut out, mut inn) = (Vec::new(), Vec::new());
+    for i in 0..p.len() {
+        let (a, b) = (p[i], p[(i + 1) % p.len()]);
+        let (sa, sb) = (side(&a), side(&b));
+        if sa > 0.0 {
+            out.push(a);
+        } else {
+            inn.push(a);
+        }
+        if (sa > 0.0) != (sb > 0.0) {
+            let mut x = a + (b - a) * (sa / (sa - sb));
+            x[axis] = bound;
+            out.push(x);
+            inn.push(x);
+        }
+    }
+    (out, inn)
+}
+
+/// Whether polygon `p` is more than a sliver: thicker than `1e-9 * size` (a convex polygon's
+/// thickness is at most twice its area over its diameter).
+fn thick(p: &[rt_geom::DVec3], size: f64) -> bool {
+    if p.len() < 3 {
+        return false;
+    }
+    let mut area2 = rt_geom::DVec3::ZERO;
+    for i in 1..p.len() - 1 {
+        area2 += (p[i] - p[0]).cross(p[i + 1] - p[0]);
+    }
+    let diameter = p
+        .iter()
+        .flat_map(|a| p.iter().map(move |b| (*a - *b).length()))
+        .fold(0.0, f64::max);
+    diameter > 0.0 && area2.length() / diameter > 1e-9 * size
+}
+
+/// A 64-bit FNV-1a hash taken over 32-bit words (not bytes): the triangle count, then every
+/// vertex coordinate's bits.
+fn hash(tris: &[Triangle]) -> u64 {
+    let eat = |h: u64, w: u32| (h ^ w as u64).wrapping_mul(0x0100_0000_01b3);
+    let h = eat(0xcbf2_9ce4_8422_2325, tris.len() as u32);
+    tris.iter()
+        .flat_map(|t| t.v)
+        .flat_map(|v| v.to_array())
+        .fold(h, |h, x| eat(h, x.to_bits()))
+}
+
+fn write_params(out: &mut Out, p: &BvhParams) {
+    let (builder, bins) = match p.builder {
+        BvhBuilder::Midpoint => (0, 0),
+        BvhBuilder::Median => (1, 0),
+        BvhBuilder::BinnedSah { bins } => (2, bins),
+        BvhBuilder::SweepSah => (3, 0),
+    };
+    out.u8(builder);
+    out.u32(bins);
+    out.u32(p.max_leaf_size);
+    out.f32(p.traversal_cost);
+    out.f32(p.intersection_cost);
+    out.u64(p.parallel_threshold as u64);
+    out.u8(p.spatial_alpha.is_some() as u8);
+    out.f32(p.spatial_alpha.unwrap_or(0.0));
+    out.f32(p.spatial_budget);
+    out.u32(p.leaf_block);
+    let (collapse, above) = match p.collapse {
+        WideCollapse::LargestArea => (0, 0.0),
+        WideCollapse::Sah => (1, 0.0),
+        WideCollapse::LargestAreaThenSah { above } => (2, above),
+    };
+    out.u8(collapse);
+    out.f32(above);
+    out.f32(p.reinsertion);
+}
+
+fn read_params(r: &mut In) -> Result<BvhParams, LoadError> {
+    let corrupt = |what: &str| LoadError::Corrupt(format!("unknown {what}"));
+    // Fields a variant does not use are written as zeros and must read as zeros: one
+    // structure, one encoding.
+    let unused = |bits: u32| {
+        if bits == 0 {
+            Ok(())
+        } else {
+            Err(corrupt("non-zero unused field"))
+        }
+    };
+    let (builder, bins) = (r.u8()?, r.u32()?);
+    let builder = match builder {
+        0 => BvhBuilder::Midpoint,
+        1 => BvhBuilder::Median,
+        2 => BvhBuilder::BinnedSah { bins },
+        3 => BvhBuilder::SweepSah,
+        _ => return Err(corrupt("builder")),
+    };
+    if builder != (BvhBuilder::BinnedSah { bins }) {
+        unused(bins)?;
+    }
+    let max_leaf_size = r.u32()?;
+    let (traversal_cost, intersection_cost) = (r.f32()?, r.f32()?);
+    let parallel_threshold = usize::try_from(r.u64()?).map_err(|_| corrupt("threshold"))?;
+    let (spatial, alpha) = (r.u8()?, r.f32()?);
+    let spatial_alpha = match spatial {
+        0 => unused(alpha.to_bits()).map(|()| None)?,
+        1 => Some(alpha),
+        _ => return Err(corrupt("spatial flag")),
+    };
+    let spatial_budget = r.f32()?;
+    let leaf_block = r.u32()?;
+    let (collapse, above) = (r.u8()?, r.f32()?);
+    let collapse = match collapse {
+        0 => unused(above.to_bits()).map(|()| WideCollapse::LargestArea)?,
+        1 => unused(above.to_bits()).map(|()| WideCollapse::Sah)?,
+        2 => WideCollapse::LargestAreaThenSah { above },
+        _ => return Err(corrupt("collapse")),
+    };
+    let params = BvhParams {
+        builder,
+        max_leaf_size,
+        traversal_cost,
+        intersection_cost,
+        parallel_threshold,
+        spatial_alpha,
+        spatial_budget,
+        leaf_block,
+        collapse,
+        reinsertion: r.f32()?,
+    };
+    params
+        .validate()
+        .map_err(|e| LoadError::Corrupt(format!("parameters: {e}")))?;
+    Ok(params)
+}
+
+impl<const N: usize, Node: NodeLayout<N> + SavedNode> TriBvh<N, Node> {
+    /// The structure as bytes (the [format](crate::save)); the triangles are not included.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Out::default();
+        out.0.extend_from_slice(MAGIC);
+        out.u32(VERSION);
+        out.u8(N as u8);
+        out.u8(Node::KIND);
+        write_params(&mut out, &self.params);
+        out.u64(self.count as u64);
+        out.u64(hash(&self.caller_triangles()));
+        let tree = &self.tree;
+        for x in tree
+            .root_bounds
+            .min
+            .to_array()
+            .into_iter()
+            .chain(tree.root_bounds.max.to_array())
+        {
+            out.f32(x);
+        }
+        let (flag, first, count) = tree.root_leaf.map_or((0, 0, 0), |(f, c)| (1, f, c));
+        out.u8(flag);
+        out.u32(first);
+        out.u32(count);
+        out.u64(tree.nodes.len() as u64);
+        for n in &tree.nodes {
+            n.write(&mut out.0);
+        }
+        out.u64(self.ids.len() as u64);
+        for &id in &self.ids {
+            out.u32(id);
+        }
+        out.0
+    }
+
+    /// The structure [`Self::to_bytes`] saved, over the same `tris` it was built over (checked
+    /// by hash), checked as the [module](crate::save) says; its queries answer bit for bit as
+    /// the saved structure's did.
+    pub fn from_bytes(bytes: &[u8], tris: &[Triangle]) -> Result<Self, LoadError> {
+        let mut r = In(bytes);
+        if r.take::<8>().ok().as_ref() != Some(MAGIC) {
+            return Err(LoadError::NotASavedStructure);
+        }
+        let found = r.u32()?;
+        if found != VERSION {
+            return Err(LoadError::Version { found });
+        }
+        let layout = (r.u8()?, r.u8()?);
+        let expected = (N as u8, Node::KIND);
+        if layout != expected {
+            return Err(LoadError::Layout {
+                found: layout,
+                expected,
+            });
+        }
+        let params = read_params(&mut r)?;
+        let (count, saved_hash) = (r.u64()?, r.u64()?);
+        let hash = hash(tris);
+        if count != tris.len() as u64 || saved_hash != hash {
+            return Err(LoadError::OtherTriangles);
+        }
+        let mut corners = [0.0f32; 6];
+        for c in &mut corners {
+            *c = r.f32()?;
+        }
+        let root_bounds = Aabb::new(
+            Vec3::new(corners[0], corners[1], corners[2]),
+            Vec3::new(corners[3], corners[4], corners[5]),
+        );
+        let (flag, first, leaf_count) = (r.u8()?, r.u32()?, r.u32()?);
+        let root_leaf = match (flag, first, leaf_count) {
+            (0, 0, 0) => None,
+            (1, ..) => Some((first, leaf_count)),
+            _ => return Err(LoadError::Corrupt("root leaf flag".into())),
+        };
+        let nodes = (0..r.count(Node::SIZE)?)
+            .map(|_| {
+                let mut b = [0u8; 256];
+                let (head, rest) = r.0.split_at(Node::SIZE);
+                b[..Node::SIZE].copy_from_slice(head);
+                r.0 = rest;
+                Node::read(&b)
+            })
+            .collect();
+        let ids: Vec<u32> = (0..r.count(4)?)
+            .map(|_| r.u32())
+            .collect::<Result<_, _>>()?;
+        if !r.0.is_empty() {
+            return Err(LoadError::TrailingBytes);
+        }
+        let mut tree = WideTree {
+            nodes,
+            root_bounds,
+            root_leaf,
+            depth: 0,
+            isa: Isa::selected(),
+        };
+        // The topology first (indices in range, children after parents, depth bounded,
+        // leaves inside the id list): only then are the ids and leaves used to lay the
+        // triangles out.
+        let corrupt = |e: String| LoadError::Corrupt(e);
+        let slots = ids.len() as u64;
+        let in_range = |first: u32, count: u32, _: &Aabb| {
+            if first as u64 + count as u64 <= slots {
+                Ok(())
+            } else {
+                Err(format!("leaf {first}+{count} runs past the {slots} ids"))
+            }
+        };
+        tree.depth = tree.check(in_range).map_err(corrupt)?;
+        // Nodes the root does not reach are never walked, but their leaves are laid out too.
+        for (i, n) in tree.nodes.iter().enumerate() {
+            for lane in (0..N).filter(|&l| n.is_used(l)) {
+                let (child, count) = (n.child(lane), n.count(lane));
+                let fits = if count > 0 {
+                    child as u64 + count as u64 <= slots
+                } else {
+                    (child as usize) > i && (child as usize) < tree.nodes.len()
+                };
+                if !fits {
+                    return Err(corrupt(format!("node {i} lane {lane} points out of range")));
+                }
+            }
+        }
+        if let Some(&id) = ids.iter().find(|&&i| i as usize >= tris.len()) {
+            return Err(corrupt(format!("id {id} of {} triangles", tris.len())));
+        }
+        let leaf_tris = in_leaf_order(tris, &ids);
+        let soa = TriangleSoa::new(&leaf_tris, tree.leaves());
+        // Each leaf tests exactly the triangles its ids name (leaves laid over each other
+        // would not).
+        for (first, count) in tree.leaves() {
+            let (first, count) = (first as usize, count as usize);
+            if (0..count).any(|k| soa.get(first, count, k) != leaf_tris[first + k]) {
+                return Err(corrupt(format!("leaf {first}+{count} overlaps another")));
+            }
+        }
+        let bvh = Self::assemble(tree, soa, ids, tris.len(), params);
+        bvh.validate().map_err(corrupt)?;
+        if params.splits_primitives() {
+            bvh.check_coverage(tris).map_err(corrupt)?;
+        }
+        Ok(bvh)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{CompressedTriBvh8, TriBvh4, TriBvh8};
+    use rt_geom::{BruteForce, Ray};
+    use rt_testkit::{Rng, scenes};
+
+    /// Rays through the scene's box and from inside it.
+    fn rays(n: usize) -> Vec<Ray> {
+        let mut rng = Rng::new(17);
+        (0..n)
+            .map(|_| {
+                let o = rng.point_in(Vec3::splat(-0.5), Vec3::splat(1.5));
+                Ray::new(o, rng.point_in(Vec3::ZERO, Vec3::ONE) - o)
+            })
+            .collect()
+    }
+
+    /// Answers bit for bit those of `reference` on `rays`.
+    fn same_answers(a: &dyn Accel, reference: &dyn Accel, rays: &[Ray]) -> bool {
+        let key = |h: Option<rt_geom::Hit>| {
+            h.map(|h| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim))
+        };
+        rays.iter().all(|r| {
+            key(a.intersect(r)) == key(reference.intersect(r))
+                && a.occluded(r) == reference.occluded(r)
+        })
+    }
+
+    fn round_trip<const N: usize, Node: NodeLayout<N> + SavedNode>(
+        bvh: TriBvh<N, Node>,
+        tris: &[Triangle],
+    ) {
+        let bytes = bvh.to_bytes();
+        let loaded = TriBvh::<N, Node>::from_bytes(&bytes, tris).unwrap();
+        assert!(same_answers(&loaded, &bvh, &rays(3000)));
+        assert_eq!(loaded.stats(), bvh.stats());
+        assert_eq!(loaded.to_bytes(), bytes);
+    }
+
+    #[test]
+    fn every_layout_and_preset_round_trips_bit_for_bit() {
+        let tris = scenes::random_soup(700, 3);
+        round_trip(TriBvh8::build_for_tracing(&tris).unwrap(), &tris);
+        // Spatial splits list a triangle in several leaves.
+        round_trip(
+            TriBvh8::build(&tris, BvhParams::spatial().for_soa_leaves()).unwrap(),
+            &tris,
+        );
+        round_trip(TriBvh4::build(&tris, BvhParams::balanced()).unwrap(), &tris);
+        round_trip(
+            CompressedTriBvh8::build(&tris, BvhParams::balanced()).unwrap(),
+            &tris,
+        );
+        // A single leaf, and nothing.
+        round_trip(TriBvh8::build_for_tracing(&tris[..3]).unwrap(), &tris[..3]);
+        round_trip(TriBvh8::build_for_tracing(&[]).unwrap(), &[]);
+    }
+
+    #[test]
+    fn foreign_bytes_other_triangles_and_other_layouts_are_refused() {
+        let tris = scenes::random_soup(50, 4);
+        let bytes = TriBvh8::build_for_tracing(&tris).unwrap().to_bytes();
+        assert_eq!(
+            TriBvh8::from_bytes(b"hello", &tris).unwrap_err(),
+            LoadError::NotASavedStructure
+        );
+        let mut moved = tris.clone();
+        moved[7].v[1].x += 1e-3;
+        assert_eq!(
+            TriBvh8::from_bytes(&bytes, &moved).unwrap_err(),
+            LoadError::OtherTriangles
+        );
+        assert_eq!(
+            TriBvh8::from_bytes(&bytes, &tris[1..]).unwrap_err(),
+            LoadError::OtherTriangles
+        );
+        assert!(matches!(
+            TriBvh4::from_bytes(&bytes, &tris),
+            Err(LoadError::Layout { .. })
+        ));
+        assert!(matches!(
+            CompressedTriBvh8::from_bytes(&bytes, &tris),
+            Err(LoadError::Layout { .. })
+        ));
+        let mut newer = bytes.clone();
+        newer[8] = 2;
+        assert_eq!(
+            TriBvh8::from_bytes(&newer, &tris).unwrap_err(),
+            LoadError::Version { found: 2 }
+        );
+        let mut longer = bytes.clone();
+        longer.push(0);
+        assert_eq!(
+            TriBvh8::from_bytes(&longer, &tris).unwrap_err(),
+            LoadError::TrailingBytes
+        );
+    }
+
+    /// Every truncation is refused; every byte changed (each bit of it, in turn) is refused
+    /// or loads a structure that still answers as brute force: never a panic, never a wrong
+    /// answer.
+    #[test]
+    fn truncated_and_corrupted_bytes_are_refused_or_harmless() {
+        let tris = scenes::random_soup(40, 5);
+        let brute = BruteForce::build(&tris).unwrap();
+        let rays = rays(300);
+        for bvh_bytes in [
+            TriBvh8::build_for_tracing(&tris).unwrap().to_bytes(),
+            CompressedTriBvh8::build(&tris, BvhParams::balanced())
+                .unwrap()
+                .to_bytes(),
+        ] {
+            let compressed = bvh_bytes[13] == 1;
+            let load = |b: &[u8]| -> Result<Box<dyn Accel>, LoadError> {
+                if compressed {
+                    Ok(Box::new(CompressedTriBvh8::from_bytes(b, &tris)?))
+                } else {
+                    Ok(Box::new(TriBvh8::from_bytes(b, &tris)?))
+                }
+            };
+            for len in 0..bvh_bytes.len() {
+                assert!(load(&bvh_bytes[..len]).is_err(), "{len} bytes loaded");
+            }
+            let (mut refused, mut harmless) = (0, 0);
+            for at in 0..bvh_bytes.len() {
+                for bit in [0, 3, 7] {
+                    let mut b = bvh_bytes.clone();
+                    b[at] ^= 1 << bit;
+                    match load(&b) {
+                        Err(_) => refused += 1,
+                        Ok(a) => {
+                            assert!(
+                                same_answers(a.as_ref(), &brute, &rays),
+                                "byte {at} bit {bit}"
+                            );
+                            harmless += 1;
+                        }
+                    }
+                }
+            }
+            assert!(
+                refused > harmless / 4,
+                "{refused} refused, {harmless} harmless"
+            );
+        }
+    }
+}
