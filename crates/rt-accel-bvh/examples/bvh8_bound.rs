@@ -31,12 +31,15 @@ fn read_rays(path: &str) -> Result<Vec<Ray>, String> {
 /// The leaves one ray's walk tests, in order, and its answer.
 fn record<const ANY_HIT: bool>(bvh: &TriBvh8, ray: &Ray) -> (Vec<(u32, u32)>, Option<Hit>) {
     let mut leaves = Vec::new();
-    let answer =
-        bvh.tree()
-            .traverse::<ANY_HIT, _, _>(BaseLevel, ray, None, |first, count, r, best| {
-                leaves.push((first, count));
-                test::<ANY_HIT, _>(BaseLevel, bvh, first, count, r, best)
-            });
+    let answer = bvh.tree().traverse::<ANY_HIT, _, _>(
+        BaseLevel,
+        ray,
+        || None,
+        |first, count, r, best| {
+            leaves.push((first, count));
+            test::<ANY_HIT, _>(BaseLevel, bvh, first, count, r, best)
+        },
+    );
     (leaves, answer)
 }
 
@@ -118,15 +121,19 @@ fn walk<const ANY_HIT: bool, L: Level>(
             r.tmax = h.t;
         }
     }
-    bvh.tree()
-        .traverse::<ANY_HIT, L, _>(level, &r, None, |first, count, _, best| {
+    bvh.tree().traverse::<ANY_HIT, L, _>(
+        level,
+        &r,
+        || None,
+        |first, count, _, best| {
             black_box(first);
             if ANY_HIT && answer.is_some() && last == Some((first, count)) {
                 *best = answer;
                 return true;
             }
             false
-        })
+        },
+    )
 }
 
 fn median(mut v: Vec<f64>) -> f64 {

@@ -212,10 +212,15 @@ impl<P: Primitive, V: BoundingVolume> BvList<P, V> {
         false
     }
 
-    fn traverse<const ANY_HIT: bool, K: Keep>(&self, ray: &Ray, mut best: K) -> Option<Hit> {
+    fn traverse<const ANY_HIT: bool, K: Keep>(
+        &self,
+        ray: &Ray,
+        best: impl FnOnce() -> K,
+    ) -> Option<Hit> {
         if !ray.is_valid() || self.volumes.is_empty() {
             return None;
         }
+        let mut best = best();
         let mut r = *ray;
         let data = V::ray_data(ray, &self.frame);
         SCRATCH.with(|s| {

@@ -298,7 +298,7 @@ impl<O: Accel> InstanceBvh<O> {
     fn walk<const ANY_HIT: bool, K: Keep>(
         &self,
         ray: &Ray,
-        best: K,
+        best: impl FnOnce() -> K,
         mut ask: impl FnMut(&O, &Ray, u32, &mut K, &mut Ray) -> bool,
     ) -> Option<Hit> {
         self.top
@@ -327,17 +327,21 @@ impl<O: Accel> InstanceBvh<O> {
     /// [`rt_geom::replaces`].
     #[inline]
     fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<Hit> {
-        self.walk::<ANY_HIT, _>(ray, None, |accel, local, i, best, r| {
-            let first = self.first_prim[i as usize];
-            if ANY_HIT {
-                accel.occluded(local) && best.record::<true>(any_hit(r), first, &mut r.tmax)
-            } else {
-                if let Some(h) = accel.intersect(local) {
-                    best.record::<false>(prim_hit(&h), first + h.prim, &mut r.tmax);
+        self.walk::<ANY_HIT, _>(
+            ray,
+            || None,
+            |accel, local, i, best, r| {
+                let first = self.first_prim[i as usize];
+                if ANY_HIT {
+                    accel.occluded(local) && best.record::<true>(any_hit(r), first, &mut r.tmax)
+                } else {
+                    if let Some(h) = accel.intersect(local) {
+                        best.record::<false>(prim_hit(&h), first + h.prim, &mut r.tmax);
+                    }
+                    false
                 }
-                false
-            }
-        })
+            },
+        )
     }
 }
 
@@ -400,25 +404,29 @@ impl<O: FilteredAccel> InstanceBvh<O> {
         ray: &Ray,
         mut filter: &mut dyn HitFilter,
     ) -> Option<Hit> {
-        self.walk::<ANY_HIT, _>(ray, None, |accel, local, i, best, r| {
-            if filter.skips_instance(i) {
-                return false;
-            }
-            let first = self.first_prim[i as usize];
-            let mut global = Global {
-                filter: &mut filter,
-                first,
-            };
-            if ANY_HIT {
-                accel.occluded_filtered(local, &mut global)
-                    && best.record::<true>(any_hit(r), first, &mut r.tmax)
-            } else {
-                if let Some(h) = accel.intersect_filtered(local, &mut global) {
-                    best.record::<false>(prim_hit(&h), first + h.prim, &mut r.tmax);
+        self.walk::<ANY_HIT, _>(
+            ray,
+            || None,
+            |accel, local, i, best, r| {
+                if filter.skips_instance(i) {
+                    return false;
                 }
-                false
-            }
-        })
+                let first = self.first_prim[i as usize];
+                let mut global = Global {
+                    filter: &mut filter,
+                    first,
+                };
+                if ANY_HIT {
+                    accel.occluded_filtered(local, &mut global)
+                        && best.record::<true>(any_hit(r), first, &mut r.tmax)
+                } else {
+                    if let Some(h) = accel.intersect_filtered(local, &mut global) {
+                        best.record::<false>(prim_hit(&h), first + h.prim, &mut r.tmax);
+                    }
+                    false
+                }
+            },
+        )
     }
 }
 

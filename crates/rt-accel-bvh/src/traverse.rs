@@ -25,12 +25,13 @@ impl<P> Bvh<P> {
     pub(crate) fn walk_ray<const ANY_HIT: bool, K: Keep>(
         &self,
         ray: &Ray,
-        mut best: K,
+        best: impl FnOnce() -> K,
         mut leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
     ) -> Option<Hit> {
         if self.nodes.is_empty() || !ray.is_valid() {
             return None;
         }
+        let mut best = best();
         let boxes = SlabRay::new(ray);
         let mut r = *ray;
         rt_geom::counters::nodes(1);
@@ -88,7 +89,11 @@ impl<P> Bvh<P> {
 impl<P: Primitive> Bvh<P> {
     /// The walk over the tree's own primitives. With `ANY_HIT`, returns the first hit found.
     #[inline]
-    pub(crate) fn traverse<const ANY_HIT: bool, K: Keep>(&self, ray: &Ray, best: K) -> Option<Hit> {
+    pub(crate) fn traverse<const ANY_HIT: bool, K: Keep>(
+        &self,
+        ray: &Ray,
+        best: impl FnOnce() -> K,
+    ) -> Option<Hit> {
         self.walk_ray::<ANY_HIT, K>(ray, best, |first, count, r, best| {
             test_leaf::<P, _, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
         })

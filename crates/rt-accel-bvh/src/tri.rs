@@ -144,7 +144,7 @@ impl<const N: usize, Node: NodeLayout<N>> Walk for TriBvh<N, Node> {
         self.tree.traverse::<ANY_HIT, L, K>(
             level,
             ray,
-            best,
+            || best,
             #[inline(always)]
             |first, count, r, best| {
                 self.tris.intersect_range::<ANY_HIT, L>(

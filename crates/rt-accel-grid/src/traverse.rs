@@ -242,7 +242,11 @@ fn first_wall(walls: &[f32; 3]) -> (f32, usize) {
 }
 
 impl<P: Primitive> Grid<P> {
-    pub(crate) fn traverse<const ANY_HIT: bool, K: Keep>(&self, ray: &Ray, best: K) -> Option<Hit> {
+    pub(crate) fn traverse<const ANY_HIT: bool, K: Keep>(
+        &self,
+        ray: &Ray,
+        best: impl FnOnce() -> K,
+    ) -> Option<Hit> {
         if self.levels.is_empty() || !ray.is_valid() {
             return None;
         }
@@ -258,7 +262,7 @@ impl<P: Primitive> Grid<P> {
             dir: ray.dir().to_array(),
             inv,
             ray: *ray,
-            best,
+            best: best(),
             mailbox: Mailbox::default(),
         };
         if self.params.mailbox {

@@ -153,9 +153,10 @@ pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Ke
     ray: &Ray,
     data: T::RayData,
     (mut t0, mut t1): (f32, f32),
-    mut best: K,
+    best: impl FnOnce() -> K,
     mut on_leaf: impl FnMut(usize),
 ) -> Option<Hit> {
+    let mut best = best();
     let (nodes, indices) = (tree.nodes(), tree.indices());
     let mut r = *ray;
     // One pending cell per level at most: the depth cap bounds the stack. On the call's own
@@ -210,7 +211,7 @@ pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Ke
     ray: &Ray,
     data: T::RayData,
     (t0, t1): (f32, f32),
-    best: K,
+    best: impl FnOnce() -> K,
 ) -> Option<Hit> {
     struct Walk<'a, T: SplitPlanes, P, K> {
         tree: &'a T,
@@ -258,7 +259,7 @@ pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Ke
         leaves,
         data,
         r: *ray,
-        best,
+        best: best(),
     };
     walk.visit::<ANY_HIT>(0, t0, t1);
     walk.best.best()
@@ -345,7 +346,7 @@ pub(crate) fn query<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Keep>(
     bounds: &Aabb,
     traversal: KdTraversal,
     ray: &Ray,
-    best: K,
+    best: impl FnOnce() -> K,
 ) -> Option<Hit> {
     query_with::<T, P, ANY_HIT, K>(tree, leaves, bounds, traversal, ray, best, |_| {})
 }
@@ -359,7 +360,7 @@ pub(crate) fn query_with<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: K
     bounds: &Aabb,
     traversal: KdTraversal,
     ray: &Ray,
-    best: K,
+    best: impl FnOnce() -> K,
     on_leaf: impl FnMut(usize),
 ) -> Option<Hit> {
     if tree.nodes().is_empty() || !ray.is_valid() {

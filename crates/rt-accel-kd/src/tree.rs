@@ -125,7 +125,7 @@ impl<P: Primitive> KdTree<P> {
                 &self.bounds,
                 iterative,
                 ray,
-                None,
+                || None,
                 on_leaf,
             )
         } else {
@@ -136,7 +136,7 @@ impl<P: Primitive> KdTree<P> {
                 &self.bounds,
                 iterative,
                 ray,
-                None,
+                || None,
                 on_leaf,
             )
         };
@@ -165,7 +165,11 @@ impl<P: Primitive> KdTree<P> {
 impl<P: Primitive> KdTree<P> {
     /// The walk, for the closest hit or any hit.
     #[inline]
-    fn traverse<const ANY_HIT: bool, K: Keep>(&self, ray: &Ray, best: K) -> Option<Hit> {
+    fn traverse<const ANY_HIT: bool, K: Keep>(
+        &self,
+        ray: &Ray,
+        best: impl FnOnce() -> K,
+    ) -> Option<Hit> {
         let (t, leaves) = (self.params.traversal, (self.prims.as_slice(), &self.listed));
         let bounds = &self.bounds;
         if self.frame.is_world() {

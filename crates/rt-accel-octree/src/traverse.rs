@@ -344,7 +344,11 @@ thread_local! {
 }
 
 impl<P: Primitive> Octree<P> {
-    pub(crate) fn traverse<const ANY_HIT: bool, K: Keep>(&self, ray: &Ray, best: K) -> Option<Hit> {
+    pub(crate) fn traverse<const ANY_HIT: bool, K: Keep>(
+        &self,
+        ray: &Ray,
+        best: impl FnOnce() -> K,
+    ) -> Option<Hit> {
         if self.leaves.is_empty() || !ray.is_valid() {
             return None;
         }
@@ -367,7 +371,7 @@ impl<P: Primitive> Octree<P> {
             upper_half: UPPER_HALF.map(f32x8::from).map(|l| l.cmp_ne(f32x8::ZERO)),
             inv,
             ray: *ray,
-            best,
+            best: best(),
             mailbox: Mailbox::default(),
         };
         match self.params.traversal {

@@ -26,10 +26,10 @@ pub trait Accel: Send + Sync {
 }
 
 /// Writes the two queries of an [`Accel`] impl from one walk written for both (a method
-/// `traverse::<const ANY_HIT: bool, K: Keep>(&self, &Ray, K) -> Option<Hit>`, which offers
-/// its hits to the [`Keep`](crate::Keep) it is given): `intersect` is the walk for the
-/// closest hit, `occluded` the walk that stops at any hit, both keeping hits in an
-/// `Option<Hit>` (no filter).
+/// `traverse::<const ANY_HIT: bool, K: Keep>(&self, &Ray, impl FnOnce() -> K) -> Option<Hit>`,
+/// which makes its [`Keep`](crate::Keep) inside the walk and offers its hits to it):
+/// `intersect` is the walk for the closest hit, `occluded` the walk that stops at any hit,
+/// both keeping hits in an `Option<Hit>` (no filter).
 ///
 /// ```ignore
 /// impl Accel for MyTree {
@@ -74,12 +74,12 @@ macro_rules! queries_from_walk {
     () => {
         #[inline]
         fn intersect(&self, ray: &$crate::Ray) -> Option<$crate::Hit> {
-            self.traverse::<false, _>(ray, None)
+            self.traverse::<false, _>(ray, || None)
         }
 
         #[inline]
         fn occluded(&self, ray: &$crate::Ray) -> bool {
-            self.traverse::<true, _>(ray, None).is_some()
+            self.traverse::<true, _>(ray, || None).is_some()
         }
     };
 }
@@ -107,11 +107,11 @@ macro_rules! filtered_from_walk {
             ray: &$crate::Ray,
             filter: &mut dyn $crate::HitFilter,
         ) -> Option<$crate::Hit> {
-            self.traverse::<false, _>(ray, $crate::Filtered::new(filter))
+            self.traverse::<false, _>(ray, || $crate::Filtered::new(filter))
         }
 
         fn occluded_filtered(&self, ray: &$crate::Ray, filter: &mut dyn $crate::HitFilter) -> bool {
-            self.traverse::<true, _>(ray, $crate::Filtered::new(filter))
+            self.traverse::<true, _>(ray, || $crate::Filtered::new(filter))
                 .is_some()
         }
     };

@@ -87,7 +87,7 @@ impl<P: Primitive, const N: usize, Node: NodeLayout<N>> Walk for WideBvh<P, N, N
         self.tree.traverse::<ANY_HIT, L, K>(
             level,
             ray,
-            best,
+            || best,
             #[inline(always)]
             |first, count, r, best| {
                 test_leaf::<P, _, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)

@@ -95,7 +95,7 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
         &self,
         level: V,
         ray: &Ray,
-        best: K,
+        best: impl FnOnce() -> K,
         leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
     ) -> Option<Hit> {
         traverse::traverse_nodes::<_, N, ANY_HIT, V, K>(

@@ -70,12 +70,13 @@ pub(crate) fn traverse_nodes<
     root_leaf: Option<(u32, u32)>,
     depth: usize,
     ray: &Ray,
-    mut best: K,
+    best: impl FnOnce() -> K,
     mut leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
 ) -> Option<Hit> {
     if !ray.is_valid() {
         return None;
     }
+    let mut best = best();
     let mut r = *ray;
     if let Some((first, count)) = root_leaf {
         root_bounds.clip_ray(&r)?;

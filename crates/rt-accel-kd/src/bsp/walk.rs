@@ -79,7 +79,11 @@ impl<P: Primitive> SplitPlanes for BspTree<P> {
 impl<P: Primitive> BspTree<P> {
     /// The walk, for the closest hit or any hit.
     #[inline]
-    pub(super) fn traverse<const ANY_HIT: bool, K: Keep>(&self, ray: &Ray, best: K) -> Option<Hit> {
+    pub(super) fn traverse<const ANY_HIT: bool, K: Keep>(
+        &self,
+        ray: &Ray,
+        best: impl FnOnce() -> K,
+    ) -> Option<Hit> {
         let (t, leaves) = (self.params.traversal, (self.prims.as_slice(), &self.listed));
         traverse::query::<_, _, ANY_HIT, K>(self, leaves, &self.bounds, t, ray, best)
     }
