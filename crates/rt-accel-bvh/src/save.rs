@@ -1,20 +1,21 @@
-//! Saved structures: a built [`TriBvh`] as bytes and back, so that a renderer builds a scene
-//! once. A plain little-endian layout, versioned:
+//! Saved structures: a built [`TriBvh`] or [`WideBvh`] as bytes and back, so that a renderer
+//! builds a scene once. A plain little-endian layout, versioned:
 //!
 //! ```text
 //! magic     8 bytes  "rt-bvh\r\n"
 //! version   u32      1
-//! layout    u8, u8   lanes (4 or 8), node kind (0: exact boxes, 1: quantized)
+//! layout    3 x u8   leaves (0: SoA triangles, 1: any primitives), lanes (4 or 8), node kind
+//!                    (0: exact boxes, 1: quantized)
 //! params    the build parameters (BvhParams), field by field
-//! triangles u64, u64 count, and a 64-bit FNV-1a hash (over 32-bit words) of every
-//!                    vertex coordinate's bits
+//! primitives u64, u64 count, and a 64-bit FNV-1a hash (over 32-bit words) of every
+//!                    triangle vertex's coordinates (`WideBvh`: of every primitive's box)
 //! tree      root box (6 f32), root leaf (u8 flag, u32 first, u32 count), nodes (u64 count,
 //!           each node field by field)
 //! ids       u64 count, u32 each: the caller's index of each triangle in leaf order
 //! ```
 //!
-//! The triangles are not stored: [`TriBvh::from_bytes`] takes them again and checks them
-//! against the hash, so a file cannot be loaded over other geometry. Loading checks the
+//! The primitives are not stored: `from_bytes` takes them again and checks them against the
+//! hash, so a file cannot be loaded over other geometry. Loading checks the
 //! magic, the version, the layout, every length against the bytes left, the topology before
 //! anything is indexed by it, and then the structure's own [`Accel::validate`]: a truncated,
 //! corrupted or foreign file is a [`LoadError`], never a panic or a wrong answer.
@@ -37,8 +38,8 @@
 use crate::compressed::CompressedNode;
 use crate::refit::in_leaf_order;
 use crate::wide::{NodeLayout, WideNode, WideTree};
-use crate::{BvhBuilder, BvhParams, TriBvh, WideCollapse};
-use rt_geom::{Aabb, Accel, Isa, Triangle, TriangleSoa, Vec3};
+use crate::{BvhBuilder, BvhParams, TriBvh, WideBvh, WideCollapse};
+use rt_geom::{Aabb, Accel, Isa, Primitive, Triangle, TriangleSoa, Vec3};
 use std::fmt;
 
 const MAGIC: &[u8; 8] = b"rt-bvh\r\n";
@@ -54,19 +55,19 @@ pub enum LoadError {
         /// The version found.
         found: u32,
     },
-    /// A structure of another kind (width or node layout) than the one asked to load.
+    /// A structure of another kind (leaves, width or node layout) than the one asked to load.
     Layout {
-        /// Lanes and node kind found.
-        found: (u8, u8),
-        /// Lanes and node kind asked for.
-        expected: (u8, u8),
+        /// Family (0: triangles, 1: any primitives), lanes and node kind found.
+        found: (u8, u8, u8),
+        /// Family, lanes and node kind asked for.
+        expected: (u8, u8, u8),
     },
     /// The bytes end before the structure does.
     Truncated,
     /// Bytes left after the structure.
     TrailingBytes,
-    /// The triangles given are not the ones the structure was built over.
-    OtherTriangles,
+    /// The primitives given are not the ones the structure was built over.
+    OtherPrimitives,
     /// A field holds a value no build writes, or the structure fails its checks.
     Corrupt(String),
 }
@@ -83,15 +84,15 @@ impl fmt::Display for LoadError {
             }
             Self::Layout { found, expected } => write!(
                 f,
-                "a {}-wide structure of node kind {}, not {}-wide of kind {}",
-                found.0, found.1, expected.0, expected.1
+                "a structure of family {}, {}-wide, node kind {}: not family {}, {}-wide, kind {}",
+                found.0, found.1, found.2, expected.0, expected.1, expected.2
             ),
             Self::Truncated => write!(f, "the bytes end before the structure does"),
             Self::TrailingBytes => write!(f, "bytes left after the structure"),
-            Self::OtherTriangles => {
+            Self::OtherPrimitives => {
                 write!(
                     f,
-                    "the triangles are not the ones the structure was built over"
+                    "the primitives are not the ones the structure was built over"
                 )
             }
             Self::Corrupt(why) => write!(f, "corrupt structure: {why}"),
@@ -233,28 +234,19 @@ impl SavedNode for CompressedNode {
     }
 }
 
-impl<const N: usize, Node: NodeLayout<N>> TriBvh<N, Node> {
-    /// With spatial splits a triangle may lie in several leaves, each holding a part of it,
-    /// and `validate` only asks each leaf to overlap its triangles: here every triangle that
-    /// can be hit is asked to be covered by the union of its leaves' boxes (as the walk sees
-    /// them, intersected down the path), so that no part of it is out of every leaf the walk
-    /// enters.
-    fn check_coverage(&self, tris: &[Triangle]) -> Result<(), String> {
-        let mut boxes: Vec<Vec<Aabb>> = vec![Vec::new(); tris.len()];
-        self.tree.check(|first, count, bounds| {
-            for &id in &self.ids[first as usize..(first + count) as usize] {
-                boxes[id as usize].push(*bounds);
-            }
-            Ok(())
-        })?;
-        use rayon::prelude::*;
-        let uncovered = (0..tris.len())
-            .into_par_iter()
-            .find_first(|&i| !tris[i].is_degenerate() && !covered(&tris[i], &boxes[i]));
-        match uncovered {
-            Some(id) => Err(format!("triangle {id} is not covered by its leaves")),
-            None => Ok(()),
-        }
+/// With spatial splits a triangle may lie in several leaves, each holding a part of it, and
+/// `validate` only asks each leaf to overlap its triangles: here every triangle that can be
+/// hit is asked to be covered by the union of its leaves' boxes (`boxes[id]`, as the walk
+/// sees them, intersected down the path), so that no part of it is out of every leaf the
+/// walk enters.
+fn check_coverage(tris: &[Triangle], boxes: &[Vec<Aabb>]) -> Result<(), String> {
+    use rayon::prelude::*;
+    let uncovered = (0..tris.len())
+        .into_par_iter()
+        .find_first(|&i| !tris[i].is_degenerate() && !covered(&tris[i], &boxes[i]));
+    match uncovered {
+        Some(id) => Err(format!("triangle {id} is not covered by its leaves")),
+        None => Ok(()),
     }
 }
 
@@ -444,134 +436,172 @@ fn read_params(r: &mut In) -> Result<BvhParams, LoadError> {
     Ok(params)
 }
 
+/// The family byte of the format: what the leaves hold.
+const TRIANGLES: u8 = 0;
+const PRIMITIVES: u8 = 1;
+
+/// What [`write_tree`] writes and [`read_tree`] reads: everything but the leaves' contents.
+struct Saved<const N: usize, Node> {
+    params: BvhParams,
+    tree: WideTree<N, Node>,
+    ids: Vec<u32>,
+}
+
+/// The header, the parameters, the primitives' count and `hash`, the tree and the ids.
+fn write_tree<const N: usize, Node: SavedNode>(
+    family: u8,
+    params: &BvhParams,
+    (count, hash): (usize, u64),
+    tree: &WideTree<N, Node>,
+    ids: &[u32],
+) -> Vec<u8> {
+    let mut out = Out::default();
+    out.0.extend_from_slice(MAGIC);
+    out.u32(VERSION);
+    out.u8(family);
+    out.u8(N as u8);
+    out.u8(Node::KIND);
+    write_params(&mut out, params);
+    out.u64(count as u64);
+    out.u64(hash);
+    let b = &tree.root_bounds;
+    for x in b.min.to_array().into_iter().chain(b.max.to_array()) {
+        out.f32(x);
+    }
+    let (flag, first, leaf) = tree.root_leaf.map_or((0, 0, 0), |(f, c)| (1, f, c));
+    out.u8(flag);
+    out.u32(first);
+    out.u32(leaf);
+    out.u64(tree.nodes.len() as u64);
+    for n in &tree.nodes {
+        n.write(&mut out.0);
+    }
+    out.u64(ids.len() as u64);
+    for &id in ids {
+        out.u32(id);
+    }
+    out.0
+}
+
+/// Reads what [`write_tree`] wrote for `count` primitives of hash `hash`, and checks the
+/// topology (every node's lanes, reached or not; children after parents; depth bounded;
+/// leaves inside the id list; ids naming primitives) before anything is indexed by it.
+fn read_tree<const N: usize, Node: NodeLayout<N> + SavedNode>(
+    bytes: &[u8],
+    family: u8,
+    (count, hash): (usize, u64),
+) -> Result<Saved<N, Node>, LoadError> {
+    let mut r = In(bytes);
+    if r.take::<8>().ok().as_ref() != Some(MAGIC) {
+        return Err(LoadError::NotASavedStructure);
+    }
+    let found = r.u32()?;
+    if found != VERSION {
+        return Err(LoadError::Version { found });
+    }
+    let layout = (r.u8()?, r.u8()?, r.u8()?);
+    let expected = (family, N as u8, Node::KIND);
+    if layout != expected {
+        return Err(LoadError::Layout {
+            found: layout,
+            expected,
+        });
+    }
+    let params = read_params(&mut r)?;
+    if (r.u64()?, r.u64()?) != (count as u64, hash) {
+        return Err(LoadError::OtherPrimitives);
+    }
+    let mut corners = [0.0f32; 6];
+    for c in &mut corners {
+        *c = r.f32()?;
+    }
+    let root_bounds = Aabb::new(
+        Vec3::new(corners[0], corners[1], corners[2]),
+        Vec3::new(corners[3], corners[4], corners[5]),
+    );
+    let (flag, first, leaf_count) = (r.u8()?, r.u32()?, r.u32()?);
+    let root_leaf = match (flag, first, leaf_count) {
+        (0, 0, 0) => None,
+        (1, ..) => Some((first, leaf_count)),
+        (0, ..) => {
+            return Err(LoadError::Corrupt(
+                "non-zero unused field (root leaf)".into(),
+            ));
+        }
+        _ => return Err(LoadError::Corrupt("unknown root leaf flag".into())),
+    };
+    let nodes = (0..r.count(Node::SIZE)?)
+        .map(|_| {
+            let mut b = [0u8; 256];
+            let (head, rest) = r.0.split_at(Node::SIZE);
+            b[..Node::SIZE].copy_from_slice(head);
+            r.0 = rest;
+            Node::read(&b)
+        })
+        .collect();
+    let ids: Vec<u32> = (0..r.count(4)?)
+        .map(|_| r.u32())
+        .collect::<Result<_, _>>()?;
+    if !r.0.is_empty() {
+        return Err(LoadError::TrailingBytes);
+    }
+    let mut tree = WideTree {
+        nodes,
+        root_bounds,
+        root_leaf,
+        depth: 0,
+        isa: Isa::selected(),
+    };
+    let corrupt = |e: String| LoadError::Corrupt(e);
+    let slots = ids.len() as u64;
+    let in_range = |first: u32, count: u32, _: &Aabb| {
+        if first as u64 + count as u64 <= slots {
+            Ok(())
+        } else {
+            Err(format!("leaf {first}+{count} runs past the {slots} ids"))
+        }
+    };
+    tree.depth = tree.check(in_range).map_err(corrupt)?;
+    // Nodes the root does not reach are never walked, but their leaves are laid out too.
+    for (i, n) in tree.nodes.iter().enumerate() {
+        for lane in (0..N).filter(|&l| n.is_used(l)) {
+            let (child, leaf) = (n.child(lane), n.count(lane));
+            let fits = if leaf > 0 {
+                child as u64 + leaf as u64 <= slots
+            } else {
+                (child as usize) > i && (child as usize) < tree.nodes.len()
+            };
+            if !fits {
+                return Err(corrupt(format!("node {i} lane {lane} points out of range")));
+            }
+        }
+    }
+    if let Some(&id) = ids.iter().find(|&&i| i as usize >= count) {
+        return Err(corrupt(format!("id {id} of {count} primitives")));
+    }
+    Ok(Saved { params, tree, ids })
+}
+
 impl<const N: usize, Node: NodeLayout<N> + SavedNode> TriBvh<N, Node> {
     /// The structure as bytes (the [format](crate::save)); the triangles are not included.
     pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Out::default();
-        out.0.extend_from_slice(MAGIC);
-        out.u32(VERSION);
-        out.u8(N as u8);
-        out.u8(Node::KIND);
-        write_params(&mut out, &self.params);
-        out.u64(self.count as u64);
-        out.u64(hash(&self.caller_triangles()));
-        let tree = &self.tree;
-        for x in tree
-            .root_bounds
-            .min
-            .to_array()
-            .into_iter()
-            .chain(tree.root_bounds.max.to_array())
-        {
-            out.f32(x);
-        }
-        let (flag, first, count) = tree.root_leaf.map_or((0, 0, 0), |(f, c)| (1, f, c));
-        out.u8(flag);
-        out.u32(first);
-        out.u32(count);
-        out.u64(tree.nodes.len() as u64);
-        for n in &tree.nodes {
-            n.write(&mut out.0);
-        }
-        out.u64(self.ids.len() as u64);
-        for &id in &self.ids {
-            out.u32(id);
-        }
-        out.0
+        let hash = hash(&self.caller_triangles());
+        write_tree(
+            TRIANGLES,
+            &self.params,
+            (self.count, hash),
+            &self.tree,
+            &self.ids,
+        )
     }
 
     /// The structure [`Self::to_bytes`] saved, over the same `tris` it was built over (checked
     /// by hash), checked as the [module](crate::save) says; its queries answer bit for bit as
     /// the saved structure's did.
     pub fn from_bytes(bytes: &[u8], tris: &[Triangle]) -> Result<Self, LoadError> {
-        let mut r = In(bytes);
-        if r.take::<8>().ok().as_ref() != Some(MAGIC) {
-            return Err(LoadError::NotASavedStructure);
-        }
-        let found = r.u32()?;
-        if found != VERSION {
-            return Err(LoadError::Version { found });
-        }
-        let layout = (r.u8()?, r.u8()?);
-        let expected = (N as u8, Node::KIND);
-        if layout != expected {
-            return Err(LoadError::Layout {
-                found: layout,
-                expected,
-            });
-        }
-        let params = read_params(&mut r)?;
-        let (count, saved_hash) = (r.u64()?, r.u64()?);
-        let hash = hash(tris);
-        if count != tris.len() as u64 || saved_hash != hash {
-            return Err(LoadError::OtherTriangles);
-        }
-        let mut corners = [0.0f32; 6];
-        for c in &mut corners {
-            *c = r.f32()?;
-        }
-        let root_bounds = Aabb::new(
-            Vec3::new(corners[0], corners[1], corners[2]),
-            Vec3::new(corners[3], corners[4], corners[5]),
-        );
-        let (flag, first, leaf_count) = (r.u8()?, r.u32()?, r.u32()?);
-        let root_leaf = match (flag, first, leaf_count) {
-            (0, 0, 0) => None,
-            (1, ..) => Some((first, leaf_count)),
-            _ => return Err(LoadError::Corrupt("root leaf flag".into())),
-        };
-        let nodes = (0..r.count(Node::SIZE)?)
-            .map(|_| {
-                let mut b = [0u8; 256];
-                let (head, rest) = r.0.split_at(Node::SIZE);
-                b[..Node::SIZE].copy_from_slice(head);
-                r.0 = rest;
-                Node::read(&b)
-            })
-            .collect();
-        let ids: Vec<u32> = (0..r.count(4)?)
-            .map(|_| r.u32())
-            .collect::<Result<_, _>>()?;
-        if !r.0.is_empty() {
-            return Err(LoadError::TrailingBytes);
-        }
-        let mut tree = WideTree {
-            nodes,
-            root_bounds,
-            root_leaf,
-            depth: 0,
-            isa: Isa::selected(),
-        };
-        // The topology first (indices in range, children after parents, depth bounded,
-        // leaves inside the id list): only then are the ids and leaves used to lay the
-        // triangles out.
+        let Saved { params, tree, ids } =
+            read_tree::<N, Node>(bytes, TRIANGLES, (tris.len(), hash(tris)))?;
         let corrupt = |e: String| LoadError::Corrupt(e);
-        let slots = ids.len() as u64;
-        let in_range = |first: u32, count: u32, _: &Aabb| {
-            if first as u64 + count as u64 <= slots {
-                Ok(())
-            } else {
-                Err(format!("leaf {first}+{count} runs past the {slots} ids"))
-            }
-        };
-        tree.depth = tree.check(in_range).map_err(corrupt)?;
-        // Nodes the root does not reach are never walked, but their leaves are laid out too.
-        for (i, n) in tree.nodes.iter().enumerate() {
-            for lane in (0..N).filter(|&l| n.is_used(l)) {
-                let (child, count) = (n.child(lane), n.count(lane));
-                let fits = if count > 0 {
-                    child as u64 + count as u64 <= slots
-                } else {
-                    (child as usize) > i && (child as usize) < tree.nodes.len()
-                };
-                if !fits {
-                    return Err(corrupt(format!("node {i} lane {lane} points out of range")));
-                }
-            }
-        }
-        if let Some(&id) = ids.iter().find(|&&i| i as usize >= tris.len()) {
-            return Err(corrupt(format!("id {id} of {} triangles", tris.len())));
-        }
         let leaf_tris = in_leaf_order(tris, &ids);
         let soa = TriangleSoa::new(&leaf_tris, tree.leaves());
         // Each leaf tests exactly the triangles its ids name (leaves laid over each other
@@ -585,10 +615,80 @@ impl<const N: usize, Node: NodeLayout<N> + SavedNode> TriBvh<N, Node> {
         let bvh = Self::assemble(tree, soa, ids, tris.len(), params);
         bvh.validate().map_err(corrupt)?;
         if params.splits_primitives() {
-            bvh.check_coverage(tris).map_err(corrupt)?;
+            let mut boxes = vec![Vec::new(); tris.len()];
+            bvh.tree
+                .check(|first, count, bounds| {
+                    for &id in &bvh.ids[first as usize..(first + count) as usize] {
+                        boxes[id as usize].push(*bounds);
+                    }
+                    Ok(())
+                })
+                .map_err(corrupt)?;
+            check_coverage(tris, &boxes).map_err(corrupt)?;
         }
         Ok(bvh)
     }
+}
+
+impl<P: Primitive, const N: usize, Node: NodeLayout<N> + SavedNode> WideBvh<P, N, Node> {
+    /// The structure as bytes (the [format](crate::save)); the primitives are not included.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut prims: Vec<Option<&P>> = vec![None; self.count];
+        for (p, &id) in self.prims.iter().zip(&self.ids) {
+            prims[id as usize] = Some(p);
+        }
+        let hash = bounds_hash(prims.into_iter().flatten());
+        write_tree(
+            PRIMITIVES,
+            &self.params,
+            (self.count, hash),
+            &self.tree,
+            &self.ids,
+        )
+    }
+
+    /// The structure [`Self::to_bytes`] saved, over primitives with the same boxes as those
+    /// it was built over (checked by hash: the structure depends on nothing else), checked as
+    /// the [module](crate::save) says. Spatial splits are checked for triangles only (the
+    /// coverage of a split primitive by its leaves): a split structure over other primitives
+    /// is refused.
+    pub fn from_bytes(bytes: &[u8], prims: &[P]) -> Result<Self, LoadError> {
+        let Saved { params, tree, ids } =
+            read_tree::<N, Node>(bytes, PRIMITIVES, (prims.len(), bounds_hash(prims)))?;
+        let corrupt = |e: String| LoadError::Corrupt(e);
+        let bvh = Self::assemble(tree, in_leaf_order(prims, &ids), ids, prims.len(), params);
+        bvh.validate().map_err(corrupt)?;
+        if params.splits_primitives() {
+            let tris: Option<Vec<Triangle>> =
+                prims.iter().map(|p| p.as_triangle().copied()).collect();
+            let tris = tris.ok_or_else(|| {
+                corrupt("spatial splits over primitives other than triangles".into())
+            })?;
+            let mut boxes = vec![Vec::new(); tris.len()];
+            bvh.tree()
+                .check(|first, count, bounds| {
+                    for &id in &bvh.ids()[first as usize..(first + count) as usize] {
+                        boxes[id as usize].push(*bounds);
+                    }
+                    Ok(())
+                })
+                .map_err(corrupt)?;
+            check_coverage(&tris, &boxes).map_err(corrupt)?;
+        }
+        Ok(bvh)
+    }
+}
+
+/// A hash of the primitives' boxes ([`hash`]'s words: the count, then each box's corners).
+fn bounds_hash<'a, P: Primitive>(prims: impl IntoIterator<Item = &'a P>) -> u64 {
+    let boxes: Vec<Triangle> = prims
+        .into_iter()
+        .map(|p| {
+            let b = p.bounds();
+            Triangle::new(b.min, b.max, Vec3::ZERO)
+        })
+        .collect();
+    hash(&boxes)
 }
 
 #[cfg(test)]
@@ -650,6 +750,68 @@ mod tests {
         round_trip(TriBvh8::build_for_tracing(&[]).unwrap(), &[]);
     }
 
+    /// Wide BVHs over any primitive: spheres, mixed shapes, every layout; spatial splits of
+    /// triangles load (their coverage is checked), of other primitives are refused.
+    #[test]
+    fn wide_bvhs_over_any_primitive_round_trip() {
+        use crate::{Bvh4, Bvh8, CompressedBvh8};
+        fn again<P: Primitive, const N: usize, Node: NodeLayout<N> + SavedNode>(
+            bvh: WideBvh<P, N, Node>,
+            prims: &[P],
+        ) -> Result<(), LoadError> {
+            let bytes = bvh.to_bytes();
+            let loaded = WideBvh::<P, N, Node>::from_bytes(&bytes, prims)?;
+            assert!(same_answers(&loaded, &bvh, &rays(2000)));
+            assert_eq!(loaded.to_bytes(), bytes);
+            Ok(())
+        }
+        let spheres = scenes::random_spheres(300, 5);
+        let shapes = scenes::mixed_shapes(300, 6);
+        let tris = scenes::random_soup(300, 7);
+        let balanced = BvhParams::balanced();
+        again(Bvh8::build(&spheres, balanced).unwrap(), &spheres).unwrap();
+        again(Bvh4::build(&shapes, balanced).unwrap(), &shapes).unwrap();
+        again(CompressedBvh8::build(&shapes, balanced).unwrap(), &shapes).unwrap();
+        again(Bvh8::build(&tris, BvhParams::spatial()).unwrap(), &tris).unwrap();
+        let split_shapes = Bvh8::build(&shapes, BvhParams::spatial()).unwrap();
+        assert!(matches!(
+            again(split_shapes, &shapes),
+            Err(LoadError::Corrupt(_))
+        ));
+        // Primitives with other boxes are refused; the triangle family is another layout.
+        let bytes = Bvh8::build(&spheres, balanced).unwrap().to_bytes();
+        let mut moved = spheres.clone();
+        moved[3].radius *= 2.0;
+        let err = Bvh8::from_bytes(&bytes, &moved).unwrap_err();
+        assert_eq!(err, LoadError::OtherPrimitives);
+        let tri_bytes = TriBvh8::build_for_tracing(&tris).unwrap().to_bytes();
+        let err = Bvh8::from_bytes(&tri_bytes, &tris).unwrap_err();
+        assert!(matches!(err, LoadError::Layout { .. }));
+    }
+
+    /// The loader fuzzer's findings (`fuzz/regressions/load_bvh`), each refused for what it
+    /// is: a second encoding of the parameters, a spatial-split triangle its leaves no longer
+    /// cover (wrong answers before), a leaf in a node the root does not reach (a panic before).
+    #[test]
+    fn fuzz_findings_are_refused_for_their_fault() {
+        let tris = scenes::tessellated_sphere(40, Vec3::ZERO, 1.0);
+        let dir = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../fuzz/regressions/load_bvh/"
+        );
+        for (file, fault) in [
+            ("non-canonical-params", "unused field"),
+            ("wrong-answer-1", "not covered"),
+            ("unreachable-node-leaf", "out of range"),
+        ] {
+            let bytes = std::fs::read(format!("{dir}{file}")).unwrap();
+            match TriBvh8::from_bytes(&bytes, &tris) {
+                Err(LoadError::Corrupt(why)) => assert!(why.contains(fault), "{file}: {why}"),
+                other => panic!("{file}: {other:?}"),
+            }
+        }
+    }
+
     #[test]
     fn foreign_bytes_other_triangles_and_other_layouts_are_refused() {
         let tris = scenes::random_soup(50, 4);
@@ -662,11 +824,11 @@ mod tests {
         moved[7].v[1].x += 1e-3;
         assert_eq!(
             TriBvh8::from_bytes(&bytes, &moved).unwrap_err(),
-            LoadError::OtherTriangles
+            LoadError::OtherPrimitives
         );
         assert_eq!(
             TriBvh8::from_bytes(&bytes, &tris[1..]).unwrap_err(),
-            LoadError::OtherTriangles
+            LoadError::OtherPrimitives
         );
         assert!(matches!(
             TriBvh4::from_bytes(&bytes, &tris),
@@ -704,7 +866,7 @@ mod tests {
                 .unwrap()
                 .to_bytes(),
         ] {
-            let compressed = bvh_bytes[13] == 1;
+            let compressed = bvh_bytes[14] == 1;
             let load = |b: &[u8]| -> Result<Box<dyn Accel>, LoadError> {
                 if compressed {
                     Ok(Box::new(CompressedTriBvh8::from_bytes(b, &tris)?))

@@ -13,11 +13,11 @@ use rt_geom::{
 /// default), sharing the leaf-ordered primitives of the binary tree it was collapsed from.
 #[derive(Clone, Debug)]
 pub struct WideBvh<P, const N: usize, Node = WideNode<N>> {
-    tree: WideTree<N, Node>,
-    prims: Vec<P>,
-    ids: Vec<u32>,
-    count: usize,
-    params: BvhParams,
+    pub(crate) tree: WideTree<N, Node>,
+    pub(crate) prims: Vec<P>,
+    pub(crate) ids: Vec<u32>,
+    pub(crate) count: usize,
+    pub(crate) params: BvhParams,
 }
 
 /// A 4-wide BVH over primitives `P`.
@@ -41,6 +41,17 @@ impl<P: Primitive, const N: usize, Node: NodeLayout<N>> WideBvh<P, N, Node> {
             params,
             ..
         } = bvh;
+        Self::assemble(tree, prims, ids, count, params)
+    }
+
+    /// The structure of a tree, its leaf-ordered primitives and their ids.
+    pub(crate) fn assemble(
+        tree: WideTree<N, Node>,
+        prims: Vec<P>,
+        ids: Vec<u32>,
+        count: usize,
+        params: BvhParams,
+    ) -> Self {
         Self {
             tree,
             prims,
