@@ -1,11 +1,11 @@
-//! Saved structures: a built [`TriBvh`] or [`WideBvh`] as bytes and back, so that a renderer
+//! Saved structures: a built [`TriBvh`], [`WideBvh`] or [`Bvh`] as bytes and back, so that a renderer
 //! builds a scene once. A plain little-endian layout, versioned:
 //!
 //! ```text
 //! magic     8 bytes  "rt-bvh\r\n"
 //! version   u32      1
-//! layout    3 x u8   leaves (0: SoA triangles, 1: any primitives), lanes (4 or 8), node kind
-//!                    (0: exact boxes, 1: quantized)
+//! layout    3 x u8   leaves (0: SoA triangles, 1: any primitives, 2: binary over any
+//!                    primitives), lanes (2, 4 or 8), node kind (0: exact boxes, 1: quantized)
 //! params    the build parameters (BvhParams), field by field
 //! primitives u64, u64 count, and a 64-bit FNV-1a hash (over 32-bit words) of every
 //!                    triangle vertex's coordinates (`WideBvh`: of every primitive's box)
@@ -38,7 +38,7 @@
 use crate::compressed::CompressedNode;
 use crate::refit::in_leaf_order;
 use crate::wide::{NodeLayout, WideNode, WideTree};
-use crate::{BvhBuilder, BvhParams, TriBvh, WideBvh, WideCollapse};
+use crate::{Bvh, BvhBuilder, BvhNode, BvhParams, TriBvh, WideBvh, WideCollapse};
 use rt_geom::{Aabb, Accel, Isa, Primitive, Triangle, TriangleSoa, Vec3};
 use std::fmt;
 
@@ -439,6 +439,7 @@ fn read_params(r: &mut In) -> Result<BvhParams, LoadError> {
 /// The family byte of the format: what the leaves hold.
 const TRIANGLES: u8 = 0;
 const PRIMITIVES: u8 = 1;
+const BINARY: u8 = 2;
 
 /// What [`write_tree`] writes and [`read_tree`] reads: everything but the leaves' contents.
 struct Saved<const N: usize, Node> {
@@ -456,14 +457,12 @@ fn write_tree<const N: usize, Node: SavedNode>(
     ids: &[u32],
 ) -> Vec<u8> {
     let mut out = Out::default();
-    out.0.extend_from_slice(MAGIC);
-    out.u32(VERSION);
-    out.u8(family);
-    out.u8(N as u8);
-    out.u8(Node::KIND);
-    write_params(&mut out, params);
-    out.u64(count as u64);
-    out.u64(hash);
+    write_header(
+        &mut out,
+        (family, N as u8, Node::KIND),
+        params,
+        (count, hash),
+    );
     let b = &tree.root_bounds;
     for x in b.min.to_array().into_iter().chain(b.max.to_array()) {
         out.f32(x);
@@ -483,6 +482,51 @@ fn write_tree<const N: usize, Node: SavedNode>(
     out.0
 }
 
+/// Checks the magic, the version and the layout `expected`, reads the parameters, and checks
+/// the primitives' `count` and `hash`.
+fn read_header(
+    r: &mut In,
+    expected: (u8, u8, u8),
+    (count, hash): (usize, u64),
+) -> Result<BvhParams, LoadError> {
+    if r.take::<8>().ok().as_ref() != Some(MAGIC) {
+        return Err(LoadError::NotASavedStructure);
+    }
+    let found = r.u32()?;
+    if found != VERSION {
+        return Err(LoadError::Version { found });
+    }
+    let layout = (r.u8()?, r.u8()?, r.u8()?);
+    if layout != expected {
+        return Err(LoadError::Layout {
+            found: layout,
+            expected,
+        });
+    }
+    let params = read_params(r)?;
+    if (r.u64()?, r.u64()?) != (count as u64, hash) {
+        return Err(LoadError::OtherPrimitives);
+    }
+    Ok(params)
+}
+
+/// Writes the header: magic, version, layout, parameters, the primitives' count and hash.
+fn write_header(
+    out: &mut Out,
+    layout: (u8, u8, u8),
+    params: &BvhParams,
+    (count, hash): (usize, u64),
+) {
+    out.0.extend_from_slice(MAGIC);
+    out.u32(VERSION);
+    out.u8(layout.0);
+    out.u8(layout.1);
+    out.u8(layout.2);
+    write_params(out, params);
+    out.u64(count as u64);
+    out.u64(hash);
+}
+
 /// Reads what [`write_tree`] wrote for `count` primitives of hash `hash`, and checks the
 /// topology (every node's lanes, reached or not; children after parents; depth bounded;
 /// leaves inside the id list; ids naming primitives) before anything is indexed by it.
@@ -492,25 +536,7 @@ fn read_tree<const N: usize, Node: NodeLayout<N> + SavedNode>(
     (count, hash): (usize, u64),
 ) -> Result<Saved<N, Node>, LoadError> {
     let mut r = In(bytes);
-    if r.take::<8>().ok().as_ref() != Some(MAGIC) {
-        return Err(LoadError::NotASavedStructure);
-    }
-    let found = r.u32()?;
-    if found != VERSION {
-        return Err(LoadError::Version { found });
-    }
-    let layout = (r.u8()?, r.u8()?, r.u8()?);
-    let expected = (family, N as u8, Node::KIND);
-    if layout != expected {
-        return Err(LoadError::Layout {
-            found: layout,
-            expected,
-        });
-    }
-    let params = read_params(&mut r)?;
-    if (r.u64()?, r.u64()?) != (count as u64, hash) {
-        return Err(LoadError::OtherPrimitives);
-    }
+    let params = read_header(&mut r, (family, N as u8, Node::KIND), (count, hash))?;
     let mut corners = [0.0f32; 6];
     for c in &mut corners {
         *c = r.f32()?;
@@ -679,6 +705,103 @@ impl<P: Primitive, const N: usize, Node: NodeLayout<N> + SavedNode> WideBvh<P, N
     }
 }
 
+impl<P: Primitive> Bvh<P> {
+    /// The structure as bytes (the [format](crate::save): layout family 2, two lanes, the
+    /// 32-byte nodes field by field where the wide trees have theirs); the primitives are not
+    /// included.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut prims: Vec<Option<&P>> = vec![None; self.count];
+        for (p, &id) in self.prims.iter().zip(&self.ids) {
+            prims[id as usize] = Some(p);
+        }
+        let hash = bounds_hash(prims.into_iter().flatten());
+        let mut out = Out::default();
+        write_header(&mut out, (BINARY, 2, 0), &self.params, (self.count, hash));
+        out.u64(self.nodes.len() as u64);
+        for n in &self.nodes {
+            n.min.iter().for_each(|&x| out.f32(x));
+            out.u32(n.offset);
+            n.max.iter().for_each(|&x| out.f32(x));
+            out.u32(n.meta);
+        }
+        out.u64(self.ids.len() as u64);
+        self.ids.iter().for_each(|&id| out.u32(id));
+        out.0
+    }
+
+    /// The structure [`Self::to_bytes`] saved, over primitives with the same boxes as those
+    /// it was built over, checked as [`WideBvh::from_bytes`] checks its own.
+    pub fn from_bytes(bytes: &[u8], prims: &[P]) -> Result<Self, LoadError> {
+        let mut r = In(bytes);
+        let params = read_header(&mut r, (BINARY, 2, 0), (prims.len(), bounds_hash(prims)))?;
+        let nodes: Vec<BvhNode> = (0..r.count(32)?)
+            .map(|_| read_node(&mut r))
+            .collect::<Result<_, _>>()?;
+        let ids: Vec<u32> = (0..r.count(4)?)
+            .map(|_| r.u32())
+            .collect::<Result<_, _>>()?;
+        if !r.0.is_empty() {
+            return Err(LoadError::TrailingBytes);
+        }
+        let corrupt = |e: String| LoadError::Corrupt(e);
+        if let Some(&id) = ids.iter().find(|&&i| i as usize >= prims.len()) {
+            return Err(corrupt(format!("id {id} of {} primitives", prims.len())));
+        }
+        let bvh = Bvh {
+            nodes,
+            prims: in_leaf_order(prims, &ids),
+            ids,
+            count: prims.len(),
+            params,
+        };
+        bvh.validate().map_err(corrupt)?;
+        if params.splits_primitives() {
+            let tris: Option<Vec<Triangle>> =
+                prims.iter().map(|p| p.as_triangle().copied()).collect();
+            let tris = tris.ok_or_else(|| {
+                corrupt("spatial splits over primitives other than triangles".into())
+            })?;
+            check_coverage(&tris, &bvh.leaf_boxes()).map_err(corrupt)?;
+        }
+        Ok(bvh)
+    }
+
+    /// Per primitive, the boxes of the leaves that list it, each intersected with the boxes
+    /// on its way down (what the walk tests before it reaches the leaf). The tree must have
+    /// passed `validate()`.
+    fn leaf_boxes(&self) -> Vec<Vec<Aabb>> {
+        let mut boxes = vec![Vec::new(); self.count];
+        if self.nodes.is_empty() {
+            return boxes;
+        }
+        let mut stack = vec![(0usize, Aabb::new(Vec3::NEG_INFINITY, Vec3::INFINITY))];
+        while let Some((i, above)) = stack.pop() {
+            let n = &self.nodes[i];
+            let b = n.bounds().intersection(above);
+            if n.is_leaf() {
+                let first = n.offset as usize;
+                for &id in &self.ids[first..first + n.count() as usize] {
+                    boxes[id as usize].push(b);
+                }
+            } else {
+                stack.push((i + 1, b));
+                stack.push((n.offset as usize, b));
+            }
+        }
+        boxes
+    }
+}
+
+/// A node of the binary layout, field by field.
+fn read_node(r: &mut In) -> Result<BvhNode, LoadError> {
+    Ok(BvhNode {
+        min: [r.f32()?, r.f32()?, r.f32()?],
+        offset: r.u32()?,
+        max: [r.f32()?, r.f32()?, r.f32()?],
+        meta: r.u32()?,
+    })
+}
+
 /// A hash of the primitives' boxes ([`hash`]'s words: the count, then each box's corners).
 fn bounds_hash<'a, P: Primitive>(prims: impl IntoIterator<Item = &'a P>) -> u64 {
     let boxes: Vec<Triangle> = prims
@@ -789,9 +912,45 @@ mod tests {
         assert!(matches!(err, LoadError::Layout { .. }));
     }
 
+    /// Binary BVHs over any primitive round trip; a damaged one is refused or harmless, never
+    /// a panic or a hang (children pointing backwards, a split axis past z).
+    #[test]
+    fn binary_bvhs_round_trip_and_refuse_damage() {
+        use crate::Bvh;
+        let shapes = scenes::mixed_shapes(200, 8);
+        let tris = scenes::random_soup(200, 9);
+        for (bvh, prims) in [
+            (Bvh::build(&shapes, BvhParams::balanced()).unwrap(), &shapes),
+            (Bvh::build(&shapes, BvhParams::quality()).unwrap(), &shapes),
+        ] {
+            let bytes = bvh.to_bytes();
+            let loaded = Bvh::from_bytes(&bytes, prims).unwrap();
+            assert!(same_answers(&loaded, &bvh, &rays(2000)));
+            assert_eq!(loaded.to_bytes(), bytes);
+        }
+        let split = Bvh::build(&tris, BvhParams::spatial()).unwrap();
+        let loaded = Bvh::from_bytes(&split.to_bytes(), &tris).unwrap();
+        assert!(same_answers(&loaded, &split, &rays(2000)));
+        let brute = BruteForce::build(&shapes).unwrap();
+        let bytes = Bvh::build(&shapes, BvhParams::balanced())
+            .unwrap()
+            .to_bytes();
+        let rays = rays(200);
+        for at in 0..bytes.len() {
+            for bit in [0, 5, 7] {
+                let mut b = bytes.clone();
+                b[at] ^= 1 << bit;
+                if let Ok(a) = Bvh::from_bytes(&b, &shapes) {
+                    assert!(same_answers(&a, &brute, &rays), "byte {at} bit {bit}");
+                }
+            }
+        }
+    }
+
     /// The loader fuzzer's findings (`fuzz/regressions/load_bvh`), each refused for what it
     /// is: a second encoding of the parameters, a spatial-split triangle its leaves no longer
-    /// cover (wrong answers before), a leaf in a node the root does not reach (a panic before).
+    /// cover (wrong answers before), a leaf in a node the root does not reach (a panic
+    /// before), binary trees without nodes.
     #[test]
     fn fuzz_findings_are_refused_for_their_fault() {
         let tris = scenes::tessellated_sphere(40, Vec3::ZERO, 1.0);
@@ -807,6 +966,15 @@ mod tests {
             let bytes = std::fs::read(format!("{dir}{file}")).unwrap();
             match TriBvh8::from_bytes(&bytes, &tris) {
                 Err(LoadError::Corrupt(why)) => assert!(why.contains(fault), "{file}: {why}"),
+                other => panic!("{file}: {other:?}"),
+            }
+        }
+        // Binary trees without nodes for a non-empty scene: it answered nothing, and with
+        // spatial-split parameters its coverage check panicked.
+        for file in ["no-nodes-for-primitives", "empty-binary-split"] {
+            let bytes = std::fs::read(format!("{dir}{file}")).unwrap();
+            match crate::Bvh::from_bytes(&bytes, &tris) {
+                Err(LoadError::Corrupt(why)) => assert!(why.contains("no nodes"), "{file}: {why}"),
                 other => panic!("{file}: {other:?}"),
             }
         }

@@ -43,8 +43,13 @@ impl<P: Primitive> Bvh<P> {
             f(i, d);
             let n = &self.nodes[i];
             if !n.is_leaf() {
-                stack.push((n.offset as usize, d + 1));
-                stack.push((i + 1, d + 1));
+                // Children come after their parent: anything else is a fault `check` reports,
+                // and is not followed (no index out of range, no cycle).
+                for c in [n.offset as usize, i + 1] {
+                    if c > i && c < self.nodes.len() {
+                        stack.push((c, d + 1));
+                    }
+                }
             }
         }
     }
@@ -90,7 +95,7 @@ impl<P: Primitive> Bvh<P> {
             return Err("primitive and id arrays differ in length".into());
         }
         if self.nodes.is_empty() {
-            return if self.prims.is_empty() {
+            return if self.prims.is_empty() && self.count == 0 {
                 Ok(())
             } else {
                 Err("no nodes for a non-empty scene".into())
@@ -124,6 +129,9 @@ impl<P: Primitive> Bvh<P> {
                     }
                 }
             } else {
+                if n.axis() > 2 {
+                    return fail(format!("node {i} splits axis {}", n.axis()));
+                }
                 for c in [i + 1, n.offset as usize] {
                     if c >= self.nodes.len() || c <= i {
                         return fail(format!("node {i} has child index {c}"));

@@ -121,9 +121,9 @@ pub fn load_bvh_triangles() -> Vec<Triangle> {
 /// The saved-structure loader (`TriBvh::from_bytes`): any bytes are refused with an error or
 /// load a structure that answers rays exactly as brute force does, and saves back to the
 /// same bytes. Tried as each layout (`TriBvh8`, `TriBvh4`, `CompressedTriBvh8`, and `Bvh8`
-/// over the triangles as primitives).
+/// and the binary `Bvh` over the triangles as primitives).
 pub fn load_bvh(bytes: &[u8]) -> Result<(), String> {
-    use rt_accel_bvh::{Bvh8, CompressedTriBvh8, TriBvh4, TriBvh8};
+    use rt_accel_bvh::{Bvh, Bvh8, CompressedTriBvh8, TriBvh4, TriBvh8};
     let tris = load_bvh_triangles();
     let brute = rt_geom::BruteForce::build(&tris).map_err(|e| e.to_string())?;
     let loaded: Vec<(Box<dyn Accel>, Vec<u8>)> = [
@@ -132,6 +132,7 @@ pub fn load_bvh(bytes: &[u8]) -> Result<(), String> {
         CompressedTriBvh8::from_bytes(bytes, &tris)
             .map(|b| (b.to_bytes(), Box::new(b) as Box<dyn Accel>)),
         Bvh8::from_bytes(bytes, &tris).map(|b| (b.to_bytes(), Box::new(b) as Box<dyn Accel>)),
+        Bvh::from_bytes(bytes, &tris).map(|b| (b.to_bytes(), Box::new(b) as Box<dyn Accel>)),
     ]
     .into_iter()
     .filter_map(Result::ok)

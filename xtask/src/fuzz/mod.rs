@@ -179,7 +179,7 @@ pub fn generated_seeds(name: &str) -> Vec<(String, Vec<u8>)> {
             out
         }
         "load_bvh" => {
-            use rt_accel_bvh::{Bvh8, BvhParams, CompressedTriBvh8, TriBvh4, TriBvh8};
+            use rt_accel_bvh::{Bvh, Bvh8, BvhParams, CompressedTriBvh8, TriBvh4, TriBvh8};
             let tris = checks::load_bvh_triangles();
             let spatial = BvhParams::spatial().for_soa_leaves();
             let saved = [
@@ -203,6 +203,7 @@ pub fn generated_seeds(name: &str) -> Vec<(String, Vec<u8>)> {
                     "gen-bvh8",
                     Bvh8::build(&tris, spatial).map(|b| b.to_bytes()),
                 ),
+                ("gen-bvh2", Bvh::build(&tris, spatial).map(|b| b.to_bytes())),
             ];
             saved
                 .into_iter()
