@@ -1,23 +1,27 @@
-//! Saved structures: a built [`TriBvh`], [`WideBvh`] or [`Bvh`] as bytes and back, so that a renderer
-//! builds a scene once. A plain little-endian layout, versioned:
+//! Saved structures: a built [`TriBvh`], [`WideBvh`] or [`Bvh`] as bytes and back, so that
+//! a renderer builds a scene once. A plain little-endian layout, versioned:
 //!
 //! ```text
-//! magic     8 bytes  "rt-bvh\r\n"
-//! version   u32      1
-//! layout    3 x u8   leaves (0: SoA triangles, 1: any primitives, 2: binary over any
-//!                    primitives), lanes (2, 4 or 8), node kind (0: exact boxes, 1: quantized)
-//! params    the build parameters (BvhParams), field by field
-//! primitives u64, u64 count, and a 64-bit FNV-1a hash (over 32-bit words) of every
-//!                    triangle vertex's coordinates (`WideBvh`: of every primitive's box)
-//! tree      root box (6 f32), root leaf (u8 flag, u32 first, u32 count), nodes (u64 count,
-//!           each node field by field)
-//! ids       u64 count, u32 each: the caller's index of each triangle in leaf order
+//! magic      8 bytes  "rt-bvh\r\n"
+//! version    u32      1
+//! layout     3 x u8   leaves (0: SoA triangles, 1: any primitives, 2: binary tree over any
+//!                     primitives), lanes (4 or 8; 2 for the binary tree), node kind (0: exact
+//!                     boxes, 1: quantized)
+//! params     the build parameters (BvhParams), field by field; fields a variant does not
+//!            use are zero
+//! primitives u64 count, u64 hash: 64-bit FNV-1a over 32-bit words of every triangle vertex's
+//!            coordinates (WideBvh, Bvh: of every primitive's box, all they depend on)
+//! tree       wide: root box (6 f32), root leaf (u8 flag, u32 first, u32 count), then nodes;
+//!            binary: nodes; nodes as a u64 count and each node field by field
+//! ids        u64 count, u32 each: the caller's index of each primitive in leaf order
 //! ```
 //!
 //! The primitives are not stored: `from_bytes` takes them again and checks them against the
-//! hash, so a file cannot be loaded over other geometry. Loading checks the
-//! magic, the version, the layout, every length against the bytes left, the topology before
-//! anything is indexed by it, and then the structure's own [`Accel::validate`]: a truncated,
+//! hash, so a file cannot be loaded over other geometry. Loading checks the magic, the
+//! version, the layout, every length against the bytes left, the topology of every node
+//! before anything is indexed by it, each leaf's contents, the structure's own
+//! [`Accel::validate`], and for spatial splits that every triangle is covered by the boxes
+//! of its leaves (split structures over other primitives are refused): a truncated,
 //! corrupted or foreign file is a [`LoadError`], never a panic or a wrong answer.
 //!
 //! ```
