@@ -645,15 +645,7 @@ impl<const N: usize, Node: NodeLayout<N> + SavedNode> TriBvh<N, Node> {
         let bvh = Self::assemble(tree, soa, ids, tris.len(), params);
         bvh.validate().map_err(corrupt)?;
         if params.splits_primitives() {
-            let mut boxes = vec![Vec::new(); tris.len()];
-            bvh.tree
-                .check(|first, count, bounds| {
-                    for &id in &bvh.ids[first as usize..(first + count) as usize] {
-                        boxes[id as usize].push(*bounds);
-                    }
-                    Ok(())
-                })
-                .map_err(corrupt)?;
+            let boxes = wide_leaf_boxes(&bvh.tree, &bvh.ids, tris.len()).map_err(corrupt)?;
             check_coverage(tris, &boxes).map_err(corrupt)?;
         }
         Ok(bvh)
@@ -663,11 +655,7 @@ impl<const N: usize, Node: NodeLayout<N> + SavedNode> TriBvh<N, Node> {
 impl<P: Primitive, const N: usize, Node: NodeLayout<N> + SavedNode> WideBvh<P, N, Node> {
     /// The structure as bytes (the [format](crate::save)); the primitives are not included.
     pub fn to_bytes(&self) -> Vec<u8> {
-        let mut prims: Vec<Option<&P>> = vec![None; self.count];
-        for (p, &id) in self.prims.iter().zip(&self.ids) {
-            prims[id as usize] = Some(p);
-        }
-        let hash = bounds_hash(prims.into_iter().flatten());
+        let hash = caller_bounds_hash(&self.prims, &self.ids, self.count);
         write_tree(
             PRIMITIVES,
             &self.params,
@@ -689,21 +677,8 @@ impl<P: Primitive, const N: usize, Node: NodeLayout<N> + SavedNode> WideBvh<P, N
         let bvh = Self::assemble(tree, in_leaf_order(prims, &ids), ids, prims.len(), params);
         bvh.validate().map_err(corrupt)?;
         if params.splits_primitives() {
-            let tris: Option<Vec<Triangle>> =
-                prims.iter().map(|p| p.as_triangle().copied()).collect();
-            let tris = tris.ok_or_else(|| {
-                corrupt("spatial splits over primitives other than triangles".into())
-            })?;
-            let mut boxes = vec![Vec::new(); tris.len()];
-            bvh.tree()
-                .check(|first, count, bounds| {
-                    for &id in &bvh.ids()[first as usize..(first + count) as usize] {
-                        boxes[id as usize].push(*bounds);
-                    }
-                    Ok(())
-                })
-                .map_err(corrupt)?;
-            check_coverage(&tris, &boxes).map_err(corrupt)?;
+            let boxes = wide_leaf_boxes(&bvh.tree, &bvh.ids, prims.len()).map_err(corrupt)?;
+            check_coverage(&split_triangles(prims)?, &boxes).map_err(corrupt)?;
         }
         Ok(bvh)
     }
@@ -714,11 +689,7 @@ impl<P: Primitive> Bvh<P> {
     /// 32-byte nodes field by field where the wide trees have theirs); the primitives are not
     /// included.
     pub fn to_bytes(&self) -> Vec<u8> {
-        let mut prims: Vec<Option<&P>> = vec![None; self.count];
-        for (p, &id) in self.prims.iter().zip(&self.ids) {
-            prims[id as usize] = Some(p);
-        }
-        let hash = bounds_hash(prims.into_iter().flatten());
+        let hash = caller_bounds_hash(&self.prims, &self.ids, self.count);
         let mut out = Out::default();
         write_header(&mut out, (BINARY, 2, 0), &self.params, (self.count, hash));
         out.u64(self.nodes.len() as u64);
@@ -760,12 +731,7 @@ impl<P: Primitive> Bvh<P> {
         };
         bvh.validate().map_err(corrupt)?;
         if params.splits_primitives() {
-            let tris: Option<Vec<Triangle>> =
-                prims.iter().map(|p| p.as_triangle().copied()).collect();
-            let tris = tris.ok_or_else(|| {
-                corrupt("spatial splits over primitives other than triangles".into())
-            })?;
-            check_coverage(&tris, &bvh.leaf_boxes()).map_err(corrupt)?;
+            check_coverage(&split_triangles(prims)?, &bvh.leaf_boxes()).map_err(corrupt)?;
         }
         Ok(bvh)
     }
@@ -804,6 +770,45 @@ fn read_node(r: &mut In) -> Result<BvhNode, LoadError> {
         max: [r.f32()?, r.f32()?, r.f32()?],
         meta: r.u32()?,
     })
+}
+
+/// [`bounds_hash`] of the primitives in the caller's order, from the leaf-ordered `prims`
+/// and their `ids` (each once, wherever a spatial split listed it twice).
+fn caller_bounds_hash<P: Primitive>(prims: &[P], ids: &[u32], count: usize) -> u64 {
+    let mut caller: Vec<Option<&P>> = vec![None; count];
+    for (p, &id) in prims.iter().zip(ids) {
+        caller[id as usize] = Some(p);
+    }
+    bounds_hash(caller.into_iter().flatten())
+}
+
+/// Per primitive, the boxes of the wide tree's leaves that list it, each intersected with
+/// the boxes on its way down (what the walk tests before it reaches the leaf).
+fn wide_leaf_boxes<const N: usize, Node: NodeLayout<N>>(
+    tree: &WideTree<N, Node>,
+    ids: &[u32],
+    count: usize,
+) -> Result<Vec<Vec<Aabb>>, String> {
+    let mut boxes = vec![Vec::new(); count];
+    tree.check(|first, n, bounds| {
+        for &id in &ids[first as usize..(first + n) as usize] {
+            boxes[id as usize].push(*bounds);
+        }
+        Ok(())
+    })?;
+    Ok(boxes)
+}
+
+/// The primitives as triangles, whose coverage by split leaves can be checked; a split
+/// structure over other primitives is refused.
+fn split_triangles<P: Primitive>(prims: &[P]) -> Result<Vec<Triangle>, LoadError> {
+    prims
+        .iter()
+        .map(|p| p.as_triangle().copied())
+        .collect::<Option<_>>()
+        .ok_or_else(|| {
+            LoadError::Corrupt("spatial splits over primitives other than triangles".into())
+        })
 }
 
 /// A hash of the primitives' boxes ([`hash`]'s words: the count, then each box's corners).
