@@ -8,16 +8,26 @@ use std::path::Path;
 use xtask::registry::REGISTRY;
 
 fn image(scene: &Scene, accel: &dyn rt_geom::Accel, w: u32, h: u32) -> (Image, rt_shade::RayStats) {
+    try_image(scene, accel, w, h).expect("renders")
+}
+
+fn try_image(
+    scene: &Scene,
+    accel: &dyn rt_geom::Accel,
+    w: u32,
+    h: u32,
+) -> Result<(Image, rt_shade::RayStats), rt_shade::SceneError> {
     let options = RenderOptions {
         width: w,
         height: h,
         ..RenderOptions::default()
     };
-    let out = render(scene, accel, &options, &|_| {}).expect("renders");
-    (out.image, out.stats)
+    let out = render(scene, accel, &options, &|_| {})?;
+    Ok((out.image, out.stats))
 }
 
-/// Renders with every entry `include` accepts and checks each image against brute force's.
+/// Renders with every entry `include` accepts and checks each image against brute force's
+/// (with filtered queries, or, for a peer without them, brute force's without them).
 fn same_image_everywhere(
     scene: &Scene,
     w: u32,
@@ -25,13 +35,26 @@ fn same_image_everywhere(
     include: impl Fn(&xtask::registry::AccelEntry) -> bool,
 ) {
     let reference = rt_geom::BruteForce::build(&scene.shapes).unwrap();
-    let (want, want_stats) = image(scene, &reference, w, h);
-    assert!(want_stats.eye_hits > 0 && want_stats.reflected > 0 && want_stats.refracted > 0);
+    let filtered = image(scene, &reference, w, h);
+    // Without filtered queries (a peer's structure), where the scene renders without them.
+    let unfiltered = try_image(scene, &rt_testkit::Unfiltered(&reference), w, h).ok();
+    for (_, stats) in std::iter::once(&filtered).chain(&unfiltered) {
+        assert!(stats.eye_hits > 0 && stats.reflected > 0 && stats.refracted > 0);
+    }
     let (mut checked, mut packet_paths) = (0, 0);
     for entry in REGISTRY.iter().filter(|e| include(e)) {
         let accel = entry
             .build_any(&scene.shapes)
             .unwrap_or_else(|e| panic!("{e}"));
+        let (want, want_stats) = match (accel.filtered(), &unfiltered) {
+            (Some(_), _) => &filtered,
+            (None, Some(unfiltered)) => unfiltered,
+            (None, None) => {
+                let refused = try_image(scene, accel.as_ref(), w, h).is_err();
+                assert!(refused, "{}: renders without filtered queries", entry.name);
+                continue;
+            }
+        };
         let (got, stats) = image(scene, accel.as_ref(), w, h);
         let differ = want
             .pixels
@@ -44,7 +67,7 @@ fn same_image_everywhere(
             "{}: {differ} pixels differ from brute force on {}",
             entry.name, scene.name
         );
-        assert_eq!(stats, want_stats, "{}: ray counts differ", entry.name);
+        assert_eq!(stats, *want_stats, "{}: ray counts differ", entry.name);
         checked += 1;
         // Every ray through the packet path, tile by tile: the same image again.
         let (Some(build), Some(tris)) = (entry.packets, triangles(scene)) else {
@@ -57,18 +80,12 @@ fn same_image_everywhere(
             samples_per_axis: 2,
             ..RenderOptions::default()
         };
-        let intersect = |rays: &[rt_geom::Ray], out: &mut [Option<rt_geom::Hit>]| {
-            packets.intersect_group(rays, out)
-        };
-        let occluded = |rays: &[rt_geom::Ray], out: &mut [bool]| packets.occluded_group(rays, out);
         let with = |p: Option<rt_shade::Packets<'_>>| {
             render_with_packets(scene, accel.as_ref(), p, &options, &|_| {}).expect("renders")
         };
-        let all = rt_shade::Packets {
-            intersect: &intersect,
-            occluded: &occluded,
-        };
-        let (single, packed) = (with(None), with(Some(all)));
+        let single = with(None);
+        let packed =
+            xtask::render::with_packets(accel.as_ref(), packets.as_ref(), |p| with(Some(p)));
         assert!(
             single.image.pixels == packed.image.pixels && single.stats == packed.stats,
             "{}: rays in packets change the image",
@@ -102,6 +119,13 @@ fn chess_is_the_same_with_every_structure() {
     same_image_everywhere(&rt_shade::chess(), 96, 72, |e| {
         e.tolerance.near_t == 0.0 && e.tolerance.rel_t <= 1e-6
     });
+}
+
+#[test]
+fn chess_lamp_is_the_same_with_every_structure() {
+    // The bulb casts no shadow (a ray mask on the shadow rays): every rt structure, through
+    // its filtered queries and its packet path.
+    same_image_everywhere(&rt_shade::chess_lamp(), 64, 48, |e| !e.external);
 }
 
 /// An SPD-like scene: glass and mirror spheres, cylinders and cones, a concave star polygon,

@@ -7,7 +7,8 @@ use rt_accel_bvh::{BvhParams, Instance, InstanceBvh, Object};
 use rt_geom::{Accel, Hit, Ray, Triangle};
 use rt_packet::PacketAccel;
 use rt_shade::{
-    Camera, Packets, Projection, RayStats, RenderOptions, Scene, SceneObjects, ShadeOptions,
+    Camera, Packets, Projection, Queries, RayStats, RenderOptions, Scene, SceneObjects,
+    ShadeOptions, SingleRays,
 };
 use serde::Serialize;
 use std::path::PathBuf;
@@ -17,7 +18,8 @@ use std::time::Instant;
 /// What `cargo xtask render` was asked for (its command-line options).
 #[derive(Clone, Debug, clap::Args)]
 pub struct RenderArgs {
-    /// `chess` (built in), or an .obj or .nff file.
+    /// `chess` or `chess-lamp` (built in: the board, or with a lamp whose bulb casts no
+    /// shadow), or an .obj or .nff file.
     #[arg(long, default_value = "chess")]
     pub scene: String,
     /// Structure name (`cargo xtask accels`); with `--objects pieces|instanced`, the structure
@@ -420,29 +422,15 @@ fn trace(
     } else {
         bar(options.tiles(), format!("render {}", scene.name))
     };
-    let intersect = |rays: &[Ray], out: &mut [Option<Hit>]| {
-        if let Some(p) = &built.packets {
-            p.intersect_group(rays, out);
-        }
-    };
-    let occluded = |rays: &[Ray], out: &mut [bool]| {
-        if let Some(p) = &built.packets {
-            p.occluded_group(rays, out);
-        }
-    };
     pool.broadcast(|_| rt_geom::counters::take());
+    let single = built.single.as_ref();
+    let render = |packets: Option<Packets<'_>>| {
+        rt_shade::render_with_packets(scene, single, packets, options, &|n| progress.inc(n))
+    };
     let rendered = pool
-        .install(|| {
-            rt_shade::render_with_packets(
-                scene,
-                built.single.as_ref(),
-                built.packets.is_some().then_some(Packets {
-                    intersect: &intersect,
-                    occluded: &occluded,
-                }),
-                options,
-                &|n| progress.inc(n),
-            )
+        .install(|| match built.packets.as_deref() {
+            Some(p) => with_packets(single, p, |packets| render(Some(packets))),
+            None => render(None),
         })
         .map_err(|e| e.to_string())?;
     progress.finish_and_clear();
@@ -451,6 +439,34 @@ fn trace(
         counts += c;
     }
     Ok((rendered, counts))
+}
+
+/// Calls `f` with `packets` as the renderer takes a packet path: a group's rays through
+/// `packets`, each skipping the primitive it leaves where the path can skip one, else ray by
+/// ray through `single`'s filtered queries (a ray leaves a primitive only through a structure
+/// with them).
+pub fn with_packets<R>(
+    single: &dyn Accel,
+    packets: &dyn PacketAccel,
+    f: impl FnOnce(Packets<'_>) -> R,
+) -> R {
+    let single = SingleRays(single);
+    let leaving_path = packets.leaving();
+    let intersect =
+        |rays: &[Ray], leaving: &[Option<u32>], out: &mut [Option<Hit>]| match leaving_path {
+            _ if leaving.is_empty() => packets.intersect_group(rays, out),
+            Some(l) => l.intersect_group_leaving(rays, leaving, out),
+            None => single.intersect(rays, leaving, out),
+        };
+    let occluded = |rays: &[Ray], leaving: &[Option<u32>], out: &mut [bool]| match leaving_path {
+        _ if leaving.is_empty() => packets.occluded_group(rays, out),
+        Some(l) => l.occluded_group_leaving(rays, leaving, out),
+        None => single.occluded(rays, leaving, out),
+    };
+    f(Packets {
+        intersect: &intersect,
+        occluded: &occluded,
+    })
 }
 
 /// The scene's instances as the two-level structure takes them.

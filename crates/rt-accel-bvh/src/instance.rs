@@ -144,15 +144,24 @@ pub struct InstanceBvh<O = Arc<dyn FilteredAccel>> {
 
 impl<O: Accel> InstanceBvh<O> {
     /// Builds the top level (a binary BVH with `params`) over `instances` of `objects`. Fails
-    /// on an instance of an object that does not exist, a transform that is not finite or not
-    /// invertible, world boxes beyond [`rt_geom::MAX_COORDINATE`], or more primitives in all
-    /// than a `u32` numbers.
+    /// on an object whose structure has no filtered queries ([`Accel::filtered`]: every rt
+    /// structure has them; the scene's filtered queries go through its objects'), an instance
+    /// of an object that does not exist, a transform that is not finite or not invertible,
+    /// world boxes beyond [`rt_geom::MAX_COORDINATE`], or more primitives in all than a `u32`
+    /// numbers.
     pub fn build(
         objects: Vec<Object<O>>,
         instances: &[Instance],
         params: BvhParams,
     ) -> Result<Self, BuildError> {
         params.validate()?;
+        if let Some(i) = objects.iter().position(|o| o.accel.filtered().is_none()) {
+            return Err(BuildError::InvalidParameter {
+                name: "Object::accel",
+                value: format!("object {i}, a structure without filtered queries"),
+                expected: "a structure whose `Accel::filtered` answers (every rt structure)",
+            });
+        }
         let mut first_prim = Vec::with_capacity(instances.len() + 1);
         let mut total = 0u64;
         for (i, inst) in instances.iter().enumerate() {
@@ -384,22 +393,23 @@ impl HitFilter for Global<'_, '_> {
     }
 }
 
-/// Filtered queries through the objects' own: the filter sees each object's candidates with
-/// their global ids; an instance it skips is not asked.
-impl<O: FilteredAccel> FilteredAccel for InstanceBvh<O> {
+/// Filtered queries through the objects' own ([`Accel::filtered`], which [`InstanceBvh::build`]
+/// checks every object has): the filter sees each object's candidates with their global ids;
+/// an instance it skips is not asked.
+impl<O: Accel> FilteredAccel for InstanceBvh<O> {
     fn intersect_filtered(&self, ray: &Ray, filter: &mut dyn HitFilter) -> Option<Hit> {
-        self.filtered::<false>(ray, filter)
+        self.walk_filtered::<false>(ray, filter)
     }
 
     fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn HitFilter) -> bool {
-        self.filtered::<true>(ray, filter).is_some()
+        self.walk_filtered::<true>(ray, filter).is_some()
     }
 }
 
-impl<O: FilteredAccel> InstanceBvh<O> {
+impl<O: Accel> InstanceBvh<O> {
     /// [`Self::walk`] asking each object its filtered query, as [`Self::traverse`] asks the
     /// plain one.
-    fn filtered<const ANY_HIT: bool>(
+    fn walk_filtered<const ANY_HIT: bool>(
         &self,
         ray: &Ray,
         mut filter: &mut dyn HitFilter,
@@ -408,9 +418,10 @@ impl<O: FilteredAccel> InstanceBvh<O> {
             ray,
             || None,
             |accel, local, i, best, r| {
-                if filter.skips_instance(i) {
+                // Every object has filtered queries (checked when built).
+                let Some(accel) = accel.filtered().filter(|_| !filter.skips_instance(i)) else {
                     return false;
-                }
+                };
                 let first = self.first_prim[i as usize];
                 let mut global = Global {
                     filter: &mut filter,
@@ -458,6 +469,10 @@ impl<O: Accel> Accel for InstanceBvh<O> {
 
     fn occluded(&self, ray: &Ray) -> bool {
         self.traverse::<true>(ray).is_some()
+    }
+
+    fn filtered(&self) -> Option<&dyn FilteredAccel> {
+        Some(self)
     }
 
     /// `primitives` counts every instance's primitives; nodes, leaves, references and bytes

@@ -23,6 +23,13 @@ pub trait Accel: Send + Sync {
     /// Checks the structure's invariants (every primitive reachable, bounds contain what they
     /// bound, indices in range); the conformance suite calls it after every build.
     fn validate(&self) -> Result<(), String>;
+
+    /// The same structure's filtered queries, where it has them (every rt structure; `None`
+    /// by default): what a caller holding a `dyn Accel` asks before it filters, for example a
+    /// renderer skipping the triangle a ray leaves.
+    fn filtered(&self) -> Option<&dyn crate::FilteredAccel> {
+        None
+    }
 }
 
 /// Writes the two queries of an [`Accel`] impl from one walk written for both (a method
@@ -59,6 +66,10 @@ macro_rules! queries_from_walk {
         fn occluded(&self, ray: &$crate::Ray) -> bool {
             $crate::isa::query::<_, true, _>(self, ray, || None).is_some()
         }
+
+        fn filtered(&self) -> Option<&dyn $crate::FilteredAccel> {
+            Some(self)
+        }
     };
     (stats: $stats:ident, validate: $validate:ident) => {
         $crate::queries_from_walk!();
@@ -80,6 +91,10 @@ macro_rules! queries_from_walk {
         #[inline]
         fn occluded(&self, ray: &$crate::Ray) -> bool {
             self.traverse::<true, _>(ray, || None).is_some()
+        }
+
+        fn filtered(&self) -> Option<&dyn $crate::FilteredAccel> {
+            Some(self)
         }
     };
 }
@@ -134,6 +149,9 @@ macro_rules! forward_accel {
             }
             fn validate(&self) -> Result<(), String> {
                 (**self).validate()
+            }
+            fn filtered(&self) -> Option<&dyn crate::FilteredAccel> {
+                (**self).filtered()
             }
         }
     };

@@ -76,6 +76,10 @@ impl<P: Primitive> Accel for BruteForce<P> {
             None => Ok(()),
         }
     }
+
+    fn filtered(&self) -> Option<&dyn FilteredAccel> {
+        Some(self)
+    }
 }
 
 /// The reference of filtered queries: the closest accepted hit, or whether one is accepted.

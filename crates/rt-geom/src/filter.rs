@@ -109,6 +109,24 @@ impl<F: HitFilter> HitFilter for Masked<'_, F> {
     }
 }
 
+/// Leaves one primitive untested and accepts every other hit: the filter of a ray that
+/// leaves a planar primitive (a triangle), which it cannot meet again, so the ray starts on
+/// the surface with no offset and still never hits its own origin.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SkipPrim(pub u32);
+
+impl HitFilter for SkipPrim {
+    #[inline(always)]
+    fn skips(&self, prim: u32) -> bool {
+        prim == self.0
+    }
+
+    #[inline(always)]
+    fn accepts(&mut self, _: &Hit) -> bool {
+        true
+    }
+}
+
 /// What a query keeps of the hits its leaf tests find: the closest (or any) hit, through a
 /// filter or not. `Option<Hit>` is the unfiltered keeper every structure's plain queries use;
 /// [`Filtered`] asks a filter first.

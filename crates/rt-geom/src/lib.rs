@@ -61,7 +61,7 @@ pub use accel::{
 };
 pub use brute::BruteForce;
 pub use cone::Cone;
-pub use filter::{Filtered, FilteredAccel, HitFilter, Keep, Masked, sorted_hits};
+pub use filter::{Filtered, FilteredAccel, HitFilter, Keep, Masked, SkipPrim, sorted_hits};
 pub use frame::Frame;
 pub use geometries::{Geometries, GeometryHit};
 pub use glam::{self, DVec3, Vec3};

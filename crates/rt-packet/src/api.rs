@@ -2,7 +2,7 @@
 //! [`PacketAccel`] (groups of any size up to [`MAX_GROUP`], behind a trait object).
 
 use crate::RayPacket;
-use rt_geom::{Accel, Hit, Ray};
+use rt_geom::{Accel, FilteredAccel, Hit, Ray, SkipPrim};
 
 /// Packet queries. Results are per lane, in the packet's order; inactive lanes miss.
 pub trait PacketTraversal {
@@ -43,26 +43,34 @@ pub trait PacketTraversal {
     }
 }
 
-/// Every active lane of `packet` traced on its own through `a` (closest hit): for packets
-/// too small to share work, and for walks that do not apply (a kd-tree whose planes lie in
-/// a frame of their own).
+/// Every active lane of `packet` traced on its own through `a` (closest hit), skipping the
+/// primitive it leaves ([`RayPacket::leaving`]): for packets too small to share work, and for
+/// walks that do not apply (a kd-tree whose planes lie in a frame of their own).
 pub(crate) fn each_lane<const N: usize>(
-    a: &impl Accel,
+    a: &impl FilteredAccel,
     packet: &RayPacket<'_, N>,
 ) -> [Option<Hit>; N] {
-    std::array::from_fn(|i| {
-        packet.active[i]
-            .then(|| a.intersect(&packet.ray(i)))
-            .flatten()
+    std::array::from_fn(|i| match packet.active[i] {
+        false => None,
+        true if packet.skipping => {
+            a.intersect_filtered(&packet.ray(i), &mut SkipPrim(packet.skip[i]))
+        }
+        true => a.intersect(&packet.ray(i)),
     })
 }
 
 /// [`each_lane`] for any hit.
 pub(crate) fn each_lane_occluded<const N: usize>(
-    a: &impl Accel,
+    a: &impl FilteredAccel,
     packet: &RayPacket<'_, N>,
 ) -> [bool; N] {
-    std::array::from_fn(|i| packet.active[i] && a.occluded(&packet.ray(i)))
+    std::array::from_fn(|i| match packet.active[i] {
+        false => false,
+        true if packet.skipping => {
+            a.occluded_filtered(&packet.ray(i), &mut SkipPrim(packet.skip[i]))
+        }
+        true => a.occluded(&packet.ray(i)),
+    })
 }
 
 /// Packet queries behind a trait object (the registry's packet paths): a group of up to 256
@@ -101,6 +109,28 @@ pub trait PacketAccel: Accel + Send + Sync {
             }
         }
     }
+
+    /// The same groups for rays that each leave a primitive, which they skip, where this path
+    /// can skip one (every rt structure; `None` by default, as for a peer's packets).
+    fn leaving(&self) -> Option<&dyn LeavingGroups> {
+        None
+    }
+}
+
+/// Groups of rays that each leave a primitive (`leaving[i]` for ray `i`, `None` where it
+/// leaves none), which each skips: the answers of the structure's filtered queries with
+/// [`SkipPrim`], ray by ray, traced as [`PacketAccel`] traces groups (one packet when
+/// coherent, [`RayPacket::leaving`]).
+pub trait LeavingGroups: Sync {
+    /// Closest hit of each ray into `out` (same length as `rays` and `leaving`).
+    fn intersect_group_leaving(
+        &self,
+        rays: &[Ray],
+        leaving: &[Option<u32>],
+        out: &mut [Option<Hit>],
+    );
+    /// Whether each ray is blocked, into `out`.
+    fn occluded_group_leaving(&self, rays: &[Ray], leaving: &[Option<u32>], out: &mut [bool]);
 }
 
 /// A packet path that answers single rays with a structure of its own: packets through
@@ -136,10 +166,15 @@ impl<Pk: Accel, S: Accel> Accel for WithSingleRays<Pk, S> {
         self.packets.validate()?;
         self.singles.validate()
     }
+
+    /// The single-ray structure's (filtered single rays go through it).
+    fn filtered(&self) -> Option<&dyn FilteredAccel> {
+        self.singles.filtered()
+    }
 }
 
 /// Filtered single rays go through the single-ray structure.
-impl<Pk: Accel, S: rt_geom::FilteredAccel> rt_geom::FilteredAccel for WithSingleRays<Pk, S> {
+impl<Pk: Accel, S: FilteredAccel> FilteredAccel for WithSingleRays<Pk, S> {
     fn intersect_filtered(&self, ray: &Ray, filter: &mut dyn rt_geom::HitFilter) -> Option<Hit> {
         self.singles.intersect_filtered(ray, filter)
     }
@@ -176,16 +211,17 @@ fn packet_lanes(n: usize) -> usize {
     }
 }
 
-/// Traces `$rays` (at most 256) as one packet of the smallest size that holds them, binding
+/// Traces `$rays` (at most 256; each leaving the primitive of `$leaving`, see
+/// [`RayPacket::leaving`]) as one packet of the smallest size that holds them, binding
 /// the packet to `$p` in `$query`, and copies the lanes' answers to `$out`.
 macro_rules! as_one_packet {
-    ($rays:expr, $out:expr, |$p:ident| $query:expr) => {{
-        let (rays, out) = ($rays, $out);
+    ($rays:expr, $leaving:expr, $out:expr, |$p:ident| $query:expr) => {{
+        let (rays, leaving, out) = ($rays, $leaving, $out);
         assert!(rays.len() <= MAX_GROUP && rays.len() == out.len());
         let n = rays.len();
         macro_rules! trace {
             ($lanes:literal) => {{
-                let mut packet = RayPacket::<$lanes>::new(rays);
+                let mut packet = RayPacket::<$lanes>::leaving(rays, leaving);
                 {
                     let $p = &mut packet;
                     out.copy_from_slice(&$query[..n]);
@@ -237,25 +273,96 @@ pub fn is_coherent(rays: &[Ray]) -> bool {
 
 /// Every structure with packet traversal is a packet path: a coherent group is traced as one
 /// packet of the smallest size that holds it, an incoherent one ray by ray.
-impl<T: PacketTraversal + Accel + Send + Sync> PacketAccel for T {
+impl<T: PacketTraversal + FilteredAccel + Send + Sync> PacketAccel for T {
     fn intersect_packet_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        if self.ray_by_ray(packet_lanes(rays.len())) {
-            for (r, o) in rays.iter().zip(out) {
-                *o = self.intersect(r);
-            }
-            return;
-        }
-        as_one_packet!(rays, out, |p| self.intersect_packet(p))
+        self.intersect_packets(rays, &[], out, false)
     }
 
     fn occluded_packet_group(&self, rays: &[Ray], out: &mut [bool]) {
-        if self.ray_by_ray(packet_lanes(rays.len())) {
-            for (r, o) in rays.iter().zip(out) {
-                *o = self.occluded(r);
+        self.occluded_packets(rays, &[], out, false)
+    }
+
+    fn leaving(&self) -> Option<&dyn LeavingGroups> {
+        Some(self)
+    }
+}
+
+impl<T: PacketTraversal + FilteredAccel + Send + Sync> LeavingGroups for T {
+    fn intersect_group_leaving(
+        &self,
+        rays: &[Ray],
+        leaving: &[Option<u32>],
+        out: &mut [Option<Hit>],
+    ) {
+        self.intersect_packets(rays, leaving, out, !is_coherent(rays))
+    }
+
+    fn occluded_group_leaving(&self, rays: &[Ray], leaving: &[Option<u32>], out: &mut [bool]) {
+        self.occluded_packets(rays, leaving, out, !is_coherent(rays))
+    }
+}
+
+/// A group through a packet path: as one packet, or ray by ray (`ray_by_ray`, or where the
+/// structure traces packets that small so), each ray skipping the primitive it leaves.
+trait Groups {
+    fn intersect_packets(
+        &self,
+        rays: &[Ray],
+        leaving: &[Option<u32>],
+        out: &mut [Option<Hit>],
+        ray_by_ray: bool,
+    );
+    fn occluded_packets(
+        &self,
+        rays: &[Ray],
+        leaving: &[Option<u32>],
+        out: &mut [bool],
+        ray_by_ray: bool,
+    );
+}
+
+/// The primitive ray `i` of a group leaves.
+fn skip_of(leaving: &[Option<u32>], i: usize) -> SkipPrim {
+    SkipPrim(leaving.get(i).copied().flatten().unwrap_or(u32::MAX))
+}
+
+impl<T: PacketTraversal + FilteredAccel> Groups for T {
+    fn intersect_packets(
+        &self,
+        rays: &[Ray],
+        leaving: &[Option<u32>],
+        out: &mut [Option<Hit>],
+        ray_by_ray: bool,
+    ) {
+        if ray_by_ray || self.ray_by_ray(packet_lanes(rays.len())) {
+            for (i, (r, o)) in rays.iter().zip(out).enumerate() {
+                *o = match leaving.is_empty() {
+                    true => self.intersect(r),
+                    false => self.intersect_filtered(r, &mut skip_of(leaving, i)),
+                };
             }
             return;
         }
-        as_one_packet!(rays, out, |p| self.occluded_packet(p))
+        as_one_packet!(rays, leaving, out, |p| self.intersect_packet(p))
+    }
+
+    fn occluded_packets(
+        &self,
+        rays: &[Ray],
+        leaving: &[Option<u32>],
+        out: &mut [bool],
+        ray_by_ray: bool,
+    ) {
+        if ray_by_ray || self.ray_by_ray(packet_lanes(rays.len())) {
+            for (i, (r, o)) in rays.iter().zip(out).enumerate() {
+                *o = match leaving.is_empty() {
+                    true => self.occluded(r),
+                    false => self.occluded_filtered(r, &mut skip_of(leaving, i)),
+                };
+            }
+            return;
+        }
+        as_one_packet!(rays, leaving, out, |p| self.occluded_packet(p))
     }
 }
 

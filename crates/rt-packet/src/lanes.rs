@@ -257,7 +257,12 @@ where
         if lanes == 0 {
             break;
         }
-        let hit = prim.intersect_block::<N, W>(p, base, lanes, &mut hits);
+        let tested = if p.skipping {
+            lanes & !skipping_lanes::<N, W>(p, base, id)
+        } else {
+            lanes
+        };
+        let hit = prim.intersect_block::<N, W>(p, base, tested, &mut hits);
         for_each_lane(hit, |l| {
             let h = hits[l];
             let lane = base + l;
@@ -273,6 +278,20 @@ where
         });
     }
     changed
+}
+
+/// The lanes of the block at `base` that leave (skip) primitive `id`.
+#[inline(always)]
+fn skipping_lanes<const N: usize, const W: usize>(
+    p: &RayPacket<'_, N>,
+    base: usize,
+    id: u32,
+) -> u32 {
+    let mut bits = 0;
+    for (l, &skip) in p.skip[base..base + W].iter().enumerate() {
+        bits |= ((skip == id) as u32) << l;
+    }
+    bits
 }
 
 /// Calls `f` with every set bit of `mask`, lowest first.

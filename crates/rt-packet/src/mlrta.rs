@@ -328,6 +328,10 @@ impl<P: PacketPrimitive> rt_geom::Accel for MlrtaKdTree<P> {
     fn validate(&self) -> Result<(), String> {
         self.tree.validate()
     }
+
+    fn filtered(&self) -> Option<&dyn rt_geom::FilteredAccel> {
+        Some(self)
+    }
 }
 
 /// Single rays go through the kd-tree, filtered or not.

@@ -53,6 +53,11 @@ pub struct Lanes<const N: usize> {
     pub tmax: [f32; N],
     /// Lanes that carry a ray still being traced.
     pub active: [bool; N],
+    /// Per lane, the primitive its ray leaves and skips (`u32::MAX`: none), read only when
+    /// `skipping` ([`RayPacket::leaving`]).
+    pub skip: [u32; N],
+    /// Some lane skips a primitive.
+    pub skipping: bool,
 }
 
 impl<const N: usize> std::ops::Deref for RayPacket<'_, N> {
@@ -104,10 +109,30 @@ impl<'a, const N: usize> RayPacket<'a, N> {
                 tmin: [0.0; N],
                 tmax: [f32::NEG_INFINITY; N],
                 active: [false; N],
+                skip: [u32::MAX; N],
+                skipping: false,
             })
         });
         let mut p = Self { rays, lanes };
         p.fill();
+        p.skipping = false;
+        p
+    }
+
+    /// A packet of rays that each leave a primitive, `leaving[i]` for ray `i` (`None`: it
+    /// leaves none; an empty slice: no ray does), which its lane skips as
+    /// [`rt_geom::SkipPrim`] makes a single ray's filtered query skip it: a ray leaving a
+    /// planar primitive starts on it with no offset.
+    pub fn leaving(rays: &'a [Ray], leaving: &[Option<u32>]) -> Self {
+        let mut p = Self::new(rays);
+        p.skipping = leaving.iter().any(Option::is_some);
+        if p.skipping {
+            assert_eq!(leaving.len(), rays.len(), "one primitive left per ray");
+            for (lane, &prim) in p.lanes.skip.iter_mut().zip(leaving) {
+                *lane = prim.unwrap_or(u32::MAX);
+            }
+            p.lanes.skip[leaving.len()..].fill(u32::MAX);
+        }
         p
     }
 

@@ -94,6 +94,43 @@ pub fn chess() -> Scene {
     chess_objects(ChessForm::Pieces).0
 }
 
+/// The chess scene with a lamp hanging over the board: a glowing bulb on a cord, with a point
+/// light inside it. The bulb casts no shadow ([`Material::without_shadow`]): shadow rays to its
+/// light pass through it by a ray mask, where they would otherwise all stop at the glass
+/// around the light.
+pub fn chess_lamp() -> Scene {
+    let mut s = chess();
+    s.name = "chess-lamp".to_string();
+    let at = Vec3::new(-0.5, 1.4, -1.5);
+    let radius = 0.2;
+    s.lights.push(PointLight {
+        position: at,
+        colour: Vec3::new(0.9, 0.7, 0.45),
+    });
+    let bulb = s.add_material(
+        Material {
+            ambient: Vec3::new(8.0, 7.0, 4.5),
+            ..Material::matte(Vec3::ZERO)
+        }
+        .without_shadow(),
+    );
+    let cord = s.add_material(Material::matte(Vec3::splat(0.05)));
+    // A sphere as a lathe profile (radius, height) from the bottom pole to the top one.
+    let bands = 12;
+    let profile: Vec<(f32, f32)> = (0..=bands)
+        .map(|i| {
+            let a = std::f32::consts::PI * i as f32 / bands as f32;
+            (radius * a.sin(), -radius * a.cos())
+        })
+        .map(|(r, y)| (r / PIECE_SCALE, y / PIECE_SCALE))
+        .collect();
+    lathe(&mut s, &profile, at, bulb);
+    let top = radius * 0.98 / PIECE_SCALE;
+    let thin = 0.02 / PIECE_SCALE;
+    lathe(&mut s, &[(thin, top), (thin, 12.0)], at, cord);
+    s
+}
+
 /// The forms the chess scene takes for two-level ray tracing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ChessForm {

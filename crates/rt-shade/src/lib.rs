@@ -44,7 +44,7 @@ pub mod wavefront;
 pub mod whitted;
 
 pub use camera::{Camera, CameraFrame, Projection, ThinLens};
-pub use chess::{ChessForm, chess, chess_moving, chess_objects};
+pub use chess::{ChessForm, chess, chess_lamp, chess_moving, chess_objects};
 pub use material::Material;
 pub use nff::{load_nff, parse_nff, parse_nff_bytes};
 pub use obj::{load_obj_scene, parse_mtl, parse_obj_scene};
@@ -54,7 +54,8 @@ pub use triangulate::triangulate;
 pub use wavefront::{Queries, SingleRays};
 pub use whitted::{MAX_DEPTH, RayStats, ShadeOptions, Whitted};
 
-/// Loads a scene by name: `chess` (built in), or a path ending in `.obj` or `.nff`.
+/// Loads a scene by name: `chess` or `chess-lamp` (built in), or a path ending in `.obj` or
+/// `.nff`.
 pub fn load_scene(name: &str) -> Result<Scene, SceneError> {
     let path = std::path::Path::new(name);
     let ext = path
@@ -62,10 +63,11 @@ pub fn load_scene(name: &str) -> Result<Scene, SceneError> {
         .map(|e| e.to_string_lossy().to_ascii_lowercase());
     match (name, ext.as_deref()) {
         ("chess", _) => Ok(chess()),
+        ("chess-lamp", _) => Ok(chess_lamp()),
         (_, Some("obj")) => load_obj_scene(path),
         (_, Some("nff")) => load_nff(path),
         _ => Err(SceneError::new(format!(
-            "unknown scene '{name}': use chess, a .obj file or a .nff file"
+            "unknown scene '{name}': use chess, chess-lamp, a .obj file or a .nff file"
         ))),
     }
 }

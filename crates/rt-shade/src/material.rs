@@ -30,6 +30,9 @@ pub struct Material {
     pub transmit: Vec3,
     /// Index of refraction of the inside (the outside is 1); used when `transmit` is not zero.
     pub ior: f32,
+    /// Whether the surface blocks shadow rays (a lamp's bulb around its light does not: shadow
+    /// rays leave it untested through a ray mask).
+    pub casts_shadow: bool,
 }
 
 impl Default for Material {
@@ -50,6 +53,7 @@ impl Material {
             reflect: Vec3::ZERO,
             transmit: Vec3::ZERO,
             ior: 1.0,
+            casts_shadow: true,
         }
     }
 
@@ -70,6 +74,12 @@ impl Material {
     pub fn with_transmission(mut self, weight: Vec3, ior: f32) -> Self {
         self.transmit = weight;
         self.ior = ior;
+        self
+    }
+
+    /// Casting no shadow: shadow rays pass through the surface.
+    pub fn without_shadow(mut self) -> Self {
+        self.casts_shadow = false;
         self
     }
 

@@ -132,28 +132,31 @@ pub struct Rendered {
 
 /// A packet path: groups of up to [`TILE`]² rays at once (a tile's eye rays, its shadow rays
 /// to one light, its reflected or refracted rays of one bounce), such as
-/// `rt_packet::PacketAccel::intersect_group` and `occluded_group`. It must answer what the
-/// structure's `intersect` and `occluded` answer, ray by ray.
+/// `rt_packet::PacketAccel::intersect_group` and `occluded_group`, each ray skipping the
+/// primitive it leaves (`leaving`, as [`Queries`] gives it: `rt_packet::LeavingGroups`). It
+/// must answer what the structure's queries answer, ray by ray.
 #[derive(Clone, Copy)]
 pub struct Packets<'a> {
     /// Closest hits of a group.
-    pub intersect: &'a (dyn Fn(&[Ray], &mut [Option<Hit>]) + Sync),
+    pub intersect: &'a (dyn Fn(&[Ray], &[Option<u32>], &mut [Option<Hit>]) + Sync),
     /// Whether each ray of a group is blocked.
-    pub occluded: &'a (dyn Fn(&[Ray], &mut [bool]) + Sync),
+    pub occluded: &'a (dyn Fn(&[Ray], &[Option<u32>], &mut [bool]) + Sync),
 }
 
 impl Queries for Packets<'_> {
-    fn intersect(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        (self.intersect)(rays, out)
+    fn intersect(&self, rays: &[Ray], leaving: &[Option<u32>], out: &mut [Option<Hit>]) {
+        (self.intersect)(rays, leaving, out)
     }
 
-    fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
-        (self.occluded)(rays, out)
+    fn occluded(&self, rays: &[Ray], leaving: &[Option<u32>], out: &mut [bool]) {
+        (self.occluded)(rays, leaving, out)
     }
 }
 
 /// Renders `scene` with `accel`, which must have been built over `scene.shapes` (or the same
-/// triangles in the same order). `progress` is called with 1 after each finished tile.
+/// triangles in the same order). `progress` is called with 1 after each finished tile. A
+/// scene with surfaces that cast no shadow needs a structure with filtered queries
+/// ([`Accel::filtered`]).
 pub fn render(
     scene: &Scene,
     accel: &dyn Accel,
@@ -176,6 +179,13 @@ pub fn render_with_packets(
 ) -> Result<Rendered, SceneError> {
     options.check().map_err(SceneError::new)?;
     scene.check()?;
+    if accel.filtered().is_none() && scene.materials.iter().any(|m| !m.casts_shadow) {
+        return Err(SceneError::new(
+            "this scene has surfaces that cast no shadow, which shadow rays skip through a ray \
+             mask: the structure has no filtered queries"
+                .to_string(),
+        ));
+    }
     let start = Instant::now();
     let (w, h) = (options.width, options.height);
     let frame = scene.camera.frame(w, h);

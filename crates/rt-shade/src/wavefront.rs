@@ -9,30 +9,47 @@
 use crate::whitted::{Whitted, fresnel, mirror, refract};
 use crate::{Material, RayStats};
 use glam::Vec3;
-use rt_geom::{Accel, Hit, Ray};
+use rt_geom::{Accel, FilteredAccel, Hit, Ray, SkipPrim};
 
-/// Groups of rays answered at once: closest hits, and whether each ray is blocked. Answers
-/// must be those of the structure's `intersect` and `occluded`, ray by ray.
+/// Groups of rays answered at once: closest hits, and whether each ray is blocked. Each ray
+/// may leave a primitive, `leaving[i]` (`None`: it leaves none; an empty slice: no ray does),
+/// which it skips. Answers must be those of the structure's `intersect` and `occluded` ray by
+/// ray, filtered with [`SkipPrim`] where a ray leaves a primitive (the integrator gives
+/// primitives to leave only through a structure with filtered queries).
 pub trait Queries: Sync {
     /// Closest hit of each ray into `out` (same length).
-    fn intersect(&self, rays: &[Ray], out: &mut [Option<Hit>]);
+    fn intersect(&self, rays: &[Ray], leaving: &[Option<u32>], out: &mut [Option<Hit>]);
     /// Whether each ray is blocked, into `out` (same length).
-    fn occluded(&self, rays: &[Ray], out: &mut [bool]);
+    fn occluded(&self, rays: &[Ray], leaving: &[Option<u32>], out: &mut [bool]);
 }
 
-/// Ray by ray through a structure.
+/// Ray by ray through a structure (its filtered queries for a ray that leaves a primitive).
 pub struct SingleRays<'a>(pub &'a dyn Accel);
 
+impl SingleRays<'_> {
+    /// The structure's filtered queries for ray `i`, when it leaves a primitive.
+    fn leaving(&self, leaving: &[Option<u32>], i: usize) -> Option<(&dyn FilteredAccel, SkipPrim)> {
+        let prim = leaving.get(i).copied().flatten()?;
+        Some((self.0.filtered()?, SkipPrim(prim)))
+    }
+}
+
 impl Queries for SingleRays<'_> {
-    fn intersect(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        for (r, o) in rays.iter().zip(out) {
-            *o = self.0.intersect(r);
+    fn intersect(&self, rays: &[Ray], leaving: &[Option<u32>], out: &mut [Option<Hit>]) {
+        for (i, (r, o)) in rays.iter().zip(out).enumerate() {
+            *o = match self.leaving(leaving, i) {
+                Some((accel, mut skip)) => accel.intersect_filtered(r, &mut skip),
+                None => self.0.intersect(r),
+            };
         }
     }
 
-    fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
-        for (r, o) in rays.iter().zip(out) {
-            *o = self.0.occluded(r);
+    fn occluded(&self, rays: &[Ray], leaving: &[Option<u32>], out: &mut [bool]) {
+        for (i, (r, o)) in rays.iter().zip(out).enumerate() {
+            *o = match self.leaving(leaving, i) {
+                Some((accel, mut skip)) => accel.occluded_filtered(r, &mut skip),
+                None => self.0.occluded(r),
+            };
         }
     }
 }
@@ -47,18 +64,35 @@ struct Pending {
     parent: Option<(usize, bool)>,
 }
 
-/// The rays of one level and what each one is.
+/// The rays of one level, the primitive each leaves, and what each one is.
 #[derive(Default)]
 struct Level {
     rays: Vec<Ray>,
+    leaving: Vec<Option<u32>>,
     pending: Vec<Pending>,
 }
 
 impl Level {
-    fn push(&mut self, ray: Ray, pending: Pending) {
+    fn push(&mut self, (ray, leaving): (Ray, Option<u32>), pending: Pending) {
         self.rays.push(ray);
+        self.leaving.push(leaving);
         self.pending.push(pending);
     }
+
+    fn append(&mut self, other: &mut Level) {
+        self.rays.append(&mut other.rays);
+        self.leaving.append(&mut other.leaving);
+        self.pending.append(&mut other.pending);
+    }
+}
+
+/// A light's shadow rays of a level, the primitive each leaves, and what each adds when
+/// unblocked.
+#[derive(Default)]
+struct Shadows {
+    rays: Vec<Ray>,
+    leaving: Vec<Option<u32>>,
+    lit: Vec<Lit>,
 }
 
 /// A traced ray: its colour (the background, or the surface's local light, then the
@@ -126,22 +160,22 @@ impl Whitted<'_> {
         };
         let mut level = Level {
             rays: rays.to_vec(),
+            leaving: Vec::new(),
             pending: vec![eye; rays.len()],
         };
         let mut hits = hits.filter(|h| h.len() == rays.len());
         while !level.rays.is_empty() {
             let level_hits = hits.take().unwrap_or_else(|| {
                 let mut out = vec![None; level.rays.len()];
-                in_groups(&level.rays, &mut out, |r, o| queries.intersect(r, o));
+                in_groups(&level.rays, &level.leaving, &mut out, |r, l, o| {
+                    queries.intersect(r, l, o)
+                });
                 out
             });
             // Per light, the shadow rays of the level and what each adds when unblocked.
             let n = level.rays.len();
-            let mut shadow: Vec<(Vec<Ray>, Vec<Lit>)> = scene
-                .lights
-                .iter()
-                .map(|_| (Vec::with_capacity(n), Vec::with_capacity(n)))
-                .collect();
+            let mut shadow: Vec<Shadows> =
+                scene.lights.iter().map(|_| Shadows::default()).collect();
             let (mut reflected, mut refracted) = (Level::default(), Level::default());
             let mut surfaces: Vec<Lighting> = Vec::with_capacity(n);
             for ((ray, p), hit) in level.rays.iter().zip(&level.pending).zip(level_hits) {
@@ -178,7 +212,7 @@ impl Whitted<'_> {
                     view,
                     material: m,
                 });
-                for (light, (rays, lit)) in scene.lights.iter().zip(&mut shadow) {
+                for (light, shadows) in scene.lights.iter().zip(&mut shadow) {
                     let to_light = light.position - s.point;
                     let l = to_light.normalize_or_zero();
                     let cos = s.shading.dot(l);
@@ -186,10 +220,11 @@ impl Whitted<'_> {
                         continue;
                     }
                     stats.shadow += 1;
-                    let origin = self.leave(&s, to_light);
-                    let end = light.position - origin;
-                    rays.push(Ray::segment(origin, end, 0.0, 1.0f32.next_down()));
-                    lit.push(Lit { surface, cos, l });
+                    let spawn = self.leave(&s, to_light);
+                    let ray = spawn.ray(light.position - spawn.origin, 1.0f32.next_down());
+                    shadows.rays.push(ray);
+                    shadows.leaving.push(spawn.leaving);
+                    shadows.lit.push(Lit { surface, cos, l });
                 }
                 let mut out = Node {
                     colour: m.ambient * scene.ambient,
@@ -238,16 +273,24 @@ impl Whitted<'_> {
                             weight: w,
                             parent: Some((node, refr)),
                         };
-                        next.push(Ray::new(self.leave(&s, dir), dir), pending);
+                        let spawn = self.leave(&s, dir);
+                        next.push((spawn.ray(dir, f32::INFINITY), spawn.leaving), pending);
                     }
                 }
                 nodes.push(out);
             }
             // Each light's shadow rays as groups; a node adds its lights in the lights' order.
-            for (light, (rays, lit)) in scene.lights.iter().zip(&shadow) {
-                let mut blocked = vec![false; rays.len()];
-                in_groups(rays, &mut blocked, |r, o| queries.occluded(r, o));
-                for (lit, blocked) in lit.iter().zip(blocked) {
+            for (light, shadows) in scene.lights.iter().zip(&shadow) {
+                let mut blocked = vec![false; shadows.rays.len()];
+                let (rays, leaving) = (&shadows.rays, &shadows.leaving);
+                if self.masked_shadows() {
+                    self.occluded_masked(rays, leaving, &mut blocked);
+                } else {
+                    in_groups(rays, leaving, &mut blocked, |r, l, o| {
+                        queries.occluded(r, l, o)
+                    });
+                }
+                for (lit, blocked) in shadows.lit.iter().zip(blocked) {
                     if blocked {
                         continue;
                     }
@@ -262,8 +305,7 @@ impl Whitted<'_> {
                     }
                 }
             }
-            reflected.rays.append(&mut refracted.rays);
-            reflected.pending.append(&mut refracted.pending);
+            reflected.append(&mut refracted);
             level = reflected;
         }
         // Children follow their parents: a reverse sweep combines each node's children first,
@@ -285,10 +327,18 @@ impl Whitted<'_> {
 /// Largest group handed to [`Queries`] at once: a 16x16 tile.
 pub const GROUP: usize = 256;
 
-/// `query` over `rays` in groups of at most [`GROUP`].
-fn in_groups<T>(rays: &[Ray], out: &mut [T], query: impl Fn(&[Ray], &mut [T])) {
-    for (r, o) in rays.chunks(GROUP).zip(out.chunks_mut(GROUP)) {
-        query(r, o);
+/// `query` over `rays` (each leaving the primitive of `leaving`, or none if it is empty) in
+/// groups of at most [`GROUP`], each group's `leaving` empty where no ray of it leaves one.
+fn in_groups<T>(
+    rays: &[Ray],
+    leaving: &[Option<u32>],
+    out: &mut [T],
+    query: impl Fn(&[Ray], &[Option<u32>], &mut [T]),
+) {
+    for (k, (r, o)) in rays.chunks(GROUP).zip(out.chunks_mut(GROUP)).enumerate() {
+        let l = leaving.get(k * GROUP..k * GROUP + r.len()).unwrap_or(&[]);
+        let none = l.iter().all(Option::is_none);
+        query(r, if none { &[] } else { l }, o);
     }
 }
 

@@ -12,7 +12,7 @@
 
 use crate::{Material, Scene};
 use glam::Vec3;
-use rt_geom::{Accel, Hit, Ray};
+use rt_geom::{Accel, FilteredAccel, Hit, Masked, Ray, SkipPrim};
 use std::ops::AddAssign;
 
 /// Counts of the rays a render cast.
@@ -99,9 +99,18 @@ pub const MAX_DEPTH: u32 = 32;
 pub struct Whitted<'a> {
     scene: &'a Scene,
     accel: &'a dyn Accel,
+    /// The structure's filtered queries, where it has them: rays leaving a triangle skip it,
+    /// and shadow rays skip surfaces that cast no shadow.
+    filtered: Option<&'a dyn FilteredAccel>,
+    /// Per primitive, its ray mask when some surface casts no shadow: [`SHADOW`] unless its
+    /// material casts none.
+    masks: Option<Vec<u32>>,
     options: ShadeOptions,
     offset: f32,
 }
+
+/// The ray-mask bit of shadow rays, and of the surfaces that block them.
+pub const SHADOW: u32 = 1;
 
 /// The surface at a hit, oriented towards the incoming ray.
 pub(crate) struct Surface<'a> {
@@ -112,17 +121,59 @@ pub(crate) struct Surface<'a> {
     pub(crate) shading: Vec3,
     /// Whether the ray hit the outside (the side the geometric normal points to).
     pub(crate) entering: bool,
+    /// The primitive hit.
+    pub(crate) prim: u32,
+    /// A bound on the rounding error of `point` (relative to the numbers that made it).
+    pub(crate) error: f32,
     pub(crate) material: &'a Material,
 }
 
 impl<'a> Whitted<'a> {
-    /// An integrator over `scene`, tracing through `accel`.
+    /// An integrator over `scene`, tracing through `accel`. Where `accel` has filtered queries
+    /// ([`Accel::filtered`], every rt structure), a ray leaving a triangle starts on it and
+    /// skips it (a planar surface cannot be met again), and shadow rays skip the surfaces
+    /// that cast none; through a structure without them, every ray leaving a surface starts
+    /// off it ([`Scene::ray_offset`]) and every surface casts shadows ([`crate::render`]
+    /// refuses such a pair when some surface casts none).
     pub fn new(scene: &'a Scene, accel: &'a dyn Accel, options: ShadeOptions) -> Self {
+        let shadowless = scene.materials.iter().any(|m| !m.casts_shadow);
+        let masks = shadowless.then(|| {
+            let mask = |&m: &u32| match scene.materials[m as usize].casts_shadow {
+                true => SHADOW,
+                false => !SHADOW,
+            };
+            scene.material_of.iter().map(mask).collect()
+        });
         Self {
             scene,
             accel,
+            filtered: accel.filtered(),
+            masks,
             options,
             offset: scene.ray_offset(),
+        }
+    }
+
+    /// Whether shadow rays go ray by ray through the filtered queries, with the surfaces
+    /// that cast no shadow masked out (a packet path skips only the primitive a ray leaves).
+    pub(crate) fn masked_shadows(&self) -> bool {
+        self.masks.is_some() && self.filtered.is_some()
+    }
+
+    /// Whether each shadow ray of `rays` (leaving the primitives of `leaving`) is blocked by a
+    /// surface that casts shadows, ray by ray through the filtered queries.
+    pub(crate) fn occluded_masked(&self, rays: &[Ray], leaving: &[Option<u32>], out: &mut [bool]) {
+        let (Some(accel), Some(masks)) = (self.filtered, &self.masks) else {
+            return;
+        };
+        for ((ray, &leaves), o) in rays.iter().zip(leaving).zip(out) {
+            let mut filter = Masked {
+                prims: masks,
+                instances: &[],
+                ray: SHADOW,
+                inner: SkipPrim(leaves.unwrap_or(u32::MAX)),
+            };
+            *o = accel.occluded_filtered(ray, &mut filter);
         }
     }
 
@@ -145,8 +196,9 @@ impl<'a> Whitted<'a> {
     pub fn refraction_chain(&self, ray: &Ray, max: usize) -> Vec<Ray> {
         let mut out = Vec::new();
         let mut ray = *ray;
+        let mut next_skip = None;
         while out.len() < max {
-            let Some(hit) = self.accel.intersect(&ray) else {
+            let Some(hit) = self.intersect_leaving(&ray, next_skip) else {
                 break;
             };
             let d = ray.dir().normalize();
@@ -160,10 +212,20 @@ impl<'a> Whitted<'a> {
                 s.material.ior
             };
             let Some(t) = refract(d, &s, eta) else { break };
-            ray = Ray::new(self.leave(&s, t), t);
+            let spawn = self.leave(&s, t);
+            ray = spawn.ray(t, f32::INFINITY);
             out.push(ray);
+            next_skip = spawn.leaving;
         }
         out
+    }
+
+    /// The closest hit of a ray that leaves primitive `leaving`, which it skips.
+    pub(crate) fn intersect_leaving(&self, ray: &Ray, leaving: Option<u32>) -> Option<Hit> {
+        match (leaving, self.filtered) {
+            (Some(prim), Some(accel)) => accel.intersect_filtered(ray, &mut SkipPrim(prim)),
+            _ => self.accel.intersect(ray),
+        }
     }
 
     pub(crate) fn surface(&self, ray: &Ray, hit: &Hit, d: Vec3) -> Surface<'a> {
@@ -190,21 +252,64 @@ impl<'a> Whitted<'a> {
             geometric,
             shading,
             entering,
+            prim: hit.prim,
+            error: rounding_error(ray, hit.t, point),
             material: &self.scene.materials[self.scene.material_of[i] as usize],
         }
     }
 
-    /// The origin of a ray leaving the surface in direction `dir`: the hit point moved off the
-    /// surface, to the side `dir` goes.
-    pub(crate) fn leave(&self, s: &Surface, dir: Vec3) -> Vec3 {
+    /// Where a ray leaving the surface in direction `dir` starts. A triangle, which a ray
+    /// leaving it cannot meet again, is skipped through the filtered queries and the ray starts
+    /// at the hit point itself, ignoring only hits within the hit point's rounding error (of
+    /// neighbouring triangles, through a shared edge). From a curved surface (a refracted ray
+    /// must meet its sphere again), or through a structure without filtered queries, the ray
+    /// starts off the surface, on the side `dir` goes.
+    pub(crate) fn leave(&self, s: &Surface, dir: Vec3) -> Spawn {
+        let planar = self.scene.shapes[s.prim as usize].as_triangle().is_some();
+        if planar && self.filtered.is_some() {
+            return Spawn {
+                origin: s.point,
+                leaving: Some(s.prim),
+                near: s.error,
+            };
+        }
         let side = if dir.dot(s.geometric) >= 0.0 {
             1.0
         } else {
             -1.0
         };
         let magnitude = s.point.abs().max_element();
-        s.point + s.geometric * (side * (self.offset + magnitude * 1e-6))
+        Spawn {
+            origin: s.point + s.geometric * (side * (self.offset + magnitude * 1e-6)),
+            leaving: None,
+            near: 0.0,
+        }
     }
+}
+
+/// Where a ray leaving a surface starts: its origin, the primitive it skips, and the distance
+/// from the origin within which it ignores hits.
+pub(crate) struct Spawn {
+    pub(crate) origin: Vec3,
+    pub(crate) leaving: Option<u32>,
+    near: f32,
+}
+
+impl Spawn {
+    /// The ray in direction `dir`, over `[near, tmax]` in units of `dir`'s length.
+    pub(crate) fn ray(&self, dir: Vec3, tmax: f32) -> Ray {
+        Ray::segment(self.origin, dir, self.near / dir.length(), tmax)
+    }
+}
+
+/// A bound on the rounding error of the hit point `ray.at(t)`: a few units in the last place
+/// of the numbers it is made of (the origin, the path `t * dir`, the point), with the hit
+/// test's own error in `t` folded in.
+fn rounding_error(ray: &Ray, t: f32, point: Vec3) -> f32 {
+    let scale = ray.origin().abs().max_element()
+        + t * ray.dir().abs().max_element()
+        + point.abs().max_element();
+    16.0 * f32::EPSILON * scale
 }
 
 /// Mirror direction about the shading normal; about the geometric normal when the shading
@@ -257,6 +362,8 @@ mod tests {
             geometric: n,
             shading: n,
             entering: true,
+            prim: 0,
+            error: 0.0,
             material: M.get_or_init(Material::default),
         }
     }

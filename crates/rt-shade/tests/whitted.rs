@@ -300,3 +300,55 @@ fn bad_options_are_refused() {
     }
     let _ = accel.stats();
 }
+
+/// A floor under a light inside a glass bulb: the bulb blocks every shadow ray unless it casts
+/// no shadow (a ray mask), when the floor is lit as with no bulb at all.
+#[test]
+fn a_bulb_that_casts_no_shadow_lets_its_light_through() {
+    let floor = |bulb: Option<Material>| {
+        let mut s = Scene::new("bulb", looking_down_z());
+        s.ambient = Vec3::ZERO;
+        let m = s.add_material(Material::matte(Vec3::ONE));
+        let q = [
+            Vec3::new(-1.0, -1.0, 0.0),
+            Vec3::new(1.0, -1.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+        ];
+        s.add(Triangle::new(q[0], q[1], q[2]), m, None);
+        let light = Vec3::new(0.9, -0.5, 1.0);
+        s.lights.push(PointLight {
+            position: light,
+            colour: Vec3::ONE,
+        });
+        if let Some(bulb) = bulb {
+            let b = s.add_material(bulb);
+            s.add(rt_geom::Sphere::new(light, 0.1), b, None);
+        }
+        s
+    };
+    // The eye ray at (0.5, -0.5) meets the floor beside the bulb.
+    let shade = |s: &Scene, accel: &dyn Accel| {
+        let w = Whitted::new(s, accel, ShadeOptions::default());
+        w.eye(
+            &Ray::new(Vec3::new(0.5, -0.5, 5.0), -Vec3::Z),
+            &mut RayStats::default(),
+        )
+    };
+    let bare = floor(None);
+    let lit = shade(&bare, &brute(&bare));
+    assert!(lit.x > 0.1, "{lit}");
+    let casting = floor(Some(Material::matte(Vec3::ONE)));
+    assert_eq!(shade(&casting, &brute(&casting)), Vec3::ZERO);
+    let masked = floor(Some(Material::matte(Vec3::ONE).without_shadow()));
+    assert_eq!(shade(&masked, &brute(&masked)), lit);
+    // `render` refuses the scene through a structure without filtered queries, whose shadow
+    // rays could not skip the bulb.
+    let plain = brute(&masked);
+    let options = RenderOptions {
+        width: 2,
+        height: 2,
+        ..RenderOptions::default()
+    };
+    let err = render(&masked, &rt_testkit::Unfiltered(&plain), &options, &|_| {}).unwrap_err();
+    assert!(err.to_string().contains("cast no shadow"), "{err}");
+}

@@ -39,3 +39,26 @@ pub use rng::Rng;
 pub use rt_geom;
 pub use scenes::NoGeometry;
 pub use scenes::Scene;
+
+/// A structure's plain queries only ([`rt_geom::Accel::filtered`] is `None`), as a peer's
+/// structure answers: what a renderer does without filtered queries can be compared with what
+/// it does with them.
+pub struct Unfiltered<'a>(pub &'a dyn rt_geom::Accel);
+
+impl rt_geom::Accel for Unfiltered<'_> {
+    fn intersect(&self, ray: &rt_geom::Ray) -> Option<rt_geom::Hit> {
+        self.0.intersect(ray)
+    }
+
+    fn occluded(&self, ray: &rt_geom::Ray) -> bool {
+        self.0.occluded(ray)
+    }
+
+    fn stats(&self) -> rt_geom::AccelStats {
+        self.0.stats()
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        self.0.validate()
+    }
+}
