@@ -115,6 +115,14 @@ macro_rules! filtered_from_walk {
         fn occluded_filtered(&self, ray: &$crate::Ray, filter: &mut dyn $crate::HitFilter) -> bool {
             $crate::isa::query::<_, true, _>(self, ray, || $crate::Filtered::new(filter)).is_some()
         }
+
+        fn intersect_leaving(&self, ray: &$crate::Ray, prim: u32) -> Option<$crate::Hit> {
+            $crate::isa::query::<_, false, _>(self, ray, || $crate::Skipping::new(prim))
+        }
+
+        fn occluded_leaving(&self, ray: &$crate::Ray, prim: u32) -> bool {
+            $crate::isa::query::<_, true, _>(self, ray, || $crate::Skipping::new(prim)).is_some()
+        }
     };
     () => {
         fn intersect_filtered(
@@ -127,6 +135,15 @@ macro_rules! filtered_from_walk {
 
         fn occluded_filtered(&self, ray: &$crate::Ray, filter: &mut dyn $crate::HitFilter) -> bool {
             self.traverse::<true, _>(ray, || $crate::Filtered::new(filter))
+                .is_some()
+        }
+
+        fn intersect_leaving(&self, ray: &$crate::Ray, prim: u32) -> Option<$crate::Hit> {
+            self.traverse::<false, _>(ray, || $crate::Skipping::new(prim))
+        }
+
+        fn occluded_leaving(&self, ray: &$crate::Ray, prim: u32) -> bool {
+            self.traverse::<true, _>(ray, || $crate::Skipping::new(prim))
                 .is_some()
         }
     };

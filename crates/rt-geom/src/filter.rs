@@ -135,6 +135,10 @@ pub trait Keep {
     /// `v` (an any-hit query may otherwise end on a hit proven in `f32`, not refined).
     const FILTERED: bool;
 
+    /// Whether leaf tests ask [`Self::skips`] before testing a primitive: where a filter is
+    /// asked, and for [`Skipping`].
+    const SKIPS: bool = Self::FILTERED;
+
     /// The hit kept so far.
     fn best(&self) -> Option<Hit>;
 
@@ -142,7 +146,7 @@ pub trait Keep {
     fn accepts(&mut self, hit: &Hit) -> bool;
 
     /// Whether primitive `prim` is left untested ([`HitFilter::skips`]; false without a
-    /// filter). Leaf tests ask it before testing, where `FILTERED`.
+    /// filter). Leaf tests ask it before testing, where `SKIPS`.
     fn skips(&self, prim: u32) -> bool;
 
     /// Records hit `h` of primitive `prim`, already accepted, as [`crate::keep_hit`] does:
@@ -229,6 +233,47 @@ impl<F: HitFilter + ?Sized> Keep for Filtered<'_, F> {
     }
 }
 
+/// The closest (or any) hit of a ray that skips one primitive, the one it leaves: the answer
+/// of a [`SkipPrim`] filter, kept as plain queries keep hits (no filter to ask, so an
+/// any-hit query may end on a hit proven in `f32`).
+pub struct Skipping {
+    hit: Option<Hit>,
+    prim: u32,
+}
+
+impl Skipping {
+    /// No hit yet; primitive `prim` is skipped.
+    #[inline(always)]
+    pub fn new(prim: u32) -> Self {
+        Self { hit: None, prim }
+    }
+}
+
+impl Keep for Skipping {
+    const FILTERED: bool = false;
+    const SKIPS: bool = true;
+
+    #[inline(always)]
+    fn best(&self) -> Option<Hit> {
+        self.hit
+    }
+
+    #[inline(always)]
+    fn accepts(&mut self, _: &Hit) -> bool {
+        true
+    }
+
+    #[inline(always)]
+    fn skips(&self, prim: u32) -> bool {
+        prim == self.prim
+    }
+
+    #[inline(always)]
+    fn record<const ANY_HIT: bool>(&mut self, h: PrimHit, prim: u32, tmax: &mut f32) -> bool {
+        crate::keep_hit::<ANY_HIT>(h, prim, tmax, &mut self.hit)
+    }
+}
+
 /// Queries with a filter on each candidate hit, and every hit along a ray. Every rt structure
 /// implements it (through [`crate::queries_from_walk!`]); see the [module](self) for the
 /// contract.
@@ -240,6 +285,19 @@ pub trait FilteredAccel: Accel {
     /// Whether some hit in `[ray.tmin, ray.tmax]` of a primitive `filter` does not skip is
     /// accepted by it (which may stop being asked at the first it accepts).
     fn occluded_filtered(&self, ray: &crate::Ray, filter: &mut dyn HitFilter) -> bool;
+
+    /// The closest hit of a ray that leaves primitive `prim` and skips it: the answer of
+    /// [`Self::intersect_filtered`] with [`SkipPrim`], without a filter to call (rt's
+    /// structures walk it as their plain queries, with the one primitive skipped).
+    fn intersect_leaving(&self, ray: &crate::Ray, prim: u32) -> Option<Hit> {
+        self.intersect_filtered(ray, &mut SkipPrim(prim))
+    }
+
+    /// Whether a ray that leaves primitive `prim` and skips it is blocked: the answer of
+    /// [`Self::occluded_filtered`] with [`SkipPrim`].
+    fn occluded_leaving(&self, ray: &crate::Ray, prim: u32) -> bool {
+        self.occluded_filtered(ray, &mut SkipPrim(prim))
+    }
 
     /// Hands every hit in `[ray.tmin, ray.tmax]` to `visit` in order of `t` (ties by
     /// primitive id), each primitive once (its nearest hit in the interval), until `visit`
@@ -284,6 +342,14 @@ macro_rules! forward_filtered {
             #[inline]
             fn occluded_filtered(&self, ray: &crate::Ray, filter: &mut dyn HitFilter) -> bool {
                 (**self).occluded_filtered(ray, filter)
+            }
+            #[inline]
+            fn intersect_leaving(&self, ray: &crate::Ray, prim: u32) -> Option<Hit> {
+                (**self).intersect_leaving(ray, prim)
+            }
+            #[inline]
+            fn occluded_leaving(&self, ray: &crate::Ray, prim: u32) -> bool {
+                (**self).occluded_leaving(ray, prim)
             }
         }
     };

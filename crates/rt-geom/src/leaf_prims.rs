@@ -160,7 +160,7 @@ impl TriangleSoa {
         // Lanes past the leaf belong to the next one.
         let mut lanes = (1u32 << (count - k).min(L::WIDTH)) - 1;
         for (l, &id) in ids[k..].iter().take(L::WIDTH).enumerate() {
-            if skip(id) || (K::FILTERED && best.skips(id)) {
+            if skip(id) {
                 lanes &= !(1 << l);
             }
         }
@@ -180,6 +180,12 @@ impl TriangleSoa {
         while may_hit != 0 {
             let l = may_hit.trailing_zeros() as usize;
             may_hit &= may_hit - 1;
+            // Skipped primitives (masks, the one a ray leaves) are dropped here, among the
+            // few lanes whose edge signs may hit: all eight lanes are computed together
+            // anyway, and none of them goes further.
+            if K::SKIPS && best.skips(ids[k + l]) {
+                continue;
+            }
             let edges = lane_edges(&sheared, l);
             if ANY_HIT && !K::FILTERED && r.tmin > 0.0 {
                 let [_, _, kz] = r.watertight_axes();

@@ -61,7 +61,9 @@ pub use accel::{
 };
 pub use brute::BruteForce;
 pub use cone::Cone;
-pub use filter::{Filtered, FilteredAccel, HitFilter, Keep, Masked, SkipPrim, sorted_hits};
+pub use filter::{
+    Filtered, FilteredAccel, HitFilter, Keep, Masked, SkipPrim, Skipping, sorted_hits,
+};
 pub use frame::Frame;
 pub use geometries::{Geometries, GeometryHit};
 pub use glam::{self, DVec3, Vec3};

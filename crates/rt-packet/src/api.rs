@@ -2,7 +2,7 @@
 //! [`PacketAccel`] (groups of any size up to [`MAX_GROUP`], behind a trait object).
 
 use crate::RayPacket;
-use rt_geom::{Accel, FilteredAccel, Hit, Ray, SkipPrim};
+use rt_geom::{Accel, FilteredAccel, Hit, Ray};
 
 /// Packet queries. Results are per lane, in the packet's order; inactive lanes miss.
 pub trait PacketTraversal {
@@ -52,9 +52,7 @@ pub(crate) fn each_lane<const N: usize>(
 ) -> [Option<Hit>; N] {
     std::array::from_fn(|i| match packet.active[i] {
         false => None,
-        true if packet.skipping => {
-            a.intersect_filtered(&packet.ray(i), &mut SkipPrim(packet.skip[i]))
-        }
+        true if packet.skipping => a.intersect_leaving(&packet.ray(i), packet.skip[i]),
         true => a.intersect(&packet.ray(i)),
     })
 }
@@ -66,9 +64,7 @@ pub(crate) fn each_lane_occluded<const N: usize>(
 ) -> [bool; N] {
     std::array::from_fn(|i| match packet.active[i] {
         false => false,
-        true if packet.skipping => {
-            a.occluded_filtered(&packet.ray(i), &mut SkipPrim(packet.skip[i]))
-        }
+        true if packet.skipping => a.occluded_leaving(&packet.ray(i), packet.skip[i]),
         true => a.occluded(&packet.ray(i)),
     })
 }
@@ -118,9 +114,9 @@ pub trait PacketAccel: Accel + Send + Sync {
 }
 
 /// Groups of rays that each leave a primitive (`leaving[i]` for ray `i`, `None` where it
-/// leaves none), which each skips: the answers of the structure's filtered queries with
-/// [`SkipPrim`], ray by ray, traced as [`PacketAccel`] traces groups (one packet when
-/// coherent, [`RayPacket::leaving`]).
+/// leaves none), which each skips: the answers of the structure's
+/// [`FilteredAccel::intersect_leaving`] and `occluded_leaving`, ray by ray, traced as
+/// [`PacketAccel`] traces groups (one packet when coherent, [`RayPacket::leaving`]).
 pub trait LeavingGroups: Sync {
     /// Closest hit of each ray into `out` (same length as `rays` and `leaving`).
     fn intersect_group_leaving(
@@ -181,6 +177,13 @@ impl<Pk: Accel, S: FilteredAccel> FilteredAccel for WithSingleRays<Pk, S> {
 
     fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn rt_geom::HitFilter) -> bool {
         self.singles.occluded_filtered(ray, filter)
+    }
+    fn intersect_leaving(&self, ray: &Ray, prim: u32) -> Option<Hit> {
+        self.singles.intersect_leaving(ray, prim)
+    }
+
+    fn occluded_leaving(&self, ray: &Ray, prim: u32) -> bool {
+        self.singles.occluded_leaving(ray, prim)
     }
 }
 
@@ -321,9 +324,9 @@ trait Groups {
     );
 }
 
-/// The primitive ray `i` of a group leaves.
-fn skip_of(leaving: &[Option<u32>], i: usize) -> SkipPrim {
-    SkipPrim(leaving.get(i).copied().flatten().unwrap_or(u32::MAX))
+/// The primitive ray `i` of a group leaves (`u32::MAX`, no primitive, for none).
+fn skip_of(leaving: &[Option<u32>], i: usize) -> u32 {
+    leaving.get(i).copied().flatten().unwrap_or(u32::MAX)
 }
 
 impl<T: PacketTraversal + FilteredAccel> Groups for T {
@@ -338,7 +341,7 @@ impl<T: PacketTraversal + FilteredAccel> Groups for T {
             for (i, (r, o)) in rays.iter().zip(out).enumerate() {
                 *o = match leaving.is_empty() {
                     true => self.intersect(r),
-                    false => self.intersect_filtered(r, &mut skip_of(leaving, i)),
+                    false => self.intersect_leaving(r, skip_of(leaving, i)),
                 };
             }
             return;
@@ -357,7 +360,7 @@ impl<T: PacketTraversal + FilteredAccel> Groups for T {
             for (i, (r, o)) in rays.iter().zip(out).enumerate() {
                 *o = match leaving.is_empty() {
                     true => self.occluded(r),
-                    false => self.occluded_filtered(r, &mut skip_of(leaving, i)),
+                    false => self.occluded_leaving(r, skip_of(leaving, i)),
                 };
             }
             return;

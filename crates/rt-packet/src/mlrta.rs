@@ -343,6 +343,14 @@ impl<P: PacketPrimitive> rt_geom::FilteredAccel for MlrtaKdTree<P> {
     fn occluded_filtered(&self, ray: &Ray, filter: &mut dyn rt_geom::HitFilter) -> bool {
         self.tree.occluded_filtered(ray, filter)
     }
+
+    fn intersect_leaving(&self, ray: &Ray, prim: u32) -> Option<Hit> {
+        self.tree.intersect_leaving(ray, prim)
+    }
+
+    fn occluded_leaving(&self, ray: &Ray, prim: u32) -> bool {
+        self.tree.occluded_leaving(ray, prim)
+    }
 }
 
 #[cfg(test)]

@@ -9,13 +9,14 @@
 use crate::whitted::{Whitted, fresnel, mirror, refract};
 use crate::{Material, RayStats};
 use glam::Vec3;
-use rt_geom::{Accel, FilteredAccel, Hit, Ray, SkipPrim};
+use rt_geom::{Accel, FilteredAccel, Hit, Ray};
 
 /// Groups of rays answered at once: closest hits, and whether each ray is blocked. Each ray
 /// may leave a primitive, `leaving[i]` (`None`: it leaves none; an empty slice: no ray does),
 /// which it skips. Answers must be those of the structure's `intersect` and `occluded` ray by
-/// ray, filtered with [`SkipPrim`] where a ray leaves a primitive (the integrator gives
-/// primitives to leave only through a structure with filtered queries).
+/// ray, or [`FilteredAccel::intersect_leaving`] and `occluded_leaving` where a ray leaves a
+/// primitive (the integrator gives primitives to leave only through a structure with
+/// filtered queries).
 pub trait Queries: Sync {
     /// Closest hit of each ray into `out` (same length).
     fn intersect(&self, rays: &[Ray], leaving: &[Option<u32>], out: &mut [Option<Hit>]);
@@ -27,10 +28,10 @@ pub trait Queries: Sync {
 pub struct SingleRays<'a>(pub &'a dyn Accel);
 
 impl SingleRays<'_> {
-    /// The structure's filtered queries for ray `i`, when it leaves a primitive.
-    fn leaving(&self, leaving: &[Option<u32>], i: usize) -> Option<(&dyn FilteredAccel, SkipPrim)> {
+    /// The structure's filtered queries for ray `i`, and the primitive it leaves, if any.
+    fn leaving(&self, leaving: &[Option<u32>], i: usize) -> Option<(&dyn FilteredAccel, u32)> {
         let prim = leaving.get(i).copied().flatten()?;
-        Some((self.0.filtered()?, SkipPrim(prim)))
+        Some((self.0.filtered()?, prim))
     }
 }
 
@@ -38,7 +39,7 @@ impl Queries for SingleRays<'_> {
     fn intersect(&self, rays: &[Ray], leaving: &[Option<u32>], out: &mut [Option<Hit>]) {
         for (i, (r, o)) in rays.iter().zip(out).enumerate() {
             *o = match self.leaving(leaving, i) {
-                Some((accel, mut skip)) => accel.intersect_filtered(r, &mut skip),
+                Some((accel, prim)) => accel.intersect_leaving(r, prim),
                 None => self.0.intersect(r),
             };
         }
@@ -47,7 +48,7 @@ impl Queries for SingleRays<'_> {
     fn occluded(&self, rays: &[Ray], leaving: &[Option<u32>], out: &mut [bool]) {
         for (i, (r, o)) in rays.iter().zip(out).enumerate() {
             *o = match self.leaving(leaving, i) {
-                Some((accel, mut skip)) => accel.occluded_filtered(r, &mut skip),
+                Some((accel, prim)) => accel.occluded_leaving(r, prim),
                 None => self.0.occluded(r),
             };
         }

@@ -223,7 +223,7 @@ impl<'a> Whitted<'a> {
     /// The closest hit of a ray that leaves primitive `leaving`, which it skips.
     pub(crate) fn intersect_leaving(&self, ray: &Ray, leaving: Option<u32>) -> Option<Hit> {
         match (leaving, self.filtered) {
-            (Some(prim), Some(accel)) => accel.intersect_filtered(ray, &mut SkipPrim(prim)),
+            (Some(prim), Some(accel)) => accel.intersect_leaving(ray, prim),
             _ => self.accel.intersect(ray),
         }
     }

@@ -9,7 +9,7 @@
 use crate::rays::{RayKind, SamplePoints, TestRay, conformance_rays};
 use crate::scenes::Scene;
 use rt_geom::{
-    Accel, BruteForce, BuildError, FilteredAccel, Hit, HitFilter, Masked, Primitive, Ray,
+    Accel, BruteForce, BuildError, FilteredAccel, Hit, HitFilter, Masked, Primitive, Ray, SkipPrim,
 };
 use std::any::TypeId;
 use std::collections::HashMap;
@@ -528,6 +528,24 @@ where
                 ));
             }
         }
+        // A ray leaving a primitive, through the queries without a filter to call.
+        let left = left_prim(*closest, n);
+        let got = subject.intersect_leaving(ray, left);
+        if !same_hits(got.as_slice(), want.leaving.0.as_slice()) {
+            return Err(at(
+                &format!("intersect_leaving {left}"),
+                &want.leaving.0,
+                &got,
+            ));
+        }
+        let got = subject.occluded_leaving(ray, left);
+        if got != want.leaving.1 {
+            return Err(at(
+                &format!("occluded_leaving {left}"),
+                &want.leaving.1,
+                &got,
+            ));
+        }
         let got = all_hits(&subject, ray);
         if !same_hits(&got, &want.all) {
             return Err(at("for_each_hit", &want.all, &got));
@@ -568,6 +586,14 @@ struct FilteredAnswers {
     occluded: Vec<bool>,
     masked: Vec<Option<Hit>>,
     all: Vec<Hit>,
+    /// The closest hit and the any-hit answer of the ray leaving [`left_prim`].
+    leaving: (Option<Hit>, bool),
+}
+
+/// The primitive a ray leaves in [`check_filters`]: the one it hits first (so that skipping
+/// it changes the answer), else primitive `n / 2`.
+fn left_prim(closest: Option<Hit>, n: u32) -> u32 {
+    closest.map_or(n / 2, |h| h.prim)
 }
 
 /// Brute force's [`FilteredAnswers`] for the rays of `reference`, computed once per scene and
@@ -597,6 +623,11 @@ fn filtered_reference<P: SamplePoints>(
                 occluded: Vec::new(),
                 masked: Vec::new(),
                 all: all_hits(&brute, ray),
+                leaving: {
+                    let mut skip = SkipPrim(left_prim(*closest, n));
+                    let hit = brute.intersect_filtered(ray, &mut skip);
+                    (hit, brute.occluded_filtered(ray, &mut skip))
+                },
             };
             for mask in RAY_MASKS {
                 let mut masked = Masked {

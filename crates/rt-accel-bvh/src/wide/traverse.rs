@@ -19,7 +19,7 @@ pub(crate) fn test_leaf<P: Primitive, K: Keep, const ANY_HIT: bool>(
 ) -> bool {
     let first = first as usize;
     for i in first..first + count as usize {
-        if K::FILTERED && best.skips(ids[i]) {
+        if K::SKIPS && best.skips(ids[i]) {
             continue;
         }
         if let Some(h) = prims[i].intersect(r) {
