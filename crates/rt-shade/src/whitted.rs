@@ -133,7 +133,7 @@ impl<'a> Whitted<'a> {
     /// ([`Accel::filtered`], every rt structure), a ray leaving a triangle starts on it and
     /// skips it (a planar surface cannot be met again), and shadow rays skip the surfaces
     /// that cast none; through a structure without them, every ray leaving a surface starts
-    /// off it ([`Scene::ray_offset`]) and every surface casts shadows ([`crate::render`]
+    /// off it ([`Scene::ray_offset`]) and every surface casts shadows ([`crate::render()`]
     /// refuses such a pair when some surface casts none).
     pub fn new(scene: &'a Scene, accel: &'a dyn Accel, options: ShadeOptions) -> Self {
         let shadowless = scene.materials.iter().any(|m| !m.casts_shadow);
