@@ -120,3 +120,116 @@ fn a_filter_sees_geometry_hits() {
         "{went_on} rays went on past a rejected sphere"
     );
 }
+
+/// Objects of several geometries placed by instances: the hit names the instance, the
+/// geometry of its object and the primitive in it, with the normal in world space, and masks
+/// per geometry and per instance hold; objects built with BVHs and kd-trees answer what
+/// objects answered by brute force answer, and the names agree with a table of the
+/// flattened scene.
+#[test]
+fn instanced_geometries_name_instance_geometry_and_primitive() {
+    use rt_accel_bvh::{Instance, InstanceBvh, Object};
+    use rt_geom::glam::{Affine3A, Quat};
+    let mut objects = vec![Geometries::new(), Geometries::new()];
+    let soup = |n, seed| scenes::random_soup(n, seed).into_iter().map(Shape::from);
+    let spheres = |n, seed| scenes::random_spheres(n, seed).into_iter().map(Shape::from);
+    objects[0].add(soup(80, 21), 0b001);
+    objects[0].add(spheres(30, 22), 0b010);
+    objects[1].add(spheres(20, 23), 0b100);
+    objects[1].add(soup(50, 24), 0b011);
+    let mut rng = Rng::new(5);
+    let instances: Vec<Instance> = (0..5)
+        .map(|i| {
+            let axis = rng.unit_vector();
+            let rotation = Quat::from_axis_angle(axis, rng.range(0.0, 6.0));
+            let scale = Vec3::new(rng.range(0.5, 2.0), rng.range(0.5, 2.0), 1.0);
+            let at = rng.point_in(Vec3::splat(-2.0), Vec3::splat(2.0));
+            Instance {
+                object: i % 2,
+                transform: Affine3A::from_scale_rotation_translation(scale, rotation, at),
+            }
+        })
+        .collect();
+    let instance_masks = [u32::MAX, 0b001, u32::MAX, 0b110];
+    let scene = |exact: bool| {
+        let built: Vec<Object> = objects
+            .iter()
+            .enumerate()
+            .map(|(o, g)| {
+                let p = g.primitives();
+                let object = match (exact, o) {
+                    (true, _) => Object::build(p, BruteForce::build).map(Object::shared),
+                    (false, 0) => Object::build(p, |p| Bvh8::build(p, BvhParams::balanced()))
+                        .map(Object::shared),
+                    (false, _) => {
+                        Object::build(p, |p| KdTree::build(p, KdParams::sah())).map(Object::shared)
+                    }
+                };
+                object.unwrap()
+            })
+            .collect();
+        InstanceBvh::build(built, &instances, BvhParams::balanced()).unwrap()
+    };
+    let (exact, subject) = (scene(true), scene(false));
+    let want_of = exact.with_geometries(&objects, &instance_masks).unwrap();
+    let got_of = subject.with_geometries(&objects, &instance_masks).unwrap();
+    // The flattened scene's table: per global id, (instance, geometry, primitive, its mask).
+    let mut table = Vec::new();
+    for (i, inst) in instances.iter().enumerate() {
+        let g = &objects[inst.object as usize];
+        for p in 0..g.primitives().len() as u32 {
+            let (geometry, prim) = g.locate(p);
+            table.push((i as u32, geometry, prim, g.prim_mask(p)));
+        }
+    }
+    let mut named = 0;
+    for _ in 0..3000 {
+        let o = rng.point_in(Vec3::splat(-4.0), Vec3::splat(4.0));
+        let ray = Ray::new(o, rng.point_in(Vec3::splat(-1.0), Vec3::splat(1.0)) - o);
+        for mask in [u32::MAX, 0b001, 0b110, 0b100, 0] {
+            let want = want_of.intersect(&ray, mask);
+            assert_eq!(
+                got_of.intersect(&ray, mask),
+                want,
+                "mask {mask:#b}, {ray:?}"
+            );
+            assert_eq!(got_of.occluded(&ray, mask), want.is_some());
+            // The same hit through a filter reading the table.
+            let seen = |h: &rt_geom::Hit| {
+                let (i, _, _, m) = table[h.prim as usize];
+                m & mask != 0
+                    && instance_masks
+                        .get(i as usize)
+                        .is_none_or(|im| im & mask != 0)
+            };
+            let plain = exact.intersect_filtered(&ray, &mut { seen });
+            assert_eq!(plain.map(|h| h.t), want.map(|h| h.hit.t));
+            let (Some(h), Some(p)) = (want, plain) else {
+                continue;
+            };
+            let (instance, geometry, prim, _) = table[p.prim as usize];
+            assert_eq!(
+                (h.instance, h.hit.geometry, h.hit.prim),
+                (instance, geometry, prim)
+            );
+            let n = h.hit.normal.expect("shapes have normals");
+            assert!((n.length() - 1.0).abs() < 1e-4, "normal {n}");
+            // A triangle's normal is its world-space triangle's, up to orientation.
+            let inst = &instances[instance as usize];
+            let first = table.iter().position(|t| t.0 == instance).unwrap();
+            let local = objects[inst.object as usize].primitives()[p.prim as usize - first];
+            if let Shape::Triangle(t) = local {
+                let world = rt_geom::Triangle {
+                    v: t.v.map(|v| inst.transform.transform_point3(v)),
+                };
+                assert!(
+                    world.normal().dot(n).abs() > 0.999,
+                    "{n} vs {}",
+                    world.normal()
+                );
+                named += 1;
+            }
+        }
+    }
+    assert!(named > 100, "{named} triangle hits checked");
+}

@@ -17,7 +17,7 @@
 //! | `collapse` | binary → wide: the greedy largest-area rule and the SAH-optimal plan ([`WideCollapse`]) |
 //! | [`wide`] | [`Bvh4`], [`Bvh8`]: collapsed wide BVHs, all children tested at once ([`WideTree`]); node, build, traverse and stats in files of those names |
 //! | [`compressed`] | [`CompressedNode`]: child boxes quantized to 8 bits per plane, 128-byte nodes; [`CompressedBvh8`] and [`CompressedTree`] are the wide BVH and its topology over that layout |
-//! | [`instance`] | [`InstanceBvh`]: two-level ray tracing, a top-level BVH over [`Instance`]s (affine transforms) of [`Object`]s with their own structures; moving instances and refit objects |
+//! | [`instance`] | [`InstanceBvh`]: two-level ray tracing, a top-level BVH over [`Instance`]s (affine transforms) of [`Object`]s with their own structures; moving instances and refit objects; objects of several geometries ([`InstancedGeometries`]) |
 //! | [`save`] | saved structures: a built [`TriBvh`] as versioned bytes and back, checked on load ([`LoadError`]) |
 //! | [`tri`] | [`TriBvh4`], [`TriBvh8`], [`CompressedTriBvh8`]: wide BVHs over triangles stored leaf by leaf as SoA ([`TriangleSoa`], from rt-geom), four tested at once |
 //!
@@ -59,7 +59,9 @@ pub mod wide;
 pub use binary::Bvh;
 pub use bvlist::{BvList, BvListParams, Grouping};
 pub use compressed::{CompressedBvh8, CompressedNode, CompressedTree};
-pub use instance::{Instance, InstanceBvh, InstanceHit, Object, TopUpdate};
+pub use instance::{
+    Instance, InstanceBvh, InstanceGeometryHit, InstanceHit, InstancedGeometries, Object, TopUpdate,
+};
 pub use node::BvhNode;
 pub use params::{BvhBuilder, BvhParams, MAX_DEPTH, WideCollapse};
 pub use refit::Refit;

@@ -112,6 +112,11 @@ impl<P: Primitive> Geometries<P> {
         self.prim_masks[a..b].fill(mask);
     }
 
+    /// The mask of the geometry primitive `prim` of [`Self::primitives`] belongs to.
+    pub fn prim_mask(&self, prim: u32) -> u32 {
+        self.prim_masks[prim as usize]
+    }
+
     /// `(geometry, primitive in it)` of primitive `prim` of [`Self::primitives`].
     pub fn locate(&self, prim: u32) -> (u32, u32) {
         let g = self.first.partition_point(|&f| f <= prim) - 1;
@@ -127,7 +132,7 @@ impl<P: Primitive> Geometries<P> {
         mask: u32,
     ) -> Option<GeometryHit> {
         if self.masks.iter().all(|m| m & mask != 0) {
-            return accel.intersect(ray).map(|h| self.hit(ray, &h));
+            return accel.intersect(ray).map(|h| self.located(ray, &h));
         }
         self.intersect_filtered(accel, ray, mask, &mut |_| true)
     }
@@ -148,10 +153,10 @@ impl<P: Primitive> Geometries<P> {
         mask: u32,
         filter: &mut dyn FnMut(&GeometryHit) -> bool,
     ) -> Option<GeometryHit> {
-        let mut masked = self.masked(mask, |h: &Hit| filter(&self.hit(ray, h)));
+        let mut masked = self.masked(mask, |h: &Hit| filter(&self.located(ray, h)));
         accel
             .intersect_filtered(ray, &mut masked)
-            .map(|h| self.hit(ray, &h))
+            .map(|h| self.located(ray, &h))
     }
 
     /// [`Self::occluded`] counting only the hits `filter` accepts.
@@ -162,7 +167,7 @@ impl<P: Primitive> Geometries<P> {
         mask: u32,
         filter: &mut dyn FnMut(&GeometryHit) -> bool,
     ) -> bool {
-        let mut masked = self.masked(mask, |h: &Hit| filter(&self.hit(ray, h)));
+        let mut masked = self.masked(mask, |h: &Hit| filter(&self.located(ray, h)));
         accel.occluded_filtered(ray, &mut masked)
     }
 
@@ -176,8 +181,8 @@ impl<P: Primitive> Geometries<P> {
         }
     }
 
-    /// `h` located in its geometry, with the normal.
-    fn hit(&self, ray: &Ray, h: &Hit) -> GeometryHit {
+    /// `h`, a hit of `ray` on [`Self::primitives`], located in its geometry, with the normal.
+    pub fn located(&self, ray: &Ray, h: &Hit) -> GeometryHit {
         let (geometry, prim) = self.locate(h.prim);
         let ph = PrimHit {
             t: h.t,

@@ -10,6 +10,9 @@
 //! [`InstanceBvh`] is an [`Accel`] like any other; [`InstanceBvh::intersect_instance`] gives
 //! the instance and the object's own primitive id.
 //!
+//! Objects built over [`rt_geom::Geometries`] answer which geometry and primitive of which
+//! instance a ray hits, with the normal in world space ([`InstanceBvh::with_geometries`]).
+//!
 //! Moving things: [`InstanceBvh::set_transforms`] moves instances and
 //! [`InstanceBvh::refit_object`] deforms an object (its structure refit); either then refits
 //! or rebuilds the top level only ([`TopUpdate`]).
@@ -33,6 +36,10 @@
 //! let behind = Ray::segment(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z, 2.5, 10.0);
 //! assert_eq!(scene.intersect(&behind).unwrap().prim, 2);
 //! ```
+
+mod geometries;
+
+pub use geometries::{InstanceGeometryHit, InstancedGeometries};
 
 use crate::refit::{Refit, check_moved};
 use crate::{Bvh, BvhParams};
