@@ -7,6 +7,7 @@
 //! | `build` | split-plane events, the O(N log N) SAH sweep (Wald & Havran 2006), naive planes, perfect splits, flattening |
 //! | [`traverse`] | front-to-back traversal, iterative and recursive, closest- and any-hit ([`traverse::step`]) |
 //! | `stats` | `stats()` and `validate()` |
+//! | [`save`] | saved kd-trees over triangles: `to_bytes`, `from_bytes`, checked on load |
 //! | [`bsp`] | [`BspTree`]: planes of any orientation (the primitives' own, and axis-aligned), same nodes and walk |
 //!
 //! ```
@@ -29,6 +30,7 @@ pub mod bsp;
 mod build;
 pub mod node;
 pub mod params;
+pub mod save;
 mod stats;
 pub mod traverse;
 mod tree;

@@ -112,6 +112,17 @@ impl KdNode {
     pub fn data(&self) -> u32 {
         self.data
     }
+
+    /// The two words as stored (`data`, `meta`): what a saved tree holds.
+    pub(crate) fn words(&self) -> (u32, u32) {
+        (self.data, self.meta)
+    }
+
+    /// A node of two stored words (see [`Self::words`]); any words make a node, which a
+    /// loaded tree checks before its walks index anything by it.
+    pub(crate) fn from_words(data: u32, meta: u32) -> Self {
+        Self { data, meta }
+    }
 }
 
 #[cfg(test)]

@@ -32,15 +32,8 @@ impl<P: Primitive> KdTree<P> {
     pub fn build(prims: &[P], params: KdParams) -> Result<Self, BuildError> {
         params.validate()?;
         check_primitives(prims, build::MAX_LOCAL)?;
-        let bounds = Aabb::around(prims);
-        // SAH planes are values of the primitives' own coordinates; naive planes are
-        // positions of their own, which world `f32` far from the origin cannot place between
-        // the primitives' coordinates (robustness decision 9).
-        let frame = match params.builder {
-            KdBuilder::Sah => Frame::WORLD,
-            KdBuilder::Midpoint | KdBuilder::Centroid => Frame::of(&bounds),
-        };
-        let root = frame.to_local(&bounds);
+        let frame = Self::frame_for(prims, &params);
+        let root = frame.to_local(&Aabb::around(prims));
         let mut nodes = Vec::new();
         let mut indices = Vec::new();
         if !prims.is_empty() {
@@ -58,8 +51,31 @@ impl<P: Primitive> KdTree<P> {
                 });
             }
         }
+        Ok(Self::assemble(prims, nodes, indices, frame, params))
+    }
+
+    /// The frame and root cell a build over `prims` with `params` splits in: SAH planes are
+    /// values of the primitives' own coordinates; naive planes are positions of their own,
+    /// which world `f32` far from the origin cannot place between the primitives'
+    /// coordinates (robustness decision 9).
+    pub(crate) fn frame_for(prims: &[P], params: &KdParams) -> Frame {
+        match params.builder {
+            KdBuilder::Sah => Frame::WORLD,
+            KdBuilder::Midpoint | KdBuilder::Centroid => Frame::of(&Aabb::around(prims)),
+        }
+    }
+
+    /// The tree of flattened `nodes` and `indices` over `prims` (copied), split in `frame`.
+    pub(crate) fn assemble(
+        prims: &[P],
+        nodes: Vec<KdNode>,
+        indices: Vec<u32>,
+        frame: Frame,
+        params: KdParams,
+    ) -> Self {
+        let root = frame.to_local(&Aabb::around(prims));
         let listed = LeafPrims::new(prims, &indices, nodes.iter().filter_map(KdNode::list));
-        Ok(Self {
+        Self {
             nodes,
             indices,
             prims: prims.to_vec(),
@@ -68,7 +84,7 @@ impl<P: Primitive> KdTree<P> {
             frame,
             root,
             params,
-        })
+        }
     }
 
     /// The flattened nodes (read-only; layout in [`node`]).

@@ -49,6 +49,7 @@ pub mod leaf_prims;
 pub mod mesh;
 pub mod primitive;
 pub mod ray;
+pub mod saved;
 pub mod shape;
 pub mod sphere;
 pub mod triangle;

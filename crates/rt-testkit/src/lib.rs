@@ -62,3 +62,37 @@ impl rt_geom::Accel for Unfiltered<'_> {
         self.0.validate()
     }
 }
+
+/// A saved structure against a rebuild, for the `save_load` examples: builds with `build`,
+/// saves with `save`, loads back with `load` (its checks included), and prints the times, the
+/// size and whether the loaded structure answers `rays` as the built one, bit for bit (an
+/// error if not).
+pub fn save_load_report<A: rt_geom::Accel, E: std::error::Error + 'static>(
+    name: &str,
+    build: impl FnOnce() -> Result<A, rt_geom::BuildError>,
+    save: impl Fn(&A) -> Vec<u8>,
+    load: impl FnOnce(&[u8]) -> Result<A, E>,
+    rays: &[rt_geom::Ray],
+) -> Result<Vec<u8>, Box<dyn std::error::Error>> {
+    let t = std::time::Instant::now();
+    let built = build()?;
+    let build_s = t.elapsed().as_secs_f64();
+    let bytes = save(&built);
+    let t = std::time::Instant::now();
+    let loaded = load(&bytes)?;
+    let load_s = t.elapsed().as_secs_f64();
+    let same = rays.iter().all(|r| {
+        loaded.intersect(r) == built.intersect(r) && loaded.occluded(r) == built.occluded(r)
+    });
+    println!(
+        "{name}: {} primitives, build {build_s:.3} s, load {load_s:.3} s ({:.1}x faster), {:.1} MB, same answers on {} rays: {same}",
+        built.stats().primitives,
+        build_s / load_s,
+        bytes.len() as f64 / 1e6,
+        rays.len()
+    );
+    if !same {
+        return Err(format!("{name}: the loaded structure answered otherwise").into());
+    }
+    Ok(bytes)
+}

@@ -204,6 +204,16 @@ pub fn generated_seeds(name: &str) -> Vec<(String, Vec<u8>)> {
                     Bvh8::build(&tris, spatial).map(|b| b.to_bytes()),
                 ),
                 ("gen-bvh2", Bvh::build(&tris, spatial).map(|b| b.to_bytes())),
+                (
+                    "gen-kd",
+                    rt_accel_kd::KdTree::build(&tris, rt_accel_kd::KdParams::sah())
+                        .map(|b| b.to_bytes()),
+                ),
+                (
+                    "gen-kd-midpoint",
+                    rt_accel_kd::KdTree::build(&tris, rt_accel_kd::KdParams::midpoint())
+                        .map(|b| b.to_bytes()),
+                ),
             ];
             saved
                 .into_iter()
