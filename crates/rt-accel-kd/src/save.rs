@@ -117,8 +117,8 @@ impl KdTree<Triangle> {
                 return false;
             }
             let (tri, size) = polygon(t);
-            let local = tri.into_iter().map(|p| p - anchor).collect();
-            !self.covers(0, local, i as u32, size)
+            let local: Vec<DVec3> = tri.into_iter().map(|p| p - anchor).collect();
+            thick(&local, size) && !self.covers(0, local, i as u32, size)
         });
         match uncovered {
             Some(id) => Err(format!(
@@ -128,22 +128,37 @@ impl KdTree<Triangle> {
         }
     }
 
-    /// Whether polygon `p` (a part of triangle `id`, in the frame) is covered below node `i`.
-    fn covers(&self, i: usize, p: Vec<DVec3>, id: u32, size: f64) -> bool {
-        if !thick(&p, size) {
-            return true;
+    /// Whether polygon `p` (a part of triangle `id`, in the frame, thicker than a sliver) is
+    /// covered below node `i`. A part wholly on one side of a plane goes down as it is; only
+    /// one that straddles a plane is cut, and its slivers are dropped.
+    fn covers(&self, mut i: usize, p: Vec<DVec3>, id: u32, size: f64) -> bool {
+        loop {
+            let n = &self.nodes[i];
+            if n.is_leaf() {
+                return n.leaf_prims(&self.indices).contains(&id);
+            }
+            let (axis, pos) = (n.axis(), n.split() as f64);
+            let (lo, hi) = p
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| {
+                    (lo.min(q[axis]), hi.max(q[axis]))
+                });
+            if hi < pos {
+                i += 1;
+            } else if lo > pos {
+                i = n.above();
+            } else if lo == pos && hi == pos {
+                // In the plane: the build puts it on one side.
+                return self.covers(i + 1, p.clone(), id, size)
+                    || self.covers(n.above(), p, id, size);
+            } else {
+                let (below, above) = split_polygon(&p, axis, pos, true);
+                let covered = |node, part: Vec<DVec3>| {
+                    !thick(&part, size) || self.covers(node, part, id, size)
+                };
+                return covered(i + 1, below) && covered(n.above(), above);
+            }
         }
-        let n = &self.nodes[i];
-        if n.is_leaf() {
-            return n.leaf_prims(&self.indices).contains(&id);
-        }
-        let (axis, pos) = (n.axis(), n.split() as f64);
-        if p.iter().all(|q| q[axis] == pos) {
-            // In the plane: the build puts it on one side.
-            return self.covers(i + 1, p.clone(), id, size) || self.covers(n.above(), p, id, size);
-        }
-        let (below, above) = split_polygon(&p, axis, pos, true);
-        self.covers(i + 1, below, id, size) && self.covers(n.above(), above, id, size)
     }
 }
 
