@@ -754,16 +754,12 @@ mod tests {
     #[test]
     fn fuzz_findings_are_refused_for_their_fault() {
         let tris = scenes::tessellated_sphere(40, Vec3::ZERO, 1.0);
-        let dir = concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../fuzz/regressions/load_bvh/"
-        );
         for (file, fault) in [
             ("non-canonical-params", "unused field"),
             ("wrong-answer-1", "not covered"),
             ("unreachable-node-leaf", "out of range"),
         ] {
-            let bytes = std::fs::read(format!("{dir}{file}")).unwrap();
+            let bytes = rt_testkit::fuzz_regression("load_bvh", file);
             match TriBvh8::from_bytes(&bytes, &tris) {
                 Err(LoadError::Corrupt(why)) => assert!(why.contains(fault), "{file}: {why}"),
                 other => panic!("{file}: {other:?}"),
@@ -772,7 +768,7 @@ mod tests {
         // Binary trees without nodes for a non-empty scene: it answered nothing, and with
         // spatial-split parameters its coverage check panicked.
         for file in ["no-nodes-for-primitives", "empty-binary-split"] {
-            let bytes = std::fs::read(format!("{dir}{file}")).unwrap();
+            let bytes = rt_testkit::fuzz_regression("load_bvh", file);
             match crate::Bvh::from_bytes(&bytes, &tris) {
                 Err(LoadError::Corrupt(why)) => assert!(why.contains("no nodes"), "{file}: {why}"),
                 other => panic!("{file}: {other:?}"),

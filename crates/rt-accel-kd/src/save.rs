@@ -165,7 +165,8 @@ impl KdTree<Triangle> {
 /// The tree's shape, before anything is indexed by it: from node 0 depth-first, each node
 /// reached once and every node reached, the child below an inner node next to it and the one
 /// above further on, depth at most [`MAX_DEPTH`], each plane finite and inside its cell, each
-/// leaf's primitives (its own, or its range of `indices`) in range.
+/// leaf's range inside `indices`, and every primitive named (by a leaf or by `indices`) in
+/// range.
 fn check_topology(
     nodes: &[KdNode],
     indices: &[u32],
@@ -177,6 +178,10 @@ fn check_topology(
             (0, 0) => Ok(()),
             _ => Err("no nodes over primitives".into()),
         };
+    }
+    // Every entry is laid out for the leaf test, listed by a leaf or not.
+    if let Some(&p) = indices.iter().find(|&&p| p as usize >= prims) {
+        return Err(format!("the index array holds primitive {p}, out of range"));
     }
     let mut reached = vec![false; nodes.len()];
     let mut stack = vec![(0usize, root, 0u32)];
@@ -312,6 +317,18 @@ mod tests {
                 }
                 assert_eq!(loaded.to_bytes(), bytes);
             }
+        }
+    }
+
+    /// The loader fuzzer's finding (`fuzz/regressions/load_bvh`): an index entry no leaf lists,
+    /// out of range, panicked laying out the leaves; it is refused for what it is.
+    #[test]
+    fn fuzz_findings_are_refused_for_their_fault() {
+        let tris = scenes::tessellated_sphere(40, Vec3::ZERO, 1.0);
+        let bytes = rt_testkit::fuzz_regression("load_bvh", "kd-unlisted-index-out-of-range");
+        match KdTree::from_bytes(&bytes, &tris) {
+            Err(LoadError::Corrupt(why)) => assert!(why.contains("index array"), "{why}"),
+            other => panic!("{other:?}"),
         }
     }
 

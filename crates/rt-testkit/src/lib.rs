@@ -96,3 +96,11 @@ pub fn save_load_report<A: rt_geom::Accel, E: std::error::Error + 'static>(
     }
     Ok(bytes)
 }
+
+/// The bytes of a fuzz target's saved finding, `fuzz/regressions/<target>/<file>`, for the
+/// tests that hold each finding refused for its fault.
+pub fn fuzz_regression(target: &str, file: &str) -> Vec<u8> {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fuzz/regressions");
+    let path = format!("{dir}/{target}/{file}");
+    std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
+}
