@@ -436,6 +436,26 @@ fn bad_instances_get_clear_errors() {
     .unwrap();
     assert!(hollow.intersect(&probe).is_none());
     hollow.validate().unwrap();
+    // Objects whose structures have no filtered queries (a peer's): the scene's filtered
+    // queries could not go through them, so the build refuses them; rt's structures say they
+    // filter, behind `dyn Accel` too.
+    let tris = scenes::random_soup(10, 1);
+    let plain = BruteForce::build(&tris).unwrap();
+    let peer = Object::new(&tris, rt_testkit::Unfiltered(&plain)).unwrap();
+    let at = [Instance {
+        object: 0,
+        transform: Affine3A::IDENTITY,
+    }];
+    let refused = InstanceBvh::build(vec![peer], &at, BvhParams::balanced()).unwrap_err();
+    assert!(
+        refused.to_string().contains("filtered queries"),
+        "{refused}"
+    );
+    let boxed: Box<dyn Accel> = Box::new(plain.clone());
+    assert!(boxed.filtered().is_some());
+    let own = Object::new(&tris, boxed).unwrap();
+    let scene = InstanceBvh::build(vec![own], &at, BvhParams::balanced()).unwrap();
+    assert!(scene.filtered().is_some());
 }
 
 /// Filtered queries and every hit through instances, against brute force asked the same
