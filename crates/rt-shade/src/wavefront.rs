@@ -89,7 +89,6 @@ impl Level {
 
 /// A light's shadow rays of a level, the primitive each leaves, and what each adds when
 /// unblocked.
-#[derive(Default)]
 struct Shadows {
     rays: Vec<Ray>,
     leaving: Vec<Option<u32>>,
@@ -175,8 +174,15 @@ impl Whitted<'_> {
             });
             // Per light, the shadow rays of the level and what each adds when unblocked.
             let n = level.rays.len();
-            let mut shadow: Vec<Shadows> =
-                scene.lights.iter().map(|_| Shadows::default()).collect();
+            let mut shadow: Vec<Shadows> = scene
+                .lights
+                .iter()
+                .map(|_| Shadows {
+                    rays: Vec::with_capacity(n),
+                    leaving: Vec::with_capacity(n),
+                    lit: Vec::with_capacity(n),
+                })
+                .collect();
             let (mut reflected, mut refracted) = (Level::default(), Level::default());
             let mut surfaces: Vec<Lighting> = Vec::with_capacity(n);
             for ((ray, p), hit) in level.rays.iter().zip(&level.pending).zip(level_hits) {

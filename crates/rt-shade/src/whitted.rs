@@ -110,7 +110,7 @@ pub struct Whitted<'a> {
 }
 
 /// The ray-mask bit of shadow rays, and of the surfaces that block them.
-pub const SHADOW: u32 = 1;
+const SHADOW: u32 = 1;
 
 /// The surface at a hit, oriented towards the incoming ray.
 pub(crate) struct Surface<'a> {
