@@ -489,3 +489,52 @@ fn moving_chess_renders_frames_and_times_each_update() {
             .contains("chess")
     );
 }
+
+/// `render --heatmap`: each pixel's eye ray counted with the `--count` counters; the map and
+/// its legend strip written; the mean tests per eye ray are those of the rays traced one by
+/// one; brute force tests every primitive for every ray, so its map is one colour, the top of
+/// the scale.
+#[test]
+fn heatmaps_count_each_eye_ray() {
+    use xtask::heatmap::Heatmap;
+    let dir = std::env::temp_dir().join(format!("rt-heatmap-{}", std::process::id()));
+    let (w, h) = (48, 36);
+    let args = |accel: &str, kind| xtask::render::RenderArgs {
+        size: Some((w, h)),
+        out: Some(dir.join(format!("{accel}-{kind:?}.png"))),
+        accel: accel.into(),
+        heatmap: Some(kind),
+        quiet: true,
+        ..Default::default()
+    };
+    let kd = xtask::render::render(&args("kd", Heatmap::Boxes)).unwrap();
+    assert_eq!(kd.image.width, w);
+    assert!(kd.image.height > h, "a legend strip under the map");
+    assert_eq!(kd.stats.rays.total(), (w * h) as u64, "eye rays only");
+    // The same rays, counted one by one here.
+    let scene = rt_shade::chess();
+    let tree = xtask::registry::find("kd")
+        .unwrap()
+        .build_any(&scene.shapes)
+        .unwrap();
+    let frame = scene.camera.frame(w, h);
+    rt_geom::counters::take();
+    for y in 0..h {
+        for x in 0..w {
+            tree.intersect(&frame.ray(x as f32 + 0.5, y as f32 + 0.5, (0.5, 0.5)));
+        }
+    }
+    let counted = rt_geom::counters::take();
+    assert_eq!(kd.stats.node_tests, Some(counted.nodes));
+    assert_eq!(kd.stats.prim_tests, Some(counted.prims));
+    assert!(kd.line().contains("heatmap of box tests"), "{}", kd.line());
+    // Brute force: every ray tests every primitive.
+    let brute = xtask::render::render(&args("brute", Heatmap::Prims)).unwrap();
+    let map = &brute.image.pixels[..(w * h) as usize];
+    assert!(map.iter().all(|&p| p == map[0]), "one colour");
+    assert_eq!(
+        brute.stats.prim_tests,
+        Some((w * h) as u64 * scene.shapes.len() as u64)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -28,6 +28,7 @@ pub mod bench;
 pub mod embree;
 pub mod far;
 pub mod fuzz;
+pub mod heatmap;
 pub mod native;
 pub mod obvhs_accel;
 pub mod registry;

@@ -173,7 +173,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let (count, measuring) = match &cli.command {
-        Command::Render(args) => (args.count, None),
+        Command::Render(args) => (args.count || args.heatmap.is_some(), None),
         Command::Bench { count, native, .. } => (*count, Some(*native)),
         Command::Trace { native, .. } => (false, Some(*native)),
         _ => (false, None),

@@ -76,6 +76,10 @@ pub struct RenderArgs {
     /// feature; eye rays then go one by one, so every test is counted).
     #[arg(long)]
     pub count: bool,
+    /// Instead of shading, the tests of each pixel's eye ray as a false-colour map with a
+    /// legend: `boxes` (bounding-volume: node, cell) or `prims` (runs the counting build).
+    #[arg(long, value_enum)]
+    pub heatmap: Option<crate::heatmap::Heatmap>,
     /// No progress bars (tests).
     #[arg(skip)]
     pub quiet: bool,
@@ -147,6 +151,8 @@ pub struct RenderStats {
     pub node_tests: Option<u64>,
     /// Primitive tests while tracing, with `--count`.
     pub prim_tests: Option<u64>,
+    /// What the image maps, with `--heatmap` (then only eye rays are cast).
+    pub heatmap: Option<crate::heatmap::Heatmap>,
 }
 
 /// A finished render: where the PNG went, and the statistics.
@@ -170,8 +176,13 @@ impl RenderSummary {
             ),
             _ => String::new(),
         };
+        let what = match s.heatmap {
+            Some(crate::heatmap::Heatmap::Boxes) => ", a heatmap of box tests",
+            Some(crate::heatmap::Heatmap::Prims) => ", a heatmap of primitive tests",
+            None => "",
+        };
         format!(
-            "{} {}x{} with {}{}{}: {} eye rays ({} hit), {} reflected, {} refracted, {} shadow; \
+            "{} {}x{} with {}{}{}{what}: {} eye rays ({} hit), {} reflected, {} refracted, {} shadow; \
              build {:.3} s, trace {:.3} s ({:.2} Mrays/s){} -> {}",
             s.scene,
             s.width,
@@ -254,7 +265,12 @@ pub fn render(args: &RenderArgs) -> Result<RenderSummary, String> {
     let options = args.options(scene.resolution.unwrap_or((640, 480)))?;
     let pool = pool(args.threads)?;
     let built = pool.install(|| build(entry, &scene, objects.as_ref(), args))?;
-    let (rendered, counts) = trace(&scene, &built, &options, &pool, args.quiet)?;
+    let (rendered, counts) = match args.heatmap {
+        Some(kind) => {
+            pool.install(|| crate::heatmap::heatmap(&scene, built.single.as_ref(), &options, kind))?
+        }
+        None => trace(&scene, &built, &options, &pool, args.quiet)?,
+    };
     report(args, entry, scene, &built, rendered, counts, out)
 }
 
@@ -284,6 +300,7 @@ fn report(
         objects: args.objects,
         node_tests: built.counting.then_some(counts.nodes),
         prim_tests: built.counting.then_some(counts.prims),
+        heatmap: args.heatmap,
     };
     if let Some(path) = &args.stats {
         let json = serde_json::to_string_pretty(&stats).map_err(|e| e.to_string())?;
@@ -372,7 +389,7 @@ fn build(
         ))
     });
     let start = Instant::now();
-    let counting = args.count && rt_geom::counters::ENABLED;
+    let counting = (args.count || args.heatmap.is_some()) && rt_geom::counters::ENABLED;
     let packet_path = entry
         .packets
         .filter(|_| objects.is_none() && !args.no_packets && !counting);
