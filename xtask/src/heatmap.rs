@@ -20,22 +20,18 @@ pub enum Heatmap {
 /// Height in pixels of the legend strip.
 const LEGEND: u32 = 22;
 
-/// Traces one eye ray through the centre of each pixel of the `options`-sized view of
-/// `scene` with `accel`, counting its tests: the map of those of `kind` with its legend, the
-/// eye rays (and hits) cast, and the tests summed. Needs the counting build.
-pub fn heatmap(
+/// Each pixel's eye ray (through its centre) of a `width` x `height` view of `scene` through
+/// `accel`: whether it hit, and the tests it took. Needs the counting build.
+fn count_eye_rays(
     scene: &Scene,
     accel: &dyn Accel,
-    options: &RenderOptions,
-    kind: Heatmap,
-) -> Result<(Rendered, counters::Counts), String> {
+    (width, height): (u32, u32),
+) -> Result<Vec<(bool, counters::Counts)>, String> {
     if !counters::ENABLED {
-        return Err("--heatmap needs the counting build (feature counters)".into());
+        return Err("heatmaps need the counting build (feature counters)".into());
     }
-    let start = std::time::Instant::now();
-    let (width, height) = (options.width, options.height);
     let frame = scene.camera.frame(width, height);
-    let per_pixel: Vec<(bool, counters::Counts)> = (0..height)
+    Ok((0..height)
         .into_par_iter()
         .flat_map_iter(|y| {
             let frame = &frame;
@@ -46,7 +42,21 @@ pub fn heatmap(
                 (hit, counters::take())
             })
         })
-        .collect();
+        .collect())
+}
+
+/// Traces one eye ray through the centre of each pixel of the `options`-sized view of
+/// `scene` with `accel`, counting its tests: the map of those of `kind` with its legend, the
+/// eye rays (and hits) cast, and the tests summed. Needs the counting build.
+pub fn heatmap(
+    scene: &Scene,
+    accel: &dyn Accel,
+    options: &RenderOptions,
+    kind: Heatmap,
+) -> Result<(Rendered, counters::Counts), String> {
+    let start = std::time::Instant::now();
+    let (width, height) = (options.width, options.height);
+    let per_pixel = count_eye_rays(scene, accel, (width, height))?;
     let count = |c: &counters::Counts| match kind {
         Heatmap::Boxes => c.nodes,
         Heatmap::Prims => c.prims,
@@ -85,6 +95,163 @@ pub fn heatmap(
         },
         total,
     ))
+}
+
+/// The structures [`figure`] compares, as the lecture does: the fastest BVH, the kd-tree, the
+/// hierarchical grid, the octree, bounding boxes per chess piece (`--objects pieces`, each
+/// piece tested by brute force inside its box), and brute force.
+pub const FIGURE_ACCELS: [&str; 6] = ["bvh8-tri", "kd", "grid2", "octree", "pieces", "brute"];
+
+/// One figure of every structure of [`FIGURE_ACCELS`] on the chess scene and on sponza (when
+/// `../shared/models` has it): per panel the tests (box and primitive together) of each
+/// pixel's eye ray on one shared logarithmic scale, the mean box and primitive tests per ray
+/// under it, one legend. Panels are `size` pixels; returns the lines it printed.
+pub fn figure(size: (u32, u32), out: &std::path::Path) -> Result<Vec<String>, String> {
+    let mut rows: Vec<(Scene, Option<rt_shade::SceneObjects>)> =
+        vec![rt_shade::chess_objects(rt_shade::ChessForm::Pieces)]
+            .into_iter()
+            .map(|(s, o)| (s, Some(o)))
+            .collect();
+    if let Some(path) = rt_testkit::models::model_path("sponza") {
+        rows.push((
+            rt_shade::load_obj_scene(&path).map_err(|e| e.to_string())?,
+            None,
+        ));
+    }
+    // Per row and column: the per-pixel tests, or none (no pieces in the scene).
+    let mut panels: Vec<Vec<Option<Vec<counters::Counts>>>> = Vec::new();
+    let mut lines = Vec::new();
+    for (scene, objects) in &rows {
+        let mut row = Vec::new();
+        for name in FIGURE_ACCELS {
+            let accel: Box<dyn Accel> = match (name, objects) {
+                ("pieces", Some(objects)) => {
+                    let brute = crate::registry::find("brute").ok_or("no brute entry")?;
+                    crate::render::build_two_level(brute, objects)?
+                }
+                ("pieces", None) => {
+                    row.push(None);
+                    continue;
+                }
+                _ => crate::registry::find(name)
+                    .ok_or_else(|| crate::registry::unknown(name))?
+                    .build_any(&scene.shapes)?,
+            };
+            let counts: Vec<_> = count_eye_rays(scene, accel.as_ref(), size)?
+                .into_iter()
+                .map(|(_, c)| c)
+                .collect();
+            let n = counts.len().max(1) as f64;
+            let mean =
+                |f: fn(&counters::Counts) -> u64| counts.iter().map(f).sum::<u64>() as f64 / n;
+            lines.push(format!(
+                "{} {name}: {:.1} box tests, {:.1} primitive tests per eye ray",
+                scene.name,
+                mean(|c| c.nodes),
+                mean(|c| c.prims)
+            ));
+            row.push(Some(counts));
+        }
+        panels.push(row);
+    }
+    let max = panels
+        .iter()
+        .flatten()
+        .flatten()
+        .flatten()
+        .map(|c| c.nodes + c.prims)
+        .max()
+        .unwrap_or(0)
+        .max(1);
+    draw_figure(out, size, &rows, &panels, max)?;
+    Ok(lines)
+}
+
+/// Lays the panels out in rows (scenes) and columns (structures), names and means under
+/// each, the legend at the bottom, and writes the PNG.
+fn draw_figure(
+    out: &std::path::Path,
+    (pw, ph): (u32, u32),
+    rows: &[(Scene, Option<rt_shade::SceneObjects>)],
+    panels: &[Vec<Option<Vec<counters::Counts>>>],
+    max: u64,
+) -> Result<(), String> {
+    use plotters::prelude::*;
+    crate::report::register_font();
+    let (pad, label) = (8u32, 30u32);
+    let cols = FIGURE_ACCELS.len() as u32;
+    let width = cols * (pw + pad) + pad;
+    let height = rows.len() as u32 * (ph + label + pad) + pad + LEGEND + 16;
+    let mut rgb = vec![255u8; (width * height * 3) as usize];
+    let mut put = |x: u32, y: u32, c: rt_geom::Vec3| {
+        let at = ((y * width + x) * 3) as usize;
+        for (k, v) in c.to_array().into_iter().enumerate() {
+            rgb[at + k] = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+        }
+    };
+    let origin = |r: u32, c: u32| (pad + c * (pw + pad), pad + r * (ph + label + pad));
+    for (r, row) in panels.iter().enumerate() {
+        for (c, panel) in row.iter().enumerate() {
+            let (x0, y0) = origin(r as u32, c as u32);
+            for (i, count) in panel.iter().flatten().enumerate() {
+                let (x, y) = (i as u32 % pw, i as u32 / pw);
+                put(x0 + x, y0 + y, ramp(scale(count.nodes + count.prims, max)));
+            }
+            if panel.is_none() {
+                for y in 0..ph {
+                    for x in 0..pw {
+                        put(x0 + x, y0 + y, rt_geom::Vec3::splat(0.9));
+                    }
+                }
+            }
+        }
+    }
+    let strip = legend(width - 2 * pad, max);
+    let ly = height - LEGEND - 16;
+    for (i, &c) in strip.iter().enumerate() {
+        let (x, y) = (i as u32 % (width - 2 * pad), i as u32 / (width - 2 * pad));
+        put(pad + x, ly + y, c);
+    }
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (width, height)).into_drawing_area();
+        let text = |s: &str, x: u32, y: u32, root: &DrawingArea<_, _>| {
+            root.draw(&Text::new(
+                s.to_string(),
+                (x as i32, y as i32),
+                ("sans-serif", 13),
+            ))
+            .map_err(|e| e.to_string())
+        };
+        for (r, row) in panels.iter().enumerate() {
+            for (c, panel) in row.iter().enumerate() {
+                let (x0, y0) = origin(r as u32, c as u32);
+                let name = FIGURE_ACCELS[c];
+                let caption = match panel {
+                    Some(counts) => {
+                        let n = counts.len().max(1) as f64;
+                        let b = counts.iter().map(|c| c.nodes).sum::<u64>() as f64 / n;
+                        let p = counts.iter().map(|c| c.prims).sum::<u64>() as f64 / n;
+                        format!("{name}: {b:.0} box + {p:.0} prim")
+                    }
+                    None => format!("{name}: no pieces"),
+                };
+                text(
+                    &format!("{} / {caption}", rows[r].0.name),
+                    x0,
+                    y0 + ph + 6,
+                    &root,
+                )?;
+            }
+        }
+        text(
+            "tests per eye ray (box + primitive), log scale",
+            pad,
+            height - 14,
+            &root,
+        )?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    rt_shade::write_png(out, width, height, &rgb)
 }
 
 /// `count` on the logarithmic scale up to `max`: 0 for none, 1 for `max`.
@@ -191,6 +358,32 @@ mod tests {
         // Brighter as the count grows (viridis rises in lightness).
         let lum = |c: rt_geom::Vec3| 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
         assert!((1..=20).all(|i| lum(ramp(i as f32 / 20.0)) > lum(ramp((i - 1) as f32 / 20.0))));
+    }
+
+    /// The figure's layout: panels, captions and legend in a PNG of the size it computes, a
+    /// missing panel grey.
+    #[test]
+    fn the_figure_lays_out_every_panel() {
+        let scene = rt_shade::chess();
+        let (pw, ph) = (20, 10);
+        let panel = |n: u64| {
+            let c = counters::Counts { nodes: n, prims: 1 };
+            Some(vec![c; (pw * ph) as usize])
+        };
+        let mut row: Vec<_> = (0..FIGURE_ACCELS.len() as u64).map(panel).collect();
+        row[4] = None;
+        let out = std::env::temp_dir().join(format!("rt-figure-{}.png", std::process::id()));
+        let rows = [(scene, None)];
+        draw_figure(&out, (pw, ph), &rows, &[row], 6).unwrap();
+        let png = std::fs::read(&out).unwrap();
+        assert_eq!(&png[1..4], b"PNG");
+        // Width and height in the header: six panels and their gaps; one row, the legend.
+        let be = |at: usize| u32::from_be_bytes(png[at..at + 4].try_into().unwrap());
+        assert_eq!(
+            (be(16), be(20)),
+            (6 * (pw + 8) + 8, ph + 30 + 8 + 8 + LEGEND + 16)
+        );
+        let _ = std::fs::remove_file(&out);
     }
 
     #[test]

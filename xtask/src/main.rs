@@ -97,6 +97,17 @@ enum Command {
     },
     /// Whitted ray tracing of a scene to a PNG with any structure, with ray statistics.
     Render(render::RenderArgs),
+    /// One figure: the tests of each pixel's eye ray as a heatmap, for bvh8-tri, kd, grid2,
+    /// octree, per-piece boxes and brute force, on the chess scene and sponza (runs the
+    /// counting build).
+    Heatmaps {
+        /// Size of each panel, WxH.
+        #[arg(long, value_parser = render::parse_size, default_value = "200x150")]
+        size: (u32, u32),
+        /// PNG to write.
+        #[arg(long, default_value = "target/render/heatmaps.png")]
+        out: PathBuf,
+    },
     /// Trace a ray file through a mesh; write a hit file; print one timing line.
     Trace {
         #[arg(long)]
@@ -174,6 +185,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let (count, measuring) = match &cli.command {
         Command::Render(args) => (args.count || args.heatmap.is_some(), None),
+        Command::Heatmaps { .. } => (true, None),
         Command::Bench { count, native, .. } => (*count, Some(*native)),
         Command::Trace { native, .. } => (false, Some(*native)),
         _ => (false, None),
@@ -339,6 +351,15 @@ fn run(command: Command) -> Result<ExitCode, String> {
             let frames = args.frames.unwrap_or(1);
             let times = xtask::animate::animate(&args, frames)?;
             print!("{}", xtask::animate::table(&times));
+        }
+        Command::Heatmaps { size, out } => {
+            let spinner = xtask::run::spinner("tracing every panel's eye rays".into());
+            let lines = xtask::heatmap::figure(size, &out)?;
+            spinner.finish_and_clear();
+            for line in lines {
+                println!("{line}");
+            }
+            println!("-> {}", out.display());
         }
         Command::Render(args) => {
             let summary = render::render(&args)?;
