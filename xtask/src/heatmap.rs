@@ -103,7 +103,7 @@ pub fn heatmap(
 pub const FIGURE_ACCELS: [&str; 6] = ["bvh8-tri", "kd", "grid2", "octree", "pieces", "brute"];
 
 /// One figure of every structure of [`FIGURE_ACCELS`] on the chess scene and on sponza (when
-/// `../shared/models` has it): per panel the tests (box and primitive together) of each
+/// `../shared/models` has it; seen from inside, as the benchmarks' sponza rays are): per panel the tests (box and primitive together) of each
 /// pixel's eye ray on one shared logarithmic scale, the mean box and primitive tests per ray
 /// under it, one legend. Panels are `size` pixels; returns the lines it printed.
 pub fn figure(size: (u32, u32), out: &std::path::Path) -> Result<Vec<String>, String> {
@@ -113,10 +113,11 @@ pub fn figure(size: (u32, u32), out: &std::path::Path) -> Result<Vec<String>, St
             .map(|(s, o)| (s, Some(o)))
             .collect();
     if let Some(path) = rt_testkit::models::model_path("sponza") {
-        rows.push((
-            rt_shade::load_obj_scene(&path).map_err(|e| e.to_string())?,
-            None,
-        ));
+        let mut sponza = rt_shade::load_obj_scene(&path).map_err(|e| e.to_string())?;
+        // From inside, as the benchmarks' sponza rays look.
+        let v = rt_testkit::View::standard("sponza", &sponza.bounds());
+        sponza.camera = rt_shade::Camera::perspective(v.eye, v.target, v.up, v.fov_y);
+        rows.push((sponza, None));
     }
     // Per row and column: the per-pixel tests, or none (no pieces in the scene).
     let mut panels: Vec<Vec<Option<Vec<counters::Counts>>>> = Vec::new();
