@@ -3,7 +3,7 @@
 //! | module | what it holds |
 //! |---|---|
 //! | [`packet`] | [`RayPacket`]: `N` rays in structure-of-arrays form with an active mask (its [`Lanes`], reused by the thread's next packet); [`tiles`] of an image |
-//! | [`api`] | [`PacketTraversal`] (`intersect_packet`, `occluded_packet`) and [`PacketAccel`], the same behind a trait object for groups of up to [`MAX_GROUP`] rays; [`WithSingleRays`], a packet path with its own single-ray structure |
+//! | [`api`] | [`PacketTraversal`] (`intersect_packet`, `occluded_packet`) and [`PacketAccel`], the same behind a trait object for groups of up to [`MAX_GROUP`] rays ([`LeavingGroups`]: rays that each skip the primitive they leave); [`WithSingleRays`], a packet path with its own single-ray structure |
 //! | [`lanes`] | the kernels over blocks of 8 lanes: the slab test, and [`PacketPrimitive`] (watertight triangle test of 8 lanes at once) |
 //! | [`beam`] | [`Beam`]: a packet bounded by interval arithmetic, for culling and entry points |
 //! | [`bvh`] | packets through rt's [`Bvh`](rt_accel_bvh::Bvh): first-active-ray descent, beam culling (Wald, Boulos & Shirley 2007) |
@@ -57,7 +57,10 @@ pub mod mlrta;
 pub mod packet;
 pub mod wide;
 
-pub use api::{COHERENT_COS, MAX_GROUP, PacketAccel, PacketTraversal, WithSingleRays, is_coherent};
+pub use api::{
+    COHERENT_COS, LeavingGroups, MAX_GROUP, PacketAccel, PacketTraversal, WithSingleRays,
+    is_coherent,
+};
 pub use beam::Beam;
 pub use lanes::PacketPrimitive;
 pub use mlrta::{EntryPoint, MlrtaKdTree};
