@@ -66,7 +66,6 @@ struct Pending {
 }
 
 /// The rays of one level, the primitive each leaves, and what each one is.
-#[derive(Default)]
 struct Level {
     rays: Vec<Ray>,
     leaving: Vec<Option<u32>>,
@@ -74,6 +73,14 @@ struct Level {
 }
 
 impl Level {
+    fn with_capacity(n: usize) -> Self {
+        Self {
+            rays: Vec::with_capacity(n),
+            leaving: Vec::with_capacity(n),
+            pending: Vec::with_capacity(n),
+        }
+    }
+
     fn push(&mut self, (ray, leaving): (Ray, Option<u32>), pending: Pending) {
         self.rays.push(ray);
         self.leaving.push(leaving);
@@ -183,7 +190,10 @@ impl Whitted<'_> {
                     lit: Vec::with_capacity(n),
                 })
                 .collect();
-            let (mut reflected, mut refracted) = (Level::default(), Level::default());
+            // At most one reflected and one refracted ray per hit, the refracted appended to the
+            // reflected at the end: no vector grows as it fills.
+            let (mut reflected, mut refracted) =
+                (Level::with_capacity(2 * n), Level::with_capacity(n));
             let mut surfaces: Vec<Lighting> = Vec::with_capacity(n);
             for ((ray, p), hit) in level.rays.iter().zip(&level.pending).zip(level_hits) {
                 let node = nodes.len();
