@@ -103,15 +103,19 @@ pub fn heatmap(
 pub const FIGURE_ACCELS: [&str; 6] = ["bvh8-tri", "kd", "grid2", "octree", "pieces", "brute"];
 
 /// One figure of every structure of [`FIGURE_ACCELS`] on the chess scene and on sponza (when
-/// `../shared/models` has it; seen from inside, as the benchmarks' sponza rays are): per panel the tests (box and primitive together) of each
-/// pixel's eye ray on one shared logarithmic scale, the mean box and primitive tests per ray
-/// under it, one legend. Panels are `size` pixels; returns the lines it printed.
+/// `../shared/models` has it; seen from inside, as the benchmarks' sponza rays are): per
+/// panel the tests (box and primitive together) of each pixel's eye ray on one shared
+/// logarithmic scale, the mean box and primitive tests per ray under it, one legend. Panels
+/// are `size` pixels; returns a line per panel with its means.
 pub fn figure(size: (u32, u32), out: &std::path::Path) -> Result<Vec<String>, String> {
-    let mut rows: Vec<(Scene, Option<rt_shade::SceneObjects>)> =
-        vec![rt_shade::chess_objects(rt_shade::ChessForm::Pieces)]
-            .into_iter()
-            .map(|(s, o)| (s, Some(o)))
-            .collect();
+    if size.0 == 0 || size.1 == 0 {
+        return Err(format!(
+            "panels of {}x{} pixels hold nothing",
+            size.0, size.1
+        ));
+    }
+    let (chess, pieces) = rt_shade::chess_objects(rt_shade::ChessForm::Pieces);
+    let mut rows = vec![(chess, Some(pieces))];
     if let Some(path) = rt_testkit::models::model_path("sponza") {
         let mut sponza = rt_shade::load_obj_scene(&path).map_err(|e| e.to_string())?;
         // From inside, as the benchmarks' sponza rays look.
@@ -142,14 +146,10 @@ pub fn figure(size: (u32, u32), out: &std::path::Path) -> Result<Vec<String>, St
                 .into_iter()
                 .map(|(_, c)| c)
                 .collect();
-            let n = counts.len().max(1) as f64;
-            let mean =
-                |f: fn(&counters::Counts) -> u64| counts.iter().map(f).sum::<u64>() as f64 / n;
+            let (boxes, prims) = means(&counts);
             lines.push(format!(
-                "{} {name}: {:.1} box tests, {:.1} primitive tests per eye ray",
-                scene.name,
-                mean(|c| c.nodes),
-                mean(|c| c.prims)
+                "{} {name}: {boxes:.1} box tests, {prims:.1} primitive tests per eye ray",
+                scene.name
             ));
             row.push(Some(counts));
         }
@@ -166,6 +166,13 @@ pub fn figure(size: (u32, u32), out: &std::path::Path) -> Result<Vec<String>, St
         .max(1);
     draw_figure(out, size, &rows, &panels, max)?;
     Ok(lines)
+}
+
+/// The mean box and primitive tests of a panel's rays.
+fn means(counts: &[counters::Counts]) -> (f64, f64) {
+    let n = counts.len().max(1) as f64;
+    let sum = |f: fn(&counters::Counts) -> u64| counts.iter().map(f).sum::<u64>() as f64 / n;
+    (sum(|c| c.nodes), sum(|c| c.prims))
 }
 
 /// Lays the panels out in rows (scenes) and columns (structures), names and means under
@@ -229,9 +236,7 @@ fn draw_figure(
                 let name = FIGURE_ACCELS[c];
                 let caption = match panel {
                     Some(counts) => {
-                        let n = counts.len().max(1) as f64;
-                        let b = counts.iter().map(|c| c.nodes).sum::<u64>() as f64 / n;
-                        let p = counts.iter().map(|c| c.prims).sum::<u64>() as f64 / n;
+                        let (b, p) = means(counts);
                         format!("{name}: {b:.0} box + {p:.0} prim")
                     }
                     None => format!("{name}: no pieces"),
