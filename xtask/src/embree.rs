@@ -180,7 +180,6 @@ fn isa_config() -> String {
     let name = match isa {
         rt_geom::Isa::Baseline => "sse2",
         rt_geom::Isa::Avx2 => "avx2",
-        rt_geom::Isa::Avx512 => "avx512skx",
     };
     format!(",isa={name}")
 }

@@ -13,7 +13,7 @@
 //! `rt-geom/counters` feature. The same ray files go to
 //! `cargo xtask trace --threads 1` for a peer's time on the same rays.
 //!
-//! `cargo run --release -p rt-accel-bvh --example bvh8_bound -- MESH.obj RAYS.rays [--occluded]`
+//! `cargo run --release -p rt-accel-bvh --features measure --example bvh8_bound -- MESH.obj RAYS.rays [--occluded]`
 //! (`cargo xtask rays` writes the ray files).
 
 use rt_accel_bvh::TriBvh8;

@@ -1,5 +1,5 @@
 //! Refit against a full build of the same layout, and trace speed after a large deformation:
-//! `cargo run --release -p rt-accel-bvh --example refit_vs_build -- MESH.obj [RAYS]`.
+//! `cargo run --release -p rt-accel-bvh --features measure --example refit_vs_build -- MESH.obj [RAYS]`.
 
 use rt_accel_bvh::{BvhParams, CompressedTriBvh8, Refit, TriBvh4, TriBvh8};
 use rt_geom::{Accel, Ray, Triangle, Vec3};

@@ -285,7 +285,6 @@ mod tests {
     per_isa! {
         isa_baseline: Isa::Baseline;
         isa_avx2: Isa::Avx2;
-        isa_avx512: Isa::Avx512;
     }
 
     mod tri8_big_leaves {

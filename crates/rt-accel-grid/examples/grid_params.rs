@@ -2,7 +2,7 @@
 //! one's build time and `stats()`, then the single-thread speed of each on the mesh's standard
 //! primary, shadow and diffuse rays (median of 5, the grids taking turns).
 //!
-//! `cargo run --release -p rt-accel-grid --example grid_params -- path/to/mesh.obj (or sphere:N, stadium:N)
+//! `cargo run --release -p rt-accel-grid --features measure --example grid_params -- path/to/mesh.obj (or sphere:N, stadium:N)
 //! uniform:DENSITY two-level:TOP_DENSITY:DENSITY adaptive:MAX_CELL_PRIMS:DENSITY ... [SIDE]`
 //! (`SIDE`: camera resolution, default 512), e.g. `two-level:0.01:0.5 adaptive:24:0.125`; a
 //! `+mailbox` suffix turns on per-ray mailboxes (`two-level:0.01:0.5+mailbox`), a `+noskip`

@@ -3,7 +3,7 @@
 //! `stats()`, then the single-thread speed of each on the mesh's standard primary, shadow and
 //! diffuse rays (median of 5, the trees taking turns).
 //!
-//! `cargo run --release -p rt-accel-kd --example kd_costs -- path/to/mesh.obj (or sphere:N, stadium:N) 15/20/0.2 15/7/0.1 [SIDE]`
+//! `cargo run --release -p rt-accel-kd --features measure --example kd_costs -- path/to/mesh.obj (or sphere:N, stadium:N) 15/20/0.2 15/7/0.1 [SIDE]`
 //! (`SIDE`: camera resolution, default 512).
 
 use rt_accel_kd::{KdParams, KdTree};

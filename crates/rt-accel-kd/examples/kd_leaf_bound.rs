@@ -5,7 +5,7 @@
 //! passes, on the mesh's standard primary, shadow and diffuse rays. The ratio bounds what
 //! any faster walk of the same tree could gain.
 //!
-//! `cargo run --release -p rt-accel-kd --example kd_leaf_bound -- MESH.obj [SIDE]` (`SIDE`: the
+//! `cargo run --release -p rt-accel-kd --features measure --example kd_leaf_bound -- MESH.obj [SIDE]` (`SIDE`: the
 //! camera's resolution, default 512; `sphere:N` for a tessellated sphere).
 
 use rt_accel_kd::{KdParams, KdTree};

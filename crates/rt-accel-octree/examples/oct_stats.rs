@@ -2,7 +2,7 @@
 //! sizes; with `--trace`, also the single-thread speed of both walks on the mesh's standard
 //! primary, shadow and diffuse rays (median of 5).
 //!
-//! `cargo run --release -p rt-accel-octree --example oct_stats -- path/to/mesh.obj [--trace [SIDE [parametric|recursive]]]`
+//! `cargo run --release -p rt-accel-octree --features measure --example oct_stats -- path/to/mesh.obj [--trace [SIDE [parametric|recursive]]]`
 use rt_accel_octree::{Octree, OctreeParams, OctreeTraversal};
 use rt_geom::{Accel, Triangle, load_obj};
 use rt_testkit::RaySets;

@@ -1,23 +1,25 @@
 //! [`Isa`]: the instruction sets the hot loops are compiled for, chosen at run time.
 //!
 //! A dependent crate's plain `cargo build --release` compiles for the baseline of its target
-//! (SSE2 on x86-64). The walks and leaf tests are therefore compiled once more inside
-//! functions that enable AVX2 and FMA (x86-64-v3) and AVX-512 (x86-64-v4), and a query runs
-//! the level its structure asks for where the CPU has it, as Embree picks its kernels when a
-//! scene is committed. The choice is made once per query, never per node: a function
-//! compiled for an instruction set does not inline into a caller without it.
+//! (SSE2 on x86-64). The walks and leaf tests are therefore compiled once more inside a
+//! function that enables AVX2 and FMA (x86-64-v3), and a query runs the level its structure
+//! asks for where the CPU has it, as Embree picks its kernels when a scene is committed. The
+//! choice is made once per query, never per node: a function compiled for an instruction set
+//! does not inline into a caller without it. There is no AVX-512 level: the kernels work on
+//! eight lanes, which one AVX2 register holds, and a copy compiled with AVX-512 enabled ran no
+//! faster while adding a third to the kernels' compile time.
 //!
 //! Work to compile per level implements [`Kernel`] and runs through [`run`]; a structure
 //! implements [`Walk`] (its whole query, `#[inline(always)]`, and the level it asks for) and
 //! answers through [`query`]. Either runs at the requested level, or at the best one below it
-//! that the CPU has. `RT_ISA=baseline|avx2|avx512` sets the request ([`Isa::selected`]) for
+//! that the CPU has. `RT_ISA=baseline|avx2` sets the request ([`Isa::selected`]) for
 //! tests and measurements.
 //!
 //! Inside, the work is handed the level it runs at as a value ([`Level`]), which the walk's
 //! node tests and the leaf tests
 //! ([`TriangleSoa::intersect_range`](crate::TriangleSoa::intersect_range)) pick their
 //! eight-lane vectors by: `wide`'s (SSE pairs in a plain build) at the baseline, one
-//! AVX register at the AVX2 and AVX-512 levels. Only [`run`] makes an AVX2 level value, after
+//! AVX register at the AVX2 level. Only [`run`] makes an AVX2 level value, after
 //! checking the CPU, so the AVX instructions never run where they are missing.
 
 use crate::triangle::{ShearedLanes, SimdLanes, Triangle};
@@ -32,29 +34,26 @@ pub enum Isa {
     Baseline,
     /// x86-64-v3: AVX2, FMA, BMI1, BMI2, LZCNT, POPCNT.
     Avx2,
-    /// x86-64-v4: x86-64-v3 and AVX-512 F, VL, BW, DQ, CD.
-    Avx512,
 }
 
 impl Isa {
     /// Every level, lowest first.
-    pub const ALL: [Isa; 3] = [Isa::Baseline, Isa::Avx2, Isa::Avx512];
+    pub const ALL: [Isa; 2] = [Isa::Baseline, Isa::Avx2];
 
     /// The name `RT_ISA` takes.
     pub fn name(self) -> &'static str {
         match self {
             Isa::Baseline => "baseline",
             Isa::Avx2 => "avx2",
-            Isa::Avx512 => "avx512",
         }
     }
 
-    /// The level named `s` (`baseline`, `avx2`, `avx512`).
+    /// The level named `s` (`baseline`, `avx2`).
     pub fn parse(s: &str) -> Result<Isa, String> {
         Isa::ALL
             .into_iter()
             .find(|i| i.name() == s.trim())
-            .ok_or_else(|| format!("unknown instruction set {s:?} (baseline, avx2, avx512)"))
+            .ok_or_else(|| format!("unknown instruction set {s:?} (baseline, avx2)"))
     }
 
     /// Whether this CPU runs this level.
@@ -80,32 +79,25 @@ impl Isa {
         Isa::ALL.into_iter().filter(|i| i.supported()).collect()
     }
 
-    /// The level structures use by default: the best this CPU runs, but AVX2 on CPUs with
-    /// AVX-512 (the eight-lane kernels gain nothing from its instructions, and its mask
-    /// registers and wider forms cost a few percent).
-    pub fn preferred() -> Isa {
-        Isa::best().min(Isa::Avx2)
-    }
-
     /// The level structures use unless told otherwise: `RT_ISA` when it names a level this CPU
-    /// runs, else [`Isa::preferred`] (a warning on standard error once when `RT_ISA` names
+    /// runs, else [`Isa::best`] (a warning on standard error once when `RT_ISA` names
     /// something else).
     pub fn selected() -> Isa {
         static SELECTED: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
         *SELECTED.get_or_init(|| {
             let Ok(v) = std::env::var("RT_ISA") else {
-                return Isa::preferred();
+                return Isa::best();
             };
             match Isa::parse(&v) {
                 Ok(isa) if isa.supported() => isa,
                 Ok(isa) => {
-                    let p = Isa::preferred();
+                    let p = Isa::best();
                     eprintln!("RT_ISA={}: this CPU lacks it; using {p}", isa.name());
                     p
                 }
                 Err(e) => {
-                    eprintln!("RT_ISA: {e}; using {}", Isa::preferred());
-                    Isa::preferred()
+                    eprintln!("RT_ISA: {e}; using {}", Isa::best());
+                    Isa::best()
                 }
             }
         })
@@ -128,19 +120,7 @@ impl std::fmt::Display for Isa {
 fn detect() -> Isa {
     use std::arch::is_x86_feature_detected as has;
     let v3 = has!("avx2") && has!("fma") && has!("bmi1") && has!("bmi2") && has!("lzcnt");
-    let v4 = v3
-        && has!("avx512f")
-        && has!("avx512vl")
-        && has!("avx512bw")
-        && has!("avx512dq")
-        && has!("avx512cd");
-    if v4 {
-        Isa::Avx512
-    } else if v3 {
-        Isa::Avx2
-    } else {
-        Isa::Baseline
-    }
+    if v3 { Isa::Avx2 } else { Isa::Baseline }
 }
 
 #[cfg(not(target_arch = "x86_64"))]
@@ -164,7 +144,7 @@ pub trait Level: Copy + Send + Sync + std::fmt::Debug + sealed::Sealed {
 #[derive(Clone, Copy, Debug)]
 pub struct BaseLevel;
 
-/// The AVX2 level (used at the AVX-512 one too): eight lanes in one AVX register. Its field is
+/// The AVX2 level: eight lanes in one AVX register. Its field is
 /// private: only [`run`] makes one, after finding AVX2 and FMA on the CPU.
 #[derive(Clone, Copy, Debug)]
 pub struct Avx2Level(());
@@ -301,9 +281,6 @@ pub fn run<K: Kernel>(isa: Isa, k: K) -> K::Output {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `or_best` returned AVX2, so this CPU has every feature the function enables.
         Isa::Avx2 => unsafe { x86::run_v3(k) },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `or_best` returned AVX-512, so this CPU has every feature it enables.
-        Isa::Avx512 => unsafe { x86::run_v4(k) },
         #[cfg(not(target_arch = "x86_64"))]
         _ => k.run(BaseLevel),
     }
@@ -365,13 +342,6 @@ mod x86 {
     pub(super) fn run_v3<K: Kernel>(k: K) -> K::Output {
         k.run(Avx2Level(()))
     }
-
-    #[target_feature(
-        enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq,avx512cd"
-    )]
-    pub(super) fn run_v4<K: Kernel>(k: K) -> K::Output {
-        k.run(Avx2Level(()))
-    }
 }
 
 #[cfg(test)]
@@ -386,6 +356,6 @@ mod tests {
         assert!(Isa::parse("sse9").is_err());
         assert!(Isa::Baseline.supported());
         assert!(Isa::available().contains(&Isa::best()));
-        assert!(Isa::Avx512.or_best() <= Isa::best());
+        assert!(Isa::Avx2.or_best() <= Isa::best());
     }
 }

@@ -19,7 +19,7 @@
 //! | [`accel`] | [`Accel`], [`AccelStats`], [`BuildError`] |
 //! | [`brute`] | [`BruteForce`] |
 //! | [`filter`] | [`FilteredAccel`]: queries with a filter on each candidate hit, and every hit along a ray; [`Keep`], what a walk keeps of its hits |
-//! | [`isa`] | [`Isa`] and [`Walk`]: walks and leaf tests compiled for AVX2 and AVX-512 too, chosen at run time |
+//! | [`isa`] | [`Isa`] and [`Walk`]: walks and leaf tests compiled for AVX2 too, chosen at run time |
 //! | [`leaf_prims`] | [`TriangleSoa`] (triangles leaf by leaf as structure of arrays, tested four at a time) and [`LeafPrims`] (the listed primitives of kd-trees, octrees and grids, laid out for the leaf test) |
 //! | [`mesh`] | [`Mesh`], [`load_obj`] (through tobj), [`MeshError`] |
 //!

@@ -13,7 +13,7 @@
 //! `per-block - searches` is the time of the walks from the best starts; with `fill`, it gives
 //! the bound `plain / (fill + walks)`: the speed-up of entry points that cost nothing to find.
 //!
-//! `cargo run --release -p rt-packet --example mlrta_bound -- MESH.obj [SIDE]` (`SIDE`: the
+//! `cargo run --release -p rt-packet --features measure --example mlrta_bound -- MESH.obj [SIDE]` (`SIDE`: the
 //! camera's resolution, 1024 as in the bench; `sphere:N` for a tessellated sphere).
 
 use rt_accel_kd::{KdParams, KdTree};

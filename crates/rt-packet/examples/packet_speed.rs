@@ -1,6 +1,6 @@
 //! Primary rays of the standard camera, single rays against packets of every tile size, one
 //! thread, for rt's BVH, the SAH kd-tree and the kd-tree with multi-level ray tracing:
-//! `cargo run --release -p rt-packet --example packet_speed -- [MESH.obj|-] [bvh|bvh8|kd|kd-mlrta] [SIDE]`
+//! `cargo run --release -p rt-packet --features measure --example packet_speed -- [MESH.obj|-] [bvh|bvh8|kd|kd-mlrta] [SIDE]`
 //! (default: a tessellated sphere of 200k triangles, all three structures; `PACKETS_ONLY=1`
 //! skips the single rays). `cargo xtask bench` measures the same on 2 threads beside obvhs.
 

@@ -293,24 +293,35 @@ mod tests {
     use rt_accel_kd::KdParams;
     use rt_testkit::scenes;
 
-    #[test]
-    fn conformance_rays_in_packets_equal_single_rays() {
+    /// Every conformance scene's rays in packets of every size through kd-trees built with
+    /// `params`, plain and with multi-level ray tracing (one test per build, so that they run
+    /// in parallel).
+    fn conformance_rays_in_packets(params: KdParams) {
         for scene in scenes::conformance_triangle_scenes() {
             let rays = conformance_rays(&scene.prims, 60, 7);
-            for params in [
-                KdParams::sah(),
-                KdParams::wald_havran(),
-                KdParams::midpoint(),
-            ] {
-                let kd = KdTree::build(&scene.prims, params).unwrap();
-                all_sizes(&kd, &rays, &scene.name);
-                all_sizes(
-                    &MlrtaKdTree::new(kd),
-                    &rays,
-                    &format!("{} mlrta", scene.name),
-                );
-            }
+            let kd = KdTree::build(&scene.prims, params).unwrap();
+            all_sizes(&kd, &rays, &scene.name);
+            all_sizes(
+                &MlrtaKdTree::new(kd),
+                &rays,
+                &format!("{} mlrta", scene.name),
+            );
         }
+    }
+
+    #[test]
+    fn conformance_rays_in_packets_equal_single_rays_sah() {
+        conformance_rays_in_packets(KdParams::sah());
+    }
+
+    #[test]
+    fn conformance_rays_in_packets_equal_single_rays_wald_havran() {
+        conformance_rays_in_packets(KdParams::wald_havran());
+    }
+
+    #[test]
+    fn conformance_rays_in_packets_equal_single_rays_midpoint() {
+        conformance_rays_in_packets(KdParams::midpoint());
     }
 
     #[test]

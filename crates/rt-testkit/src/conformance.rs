@@ -450,8 +450,16 @@ impl HitFilter for SkipWatch<'_> {
     }
 }
 
-/// Filtered queries and every hit along a ray, against [`BruteForce`] asked the same on the
-/// scene's conformance rays: for each of [`FILTERS`], and for ray masks ([`RAY_MASKS`] over
+/// Every how many conformance rays [`check_filters`] asks its questions of: each fourth
+/// (every family of rays is still asked, a few hundred rays per scene), or each ray with
+/// `RT_LONG_TESTS=1` ([`crate::long_tests`]). The plain queries are checked on every ray; the
+/// filtered ones cost twenty queries a ray, most of the conformance tests' time at full size.
+pub fn filter_ray_stride() -> usize {
+    if crate::long_tests() { 1 } else { 4 }
+}
+
+/// Filtered queries and every hit along a ray, against [`BruteForce`] asked the same on
+/// the scene's conformance rays (every [`filter_ray_stride`]-th): for each of [`FILTERS`], and for ray masks ([`RAY_MASKS`] over
 /// [`test_masks`]), `intersect_filtered` gives brute force's hit exactly (the same `t`, `u`,
 /// `v` and primitive) and `occluded_filtered` its answer; a masked primitive is never
 /// offered to the filter; and `for_each_hit` gives brute force's sorted
@@ -474,6 +482,7 @@ where
         .rays
         .iter()
         .zip(&reference.expected)
+        .step_by(filter_ray_stride())
         .zip(&*expected)
     {
         let ray = &test.ray;
@@ -596,8 +605,8 @@ fn left_prim(closest: Option<Hit>, n: u32) -> u32 {
     closest.map_or(n / 2, |h| h.prim)
 }
 
-/// Brute force's [`FilteredAnswers`] for the rays of `reference`, computed once per scene and
-/// process, as [`reference`] is.
+/// Brute force's [`FilteredAnswers`] for the rays of `reference` that [`check_filters`] asks
+/// (every [`filter_ray_stride`]-th), computed once per scene and process, as [`reference`] is.
 fn filtered_reference<P: SamplePoints>(
     scene: &Scene<P>,
     reference: &Reference,
@@ -616,6 +625,7 @@ fn filtered_reference<P: SamplePoints>(
         .rays
         .iter()
         .zip(&reference.expected)
+        .step_by(filter_ray_stride())
         .map(|(test, closest)| {
             let ray = &test.ray;
             let mut answers = FilteredAnswers {

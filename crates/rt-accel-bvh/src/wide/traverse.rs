@@ -89,7 +89,7 @@ pub(crate) fn traverse_nodes<
     let slab = SlabRay::new(ray);
     // The thread's stack is taken out for the walk and put back after, rather than the walk
     // run in a closure handed to the thread-local: that closure would be a function of its
-    // own, compiled for the baseline instruction set inside the AVX2 and AVX-512 walks.
+    // own, compiled for the baseline instruction set inside the AVX2 walk.
     let mut stack = STACK.take();
     // At most N - 1 pending siblings per level.
     let need = (N - 1) * (depth + 1) + N;

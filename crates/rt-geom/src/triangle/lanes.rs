@@ -64,7 +64,7 @@ pub(crate) fn watertight_rows_at<L: SimdLanes, V: Level>(
     let (sx, sy) = (L::splat(s.x), L::splat(s.y));
     // Written out rather than through closures or `array::from_fn`: a closure that does not
     // inline is a function of its own, compiled for the baseline instruction set inside the
-    // AVX2 and AVX-512 walks ([`crate::isa`]). `row` inlines (the callers mark it).
+    // AVX2 walks ([`crate::isa`]). `row` inlines (the callers mark it).
     let dz = [row(kz) - oz, row(3 + kz) - oz, row(6 + kz) - oz];
     let (ax, bx, cx) = (
         row(kx) - ox - sx * dz[0],
