@@ -1,5 +1,6 @@
 //! `cargo xtask render`: a scene (the built-in chess board, an OBJ or an NFF file) rendered by
-//! Whitted ray tracing with any registered structure, to a PNG, with ray statistics.
+//! Whitted ray tracing or path tracing with any registered structure, to a PNG, with ray
+//! statistics.
 
 use crate::registry;
 use crate::run::{bar, pool, spinner};
@@ -7,8 +8,8 @@ use rt_accel_bvh::{BvhParams, Instance, InstanceBvh, Object};
 use rt_geom::{Accel, Hit, Ray, Triangle};
 use rt_packet::PacketAccel;
 use rt_shade::{
-    Camera, Packets, Projection, Queries, RayStats, RenderOptions, Scene, SceneObjects,
-    ShadeOptions, SingleRays,
+    Camera, Integrator, Packets, PathOptions, Projection, Queries, RayStats, RenderOptions, Scene,
+    SceneObjects, ShadeOptions, SingleRays,
 };
 use serde::Serialize;
 use std::path::PathBuf;
@@ -40,6 +41,16 @@ pub struct RenderArgs {
     /// Supersampling: N x N eye rays per pixel.
     #[arg(long, default_value_t = 1)]
     pub samples: u32,
+    /// `whitted` (shadow, mirror and refracted rays) or `path` (path tracing: diffuse light
+    /// bounced too, `--spp` paths per pixel).
+    #[arg(long, value_enum, default_value_t = IntegratorArg::Whitted)]
+    pub integrator: IntegratorArg,
+    /// Paths per pixel with `--integrator path`.
+    #[arg(long, default_value_t = 16)]
+    pub spp: u32,
+    /// The seed of the path tracer's random numbers (an image repeats for a seed).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
     /// Skip secondary rays whose weight is below this in every channel (0: cast all).
     #[arg(long, default_value_t = 0.0)]
     pub min_weight: f32,
@@ -99,6 +110,14 @@ impl RenderArgs {
                 min_weight: self.min_weight,
                 fresnel: self.fresnel,
             },
+            integrator: match self.integrator {
+                IntegratorArg::Whitted => Integrator::Whitted,
+                IntegratorArg::Path => Integrator::Path(PathOptions {
+                    samples: self.spp,
+                    seed: self.seed,
+                    ..PathOptions::default()
+                }),
+            },
         };
         options.check()?;
         Ok(options)
@@ -115,6 +134,15 @@ impl Default for RenderArgs {
         }
         <Defaults as clap::Parser>::parse_from(["render"]).args
     }
+}
+
+/// `--integrator`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum IntegratorArg {
+    /// The Whitted rules.
+    Whitted,
+    /// Path tracing.
+    Path,
 }
 
 /// `--objects`: how the scene's geometry is organised.
@@ -182,7 +210,7 @@ impl RenderSummary {
             None => "",
         };
         format!(
-            "{} {}x{} with {}{}{}{what}: {} eye rays ({} hit), {} reflected, {} refracted, {} shadow; \
+            "{} {}x{} with {}{}{}{what}: {} eye rays ({} hit), {}{} reflected, {} refracted, {} shadow; \
              build {:.3} s, trace {:.3} s ({:.2} Mrays/s){} -> {}",
             s.scene,
             s.width,
@@ -196,6 +224,10 @@ impl RenderSummary {
             if s.packets { ", tiles as packets" } else { "" },
             s.rays.eye_rays,
             s.rays.eye_hits,
+            match s.rays.diffuse {
+                0 => String::new(),
+                n => format!("{n} diffuse, "),
+            },
             s.rays.reflected,
             s.rays.refracted,
             s.rays.shadow,

@@ -10,6 +10,7 @@
 //! | [`material`] | [`Material`]: Lambert, Phong highlight, reflection, refraction, per channel |
 //! | [`scene`] | [`Scene`], [`PointLight`], [`SceneError`], [`SceneObjects`] (objects and instances) |
 //! | [`whitted`] | the Whitted integrator ([`Whitted`]), its ray rules, [`RayStats`] |
+//! | [`path`] | path tracing ([`PathOptions`]): diffuse bounces, point lights sampled, emitters, Russian roulette |
 //! | [`wavefront`] | the same rules level by level over a tile's rays, each level's shadow, reflected and refracted rays traced as groups ([`Queries`]) |
 //! | [`render`](mod@render) | parallel tiles, supersampling, [`Image`] and PNG output |
 //! | [`chess`](mod@chess) | the built-in scene: a reflective board and 32 lathed pieces, some glass; flat, per piece, or instanced ([`ChessForm`]) |
@@ -37,6 +38,7 @@ pub mod chess;
 pub mod material;
 pub mod nff;
 pub mod obj;
+pub mod path;
 pub mod render;
 pub mod scene;
 pub mod triangulate;
@@ -48,7 +50,10 @@ pub use chess::{ChessForm, chess, chess_lamp, chess_moving, chess_objects};
 pub use material::Material;
 pub use nff::{load_nff, parse_nff, parse_nff_bytes};
 pub use obj::{load_obj_scene, parse_mtl, parse_obj_scene};
-pub use render::{Image, Packets, RenderOptions, Rendered, render, render_with_packets, write_png};
+pub use path::PathOptions;
+pub use render::{
+    Image, Integrator, Packets, RenderOptions, Rendered, render, render_with_packets, write_png,
+};
 pub use scene::{ObjectShapes, PointLight, Scene, SceneError, SceneInstance, SceneObjects};
 pub use triangulate::triangulate;
 pub use wavefront::{Queries, SingleRays};

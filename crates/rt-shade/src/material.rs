@@ -7,7 +7,7 @@ use glam::Vec3;
 /// The colour seen along a ray that hits the surface is
 ///
 /// ```text
-/// ambient * scene.ambient
+/// emit + ambient * scene.ambient
 ///   + sum over visible lights of (diffuse * I * max(0, n.l) + specular * I * max(0, r.v)^shininess)
 ///   + reflect * (colour along the reflected ray) + transmit * (colour along the refracted ray)
 /// ```
@@ -30,6 +30,10 @@ pub struct Material {
     pub transmit: Vec3,
     /// Index of refraction of the inside (the outside is 1); used when `transmit` is not zero.
     pub ior: f32,
+    /// Light the surface gives off (radiance, the same in every direction): added where a ray
+    /// meets it, by Whitted's rules and the path tracer alike. Zero for every built-in surface
+    /// but emitters.
+    pub emit: Vec3,
     /// Whether the surface blocks shadow rays (a lamp's bulb around its light does not: shadow
     /// rays leave it untested through a ray mask).
     pub casts_shadow: bool,
@@ -53,6 +57,7 @@ impl Material {
             reflect: Vec3::ZERO,
             transmit: Vec3::ZERO,
             ior: 1.0,
+            emit: Vec3::ZERO,
             casts_shadow: true,
         }
     }
@@ -74,6 +79,12 @@ impl Material {
     pub fn with_transmission(mut self, weight: Vec3, ior: f32) -> Self {
         self.transmit = weight;
         self.ior = ior;
+        self
+    }
+
+    /// Giving off this radiance.
+    pub fn with_emission(mut self, radiance: Vec3) -> Self {
+        self.emit = radiance;
         self
     }
 
@@ -101,6 +112,7 @@ impl Material {
             ("specular", self.specular),
             ("reflect", self.reflect),
             ("transmit", self.transmit),
+            ("emit", self.emit),
         ];
         for (name, v) in fields {
             if !v.is_finite() || v.min_element() < 0.0 {

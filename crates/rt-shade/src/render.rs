@@ -1,7 +1,9 @@
-//! Rendering an image: tiles traced in parallel (rayon), supersampling on a regular grid,
-//! thin-lens samples from a hash of the pixel (so every render of a scene is the same, bit for
-//! bit, whatever the thread count), PNG output.
+//! Rendering an image: tiles traced in parallel (rayon), by the Whitted rules or by path
+//! tracing ([`Integrator`]), supersampling on a regular grid, thin-lens samples from a hash of
+//! the pixel (so every render of a scene is the same, bit for bit, whatever the thread count),
+//! PNG output.
 
+use crate::path::PathOptions;
 use crate::wavefront::{Queries, SingleRays};
 use crate::{RayStats, Scene, SceneError, ShadeOptions, Whitted};
 use glam::Vec3;
@@ -29,6 +31,19 @@ pub struct RenderOptions {
     pub samples_per_axis: u32,
     /// Shading options.
     pub shade: ShadeOptions,
+    /// Whitted's rules, or path tracing (which ignores `samples_per_axis`: it jitters its own
+    /// samples in each pixel).
+    pub integrator: Integrator,
+}
+
+/// How a pixel's colour is computed.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Integrator {
+    /// The Whitted rules ([`crate::whitted`]): shadow rays, mirror and refracted rays.
+    #[default]
+    Whitted,
+    /// Path tracing ([`crate::path`]): diffuse light bounced too, Monte Carlo.
+    Path(PathOptions),
 }
 
 impl Default for RenderOptions {
@@ -38,6 +53,7 @@ impl Default for RenderOptions {
             height: 480,
             samples_per_axis: 1,
             shade: ShadeOptions::default(),
+            integrator: Integrator::Whitted,
         }
     }
 }
@@ -63,7 +79,11 @@ impl RenderOptions {
                 self.samples_per_axis
             ));
         }
-        self.shade.check()
+        self.shade.check()?;
+        match &self.integrator {
+            Integrator::Whitted => Ok(()),
+            Integrator::Path(p) => p.check(),
+        }
     }
 
     /// Number of tiles (the units of progress).
@@ -198,9 +218,19 @@ pub fn render_with_packets(
         .par_iter()
         .map(|&(x0, y0)| {
             let mut stats = RayStats::default();
+            let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
+            let single = SingleRays(accel);
+            let queries: &dyn Queries = match &packets {
+                Some(p) => p,
+                None => &single,
+            };
+            if let Integrator::Path(path) = &options.integrator {
+                let out = whitted.path_tile(&frame, (x0, y0, x1, y1), path, queries, &mut stats);
+                progress(1);
+                return (out, stats);
+            }
             // The tile's eye rays, sample by sample (pixels row-major within each sample), so
             // that each group of TILE^2 rays is one image tile.
-            let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
             let mut rays = Vec::with_capacity(((x1 - x0) * (y1 - y0) * n * n) as usize);
             for sy in 0..n {
                 for sx in 0..n {
@@ -214,11 +244,6 @@ pub fn render_with_packets(
                     }
                 }
             }
-            let single = SingleRays(accel);
-            let queries: &dyn Queries = match &packets {
-                Some(p) => p,
-                None => &single,
-            };
             let colours = whitted.shade_group(&rays, None, queries, &mut stats);
             let pixels = ((x1 - x0) * (y1 - y0)) as usize;
             let mut out = vec![Vec3::ZERO; pixels];

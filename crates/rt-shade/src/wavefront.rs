@@ -244,7 +244,7 @@ impl Whitted<'_> {
                     shadows.lit.push(Lit { surface, cos, l });
                 }
                 let mut out = Node {
-                    colour: m.ambient * scene.ambient,
+                    colour: m.emit + m.ambient * scene.ambient,
                     reflected: None,
                     refracted: None,
                 };
@@ -346,7 +346,7 @@ pub const GROUP: usize = 256;
 
 /// `query` over `rays` (each leaving the primitive of `leaving`, or none if it is empty) in
 /// groups of at most [`GROUP`], each group's `leaving` empty where no ray of it leaves one.
-fn in_groups<T>(
+pub(crate) fn in_groups<T>(
     rays: &[Ray],
     leaving: &[Option<u32>],
     out: &mut [T],

@@ -29,12 +29,14 @@ pub struct RayStats {
     pub refracted: u64,
     /// Shadow rays.
     pub shadow: u64,
+    /// Diffuse bounces (path tracing).
+    pub diffuse: u64,
 }
 
 impl RayStats {
     /// Every ray cast.
     pub fn total(&self) -> u64 {
-        self.eye_rays + self.reflected + self.refracted + self.shadow
+        self.eye_rays + self.reflected + self.refracted + self.shadow + self.diffuse
     }
 }
 
@@ -45,6 +47,7 @@ impl AddAssign for RayStats {
         self.reflected += o.reflected;
         self.refracted += o.refracted;
         self.shadow += o.shadow;
+        self.diffuse += o.diffuse;
     }
 }
 

@@ -24,6 +24,7 @@ fn one_ray(s: &Scene, max_depth: u32) -> (Vec3, RayStats) {
             max_depth,
             ..ShadeOptions::default()
         },
+        ..RenderOptions::default()
     };
     let out = render(s, &accel, &options, &|_| {}).unwrap();
     (out.image.pixels[0], out.stats)
@@ -81,7 +82,8 @@ fn matte_square_counts() {
             eye_hits: 8,
             reflected: 0,
             refracted: 0,
-            shadow: 8
+            shadow: 8,
+            diffuse: 0
         }
     );
     // A mirror adds one reflection ray per hit (which then misses).
@@ -105,7 +107,8 @@ fn glass_slab_counts_by_depth() {
             eye_hits: 1,
             reflected: 0,
             refracted: 0,
-            shadow: 1
+            shadow: 1,
+            diffuse: 0
         }
     );
     // Depth 2: the front face spawns a reflection (misses) and a refraction, which hits the
@@ -119,7 +122,8 @@ fn glass_slab_counts_by_depth() {
             eye_hits: 1,
             reflected: 1,
             refracted: 1,
-            shadow: 2
+            shadow: 2,
+            diffuse: 0
         }
     );
     // Depth 3: the back face spawns an internal reflection (which reaches the front face from
@@ -132,7 +136,8 @@ fn glass_slab_counts_by_depth() {
             eye_hits: 1,
             reflected: 2,
             refracted: 2,
-            shadow: 2
+            shadow: 2,
+            diffuse: 0
         }
     );
 }
