@@ -288,6 +288,16 @@ where
 {
     let subject =
         build(&scene.prims).map_err(|e| format!("build failed on {}: {e}", scene.name))?;
+    check_built(scene, &subject, tolerance)
+}
+
+/// [`check_scene`] of a built structure (compiled once per primitive type, not per structure
+/// and test).
+fn check_built<P: SamplePoints>(
+    scene: &Scene<P>,
+    subject: &dyn Accel,
+    tolerance: Tolerance,
+) -> Result<Report, String> {
     subject
         .validate()
         .map_err(|e| format!("validate() failed on {}: {e}", scene.name))?;
@@ -308,7 +318,7 @@ where
         &scene.prims,
         &reference.rays,
         &reference.expected,
-        &subject,
+        subject,
         tolerance,
     ))
 }
@@ -473,6 +483,14 @@ where
 {
     let subject =
         build(&scene.prims).map_err(|e| format!("build failed on {}: {e}", scene.name))?;
+    check_filters_built(scene, &subject)
+}
+
+/// [`check_filters`] of a built structure (compiled once per primitive type).
+fn check_filters_built<P: SamplePoints>(
+    scene: &Scene<P>,
+    subject: &dyn FilteredAccel,
+) -> Result<usize, String> {
     let reference = reference(scene)?;
     let expected = filtered_reference(scene, &reference)?;
     let n = scene.prims.len() as u32;
@@ -555,7 +573,7 @@ where
                 &got,
             ));
         }
-        let got = all_hits(&subject, ray);
+        let got = all_hits(subject, ray);
         if !same_hits(&got, &want.all) {
             return Err(at("for_each_hit", &want.all, &got));
         }
@@ -719,7 +737,9 @@ macro_rules! filter_tests {
     };
 }
 
-/// Stamps out one `#[test]` per conformance scene for a structure.
+/// Stamps out the conformance tests of a structure: one `#[test]` per family of scenes
+/// (triangles, spheres, mixed shapes) walking every scene of it, and the refusal of
+/// non-finite primitives.
 ///
 /// ```ignore
 /// mod conformance {
@@ -785,52 +805,55 @@ macro_rules! conformance_tests {
         );
     };
     (@shp $tol:expr, $build:expr; $($scene:ident),*) => {
-        /// The structure under test, built over shapes (one function for every scene's test,
-        /// so that the check is compiled once per module, not once per test).
+        /// The structure under test, built over shapes, as a boxed `Accel` (the check is then
+        /// compiled once per primitive type).
         fn built_shapes(
             p: &[$crate::rt_geom::Shape],
         ) -> Result<Box<dyn $crate::rt_geom::Accel>, $crate::rt_geom::BuildError> {
             ($build)(p).map(|a| Box::new(a) as Box<dyn $crate::rt_geom::Accel>)
         }
-        $(
-            #[test]
-            fn $scene() {
+        /// Every scene of the family (one test: the scene's name is in every failure).
+        #[test]
+        fn shape_scenes() {
+            for scene in [$(stringify!($scene)),*] {
                 $crate::conformance::assert_conforms_within(
-                    &$crate::scenes::shape_scene(stringify!($scene)), built_shapes, $tol);
+                    &$crate::scenes::shape_scene(scene), built_shapes, $tol);
             }
-        )*
+        }
     };
     (@tri $tol:expr, $build:expr; $($scene:ident),*) => {
-        /// The structure under test, built over triangles (one function for every scene's test,
-        /// so that the check is compiled once per module, not once per test).
+        /// The structure under test, built over triangles, as a boxed `Accel` (the check is then
+        /// compiled once per primitive type).
         fn built_triangles(
             p: &[$crate::rt_geom::Triangle],
         ) -> Result<Box<dyn $crate::rt_geom::Accel>, $crate::rt_geom::BuildError> {
             ($build)(p).map(|a| Box::new(a) as Box<dyn $crate::rt_geom::Accel>)
         }
-        $(
-            #[test]
-            fn $scene() {
+        /// Every scene of the family (one test: the scene's name is in every failure).
+        #[test]
+        fn triangle_scenes() {
+            for scene in [$(stringify!($scene)),*] {
                 $crate::conformance::assert_conforms_within(
-                    &$crate::scenes::triangle_scene(stringify!($scene)), built_triangles, $tol);
+                    &$crate::scenes::triangle_scene(scene), built_triangles, $tol);
             }
-        )*
+        }
     };
     (@sph $tol:expr, $build:expr; $($scene:ident),*) => {
-        /// The structure under test, built over spheres (one function for every scene's test,
-        /// so that the check is compiled once per module, not once per test).
+        /// The structure under test, built over spheres, as a boxed `Accel` (the check is then
+        /// compiled once per primitive type).
         fn built_spheres(
             p: &[$crate::rt_geom::Sphere],
         ) -> Result<Box<dyn $crate::rt_geom::Accel>, $crate::rt_geom::BuildError> {
             ($build)(p).map(|a| Box::new(a) as Box<dyn $crate::rt_geom::Accel>)
         }
-        $(
-            #[test]
-            fn $scene() {
+        /// Every scene of the family (one test: the scene's name is in every failure).
+        #[test]
+        fn sphere_scenes() {
+            for scene in [$(stringify!($scene)),*] {
                 $crate::conformance::assert_conforms_within(
-                    &$crate::scenes::sphere_scene(stringify!($scene)), built_spheres, $tol);
+                    &$crate::scenes::sphere_scene(scene), built_spheres, $tol);
             }
-        )*
+        }
     };
 }
 
