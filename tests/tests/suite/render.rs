@@ -1,9 +1,11 @@
 //! Every registered structure renders the same image, bit for bit: the chess scene (triangles,
 //! every structure) and an NFF scene of spheres, cones and polygons (every structure that takes
-//! any shape), and the same again with the eye rays traced through each packet path. Plus the
-//! command line's render path and its error messages.
+//! any shape), by the Whitted rules and path traced, and the same again with the rays traced
+//! through each packet path. Plus the command line's render path and its error messages.
 
-use rt_shade::{Image, RenderOptions, Scene, parse_nff, render, render_with_packets};
+use rt_shade::{
+    Image, Integrator, PathOptions, RenderOptions, Scene, parse_nff, render, render_with_packets,
+};
 use std::path::Path;
 use xtask::registry::REGISTRY;
 
@@ -26,6 +28,31 @@ fn try_image(
     Ok((out.image, out.stats))
 }
 
+/// Path tracing at two paths per pixel.
+const PATHS: Integrator = Integrator::Path(PathOptions {
+    samples: 2,
+    max_bounces: 64,
+    roulette_after: 3,
+    seed: 5,
+});
+
+/// A path-traced image (two paths per pixel) and its ray counts.
+fn path_image(
+    scene: &Scene,
+    accel: &dyn rt_geom::Accel,
+    w: u32,
+    h: u32,
+) -> (Image, rt_shade::RayStats) {
+    let options = RenderOptions {
+        width: w,
+        height: h,
+        integrator: PATHS,
+        ..RenderOptions::default()
+    };
+    let out = render(scene, accel, &options, &|_| {}).expect("renders");
+    (out.image, out.stats)
+}
+
 /// Renders with every entry `include` accepts and checks each image against brute force's
 /// (with filtered queries, or, for a peer without them, brute force's without them).
 fn same_image_everywhere(
@@ -36,6 +63,9 @@ fn same_image_everywhere(
 ) {
     let reference = rt_geom::BruteForce::build(&scene.shapes).unwrap();
     let filtered = image(scene, &reference, w, h);
+    let (pw, ph) = (w.div_ceil(2), h.div_ceil(2));
+    let paths = path_image(scene, &reference, pw, ph);
+    assert!(paths.1.diffuse > 0);
     // Without filtered queries (a peer's structure), where the scene renders without them.
     let unfiltered = try_image(scene, &rt_testkit::Unfiltered(&reference), w, h).ok();
     for (_, stats) in std::iter::once(&filtered).chain(&unfiltered) {
@@ -68,6 +98,13 @@ fn same_image_everywhere(
             entry.name, scene.name
         );
         assert_eq!(stats, *want_stats, "{}: ray counts differ", entry.name);
+        if accel.filtered().is_some() {
+            assert!(
+                path_image(scene, accel.as_ref(), pw, ph) == paths,
+                "{}: the path-traced image or its ray counts differ from brute force's",
+                entry.name
+            );
+        }
         checked += 1;
         // Every ray through the packet path, tile by tile: the same image again.
         let (Some(build), Some(tris)) = (entry.packets, triangles(scene)) else {
@@ -89,6 +126,20 @@ fn same_image_everywhere(
         assert!(
             single.image.pixels == packed.image.pixels && single.stats == packed.stats,
             "{}: rays in packets change the image",
+            entry.name
+        );
+        let options = RenderOptions {
+            width: pw,
+            height: ph,
+            integrator: PATHS,
+            ..RenderOptions::default()
+        };
+        let packed = xtask::render::with_packets(accel.as_ref(), packets.as_ref(), |p| {
+            render_with_packets(scene, accel.as_ref(), Some(p), &options, &|_| {}).expect("renders")
+        });
+        assert!(
+            (&packed.image, &packed.stats) == (&paths.0, &paths.1),
+            "{}: path-traced rays in packets change the image",
             entry.name
         );
         packet_paths += 1;

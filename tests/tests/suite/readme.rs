@@ -3,7 +3,7 @@
 
 #[test]
 fn readme_structures_table_is_the_registry() {
-    let readme = include_str!("../../README.md");
+    let readme = include_str!("../../../README.md");
     let (begin, end) = ("<!-- accels:begin -->\n", "<!-- accels:end -->");
     let start = readme
         .find(begin)
