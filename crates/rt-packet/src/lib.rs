@@ -55,6 +55,8 @@ pub mod kd;
 pub mod lanes;
 pub mod mlrta;
 pub mod packet;
+#[cfg(test)]
+mod properties;
 pub mod wide;
 
 pub use api::{

@@ -460,12 +460,12 @@ impl HitFilter for SkipWatch<'_> {
     }
 }
 
-/// Every how many conformance rays [`check_filters`] asks its questions of: each fourth
+/// Every how many conformance rays [`check_filters`] asks its questions of: each eighth
 /// (every family of rays is still asked, a few hundred rays per scene), or each ray with
 /// `RT_LONG_TESTS=1` ([`crate::long_tests`]). The plain queries are checked on every ray; the
 /// filtered ones cost twenty queries a ray, most of the conformance tests' time at full size.
 pub fn filter_ray_stride() -> usize {
-    if crate::long_tests() { 1 } else { 4 }
+    if crate::long_tests() { 1 } else { 8 }
 }
 
 /// Filtered queries and every hit along a ray, against [`BruteForce`] asked the same on

@@ -2,13 +2,14 @@
 //! kd-tree, multi-level ray tracing), on generated scenes and packets whose lanes are switched
 //! off by an arbitrary mask, every active lane answers exactly as its single ray does and
 //! every inactive lane stays inactive and misses. A failure shrinks to a minimal case.
-//! Cases per property: 128, or `PROPTEST_CASES`.
+//! Cases per property: 128, or `PROPTEST_CASES`. (A unit-test module rather than an
+//! integration test: it shares the packet walks the other tests compile.)
 
+use crate::{MlrtaKdTree, PacketTraversal, RayPacket};
 use proptest::prelude::*;
 use rt_accel_bvh::{Bvh, Bvh4, Bvh8, BvhParams};
 use rt_accel_kd::{KdParams, KdTree};
 use rt_geom::{Accel, Ray, Triangle, Vec3};
-use rt_packet::{MlrtaKdTree, PacketTraversal, RayPacket};
 use rt_testkit::props::config;
 
 fn point() -> impl Strategy<Value = Vec3> {
