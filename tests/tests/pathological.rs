@@ -1,13 +1,17 @@
 //! Every rt structure on the pathological scenes of `cargo xtask stress`, at the sizes that fit
 //! the test suite: builds finish, answers equal brute force's, `validate()` holds, sizes stay
 //! within the stated bound, and scenes beyond the coordinate range are rejected with a clear
-//! error (`cargo xtask stress --full` runs the full sizes).
+//! error (`cargo xtask stress --full` runs the full sizes; this test runs half of `stress`'s
+//! sizes, and the same with `RT_LONG_TESTS=1`).
 
-use xtask::stress::{default_entries, run, stress_scenes};
+use xtask::stress::{StressSize, default_entries, run, stress_scenes};
 
 #[test]
 fn pathological_scenes_are_built_bounded_and_answered_exactly() {
-    let scenes = stress_scenes(false);
+    let scenes = stress_scenes(match rt_testkit::long_tests() {
+        true => StressSize::Tests,
+        false => StressSize::Quick,
+    });
     let rows = run(&scenes, &default_entries(), &|_| {});
     let problems: Vec<String> = rows
         .iter()

@@ -231,7 +231,10 @@ fn run(command: Command) -> Result<ExitCode, String> {
                 Some(list) => registry::select(Some(&list))?,
                 None => xtask::stress::default_entries(),
             };
-            let scenes = xtask::stress::stress_scenes(full);
+            let scenes = xtask::stress::stress_scenes(match full {
+                true => xtask::stress::StressSize::Full,
+                false => xtask::stress::StressSize::Tests,
+            });
             let spinner = xtask::run::spinner("stress".to_string());
             let rows =
                 xtask::stress::run(&scenes, &entries, &|m| spinner.set_message(m.to_string()));

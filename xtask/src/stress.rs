@@ -41,10 +41,24 @@ pub struct StressScene {
     pub tris: Vec<Triangle>,
 }
 
-/// The scenes at full size (`full`: 200k copies, 1M needles, a 1M-triangle teapot in a
-/// stadium) or at the size the test suite runs (a tenth to a fiftieth of that).
-pub fn stress_scenes(full: bool) -> Vec<StressScene> {
-    let big = |full_n: usize, ci_n: usize| if full { full_n } else { ci_n };
+/// How large the pathological scenes are made.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StressSize {
+    /// `stress --full`: 200k copies, 1M needles, a 1M-triangle teapot in a stadium.
+    Full,
+    /// `stress` and the test suite with `RT_LONG_TESTS=1` (CI): a tenth to a fiftieth of that.
+    Tests,
+    /// A quick `cargo test`: half of `Tests`.
+    Quick,
+}
+
+/// The scenes at `size`.
+pub fn stress_scenes(size: StressSize) -> Vec<StressScene> {
+    let big = |full_n: usize, ci_n: usize| match size {
+        StressSize::Full => full_n,
+        StressSize::Tests => ci_n,
+        StressSize::Quick => ci_n / 2,
+    };
     let one = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
     let soup = scenes::random_soup(big(10_000, 2_000), 7);
     let point = Vec3::new(0.25, 0.5, 0.75);
@@ -82,7 +96,7 @@ pub fn stress_scenes(full: bool) -> Vec<StressScene> {
         StressScene {
             name: "point",
             about: "triangles collapsed to one point",
-            tris: vec![Triangle::new(point, point, point); 10_000],
+            tris: vec![Triangle::new(point, point, point); big(10_000, 10_000)],
         },
         StressScene {
             name: "huge",

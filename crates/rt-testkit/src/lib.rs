@@ -41,8 +41,9 @@ pub use scenes::NoGeometry;
 pub use scenes::Scene;
 
 /// Whether `RT_LONG_TESTS=1`: the suites sized for a quick `cargo test` (the filtered
-/// queries on every eighth conformance ray, one flipped bit per byte of a saved structure)
-/// run at full size, as CI runs them.
+/// queries on every eighth conformance ray, one flipped bit per byte of a saved structure,
+/// the pathological scenes at half of `cargo xtask stress`'s size) run at full size, as CI
+/// runs them.
 pub fn long_tests() -> bool {
     std::env::var("RT_LONG_TESTS").is_ok_and(|v| v == "1")
 }
