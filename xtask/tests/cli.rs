@@ -347,6 +347,37 @@ fn render_writes_png_stats_and_clear_errors() {
         ]),
         "aperture",
     );
+    // Path tracing: the diffuse bounces are counted; no paths per pixel is refused.
+    let o = xtask(&[
+        "render",
+        "--integrator",
+        "path",
+        "--spp",
+        "2",
+        "--size",
+        "16x12",
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).starts_with("chess 16x12 with bvh8, tiles as packets: 384 eye rays")
+            && stdout(&o).contains(" diffuse, "),
+        "{}",
+        stdout(&o)
+    );
+    fails_cleanly(
+        &xtask(&[
+            "render",
+            "--integrator",
+            "path",
+            "--spp",
+            "0",
+            "--size",
+            "4x4",
+        ]),
+        "paths per pixel",
+    );
 }
 
 #[test]

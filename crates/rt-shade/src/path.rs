@@ -15,8 +15,9 @@
 //! - after [`PathOptions::roulette_after`] bounces, survives Russian roulette with probability
 //!   `min(0.95, max channel of its throughput)`, its throughput divided by it.
 //!
-//! Point lights are met only through their shadow rays and emitters only by the bounces, so
-//! nothing is counted twice and the estimate is unbiased up to [`PathOptions::max_bounces`].
+//! A path that leaves the scene adds the background colour (a uniform sky). Point lights are
+//! met only through their shadow rays and emitters only by the bounces, so nothing is counted
+//! twice and the estimate is unbiased up to [`PathOptions::max_bounces`].
 //! Random numbers come from a hash of the seed, the pixel and the sample: an image repeats for
 //! a seed whatever the threads. A tile's paths advance together, bounce by bounce, each
 //! bounce's rays one group for [`Queries`] (a packet path takes the eye rays as packets).

@@ -71,10 +71,10 @@ impl rt_geom::Accel for Unfiltered<'_> {
     }
 }
 
-/// A saved structure against a rebuild, for the `save_load` examples: builds with `build`,
-/// saves with `save`, loads back with `load` (its checks included), and prints the times, the
-/// size and whether the loaded structure answers `rays` as the built one, bit for bit (an
-/// error if not).
+/// A saved structure against a rebuild, for the `save_load` and `kd_save_load` examples:
+/// builds with `build`, saves with `save`, loads back with `load` (its checks included), and
+/// prints the times, the size and whether the loaded structure answers `rays` as the built
+/// one, bit for bit (an error if not).
 pub fn save_load_report<A: rt_geom::Accel, E: std::error::Error + 'static>(
     name: &str,
     build: impl FnOnce() -> Result<A, rt_geom::BuildError>,

@@ -1,7 +1,7 @@
 //! A saved SAH kd-tree against rebuilding it: builds over a mesh, saves, loads back (checks
 //! included) and compares the times and the answers.
 //!
-//! `cargo run --release -p rt-accel-kd --example save_load -- MESH.obj`
+//! `cargo run --release -p rt-accel-kd --example kd_save_load -- MESH.obj`
 
 use rt_accel_kd::{KdParams, KdTree};
 use rt_testkit::{View, save_load_report};
