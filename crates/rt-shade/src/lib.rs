@@ -1,4 +1,4 @@
-//! # rt-shade: Whitted ray tracing with any rt structure
+//! # rt-shade: Whitted ray tracing and path tracing with any rt structure
 //!
 //! A scene is shapes ([`rt_geom::Shape`]: triangles, spheres, cones) with materials, lights and
 //! a camera; the caller builds any [`Accel`](rt_geom::Accel) over [`Scene::shapes`] (or over

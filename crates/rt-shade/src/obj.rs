@@ -5,8 +5,10 @@
 //!
 //! MTL to [`Material`]: `Kd` diffuse, `Ka` ambient (default: `Kd`), `Ks` highlight with
 //! exponent `Ns`; `illum` 3 to 7 add a reflected ray of weight `Ks`; dissolve `d < 1` (or
-//! `Tr > 0`) adds a refracted ray of weight `1 - d` with index `Ni`. Statements rt does not
-//! use (textures, `Ke`, ...) are reported once per keyword as warnings.
+//! `Tr > 0`) adds a refracted ray of weight `1 - d` with index `Ni`; `Ke` the light the surface
+//! gives off ([`Material::emit`]: an area light for the path tracer, a glow for Whitted's
+//! rules). Statements rt does not use (textures, ...) are reported once per keyword as
+//! warnings.
 
 use crate::{Camera, Material, PointLight, Scene, SceneError};
 use glam::Vec3;
@@ -202,6 +204,7 @@ pub fn parse_mtl(
         kd: Option<Vec3>,
         ka: Option<Vec3>,
         ks: Option<Vec3>,
+        ke: Option<Vec3>,
         ns: Option<f32>,
         ni: Option<f32>,
         d: Option<f32>,
@@ -251,7 +254,7 @@ pub fn parse_mtl(
             out.push((rest.to_string(), Raw::default()));
             continue;
         }
-        let known = ["Kd", "Ka", "Ks", "Ns", "Ni", "d", "Tr", "illum"];
+        let known = ["Kd", "Ka", "Ks", "Ke", "Ns", "Ni", "d", "Tr", "illum"];
         if !known.contains(&kw) {
             ignored.entry(kw.to_string()).or_insert((line_no, 0)).1 += 1;
             continue;
@@ -263,6 +266,7 @@ pub fn parse_mtl(
             "Kd" => raw.kd = Some(colour(nums(1)?)?),
             "Ka" => raw.ka = Some(colour(nums(1)?)?),
             "Ks" => raw.ks = Some(colour(nums(1)?)?),
+            "Ke" => raw.ke = Some(colour(nums(1)?)?),
             "Ns" => raw.ns = Some(nums(1)?[0]),
             "Ni" => raw.ni = Some(nums(1)?[0]),
             "d" => raw.d = Some(nums(1)?[0].min(1.0)),
@@ -298,6 +302,7 @@ pub fn parse_mtl(
             m.ambient = r.ka.unwrap_or(kd);
             m.specular = ks;
             m.shininess = r.ns.unwrap_or(1.0);
+            m.emit = r.ke.unwrap_or(Vec3::ZERO);
             if matches!(r.illum, Some(3..=7)) {
                 m.reflect = ks;
             }
@@ -320,7 +325,7 @@ mod tests {
     fn mtl_materials_and_warnings() {
         let (mats, warnings) = parse_mtl(
             "# c\nnewmtl glass\nKd 0.1 0.1 0.1\nKs 0.9 0.9 0.9\nNs 200\nNi 1.5\nd 0.2\nillum 7\n\
-             map_Kd a.png\nnewmtl red\nKd 1 0 0\nmap_Kd b.png\n",
+             map_Kd a.png\nnewmtl red\nKd 1 0 0\nKe 2 1.5 0\nmap_Kd b.png\n",
             Path::new("m.mtl"),
         )
         .unwrap();
@@ -332,6 +337,10 @@ mod tests {
         assert!((g.transmit.x - 0.8).abs() < 1e-6);
         assert_eq!(mats[1].1.diffuse, Vec3::X);
         assert_eq!(mats[1].1.reflect, Vec3::ZERO);
+        assert_eq!(
+            (g.emit, mats[1].1.emit),
+            (Vec3::ZERO, Vec3::new(2.0, 1.5, 0.0))
+        );
         assert_eq!(
             warnings,
             vec!["m.mtl:9: `map_Kd` is not used by rt-shade (and 1 more lines)"]
