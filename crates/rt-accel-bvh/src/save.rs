@@ -619,18 +619,9 @@ mod tests {
     use super::*;
     use crate::{CompressedTriBvh8, TriBvh4, TriBvh8};
     use rt_geom::{BruteForce, Ray};
-    use rt_testkit::{Rng, scenes};
+    use rt_testkit::scenes;
 
-    /// Rays through the scene's box and from inside it.
-    fn rays(n: usize) -> Vec<Ray> {
-        let mut rng = Rng::new(17);
-        (0..n)
-            .map(|_| {
-                let o = rng.point_in(Vec3::splat(-0.5), Vec3::splat(1.5));
-                Ray::new(o, rng.point_in(Vec3::ZERO, Vec3::ONE) - o)
-            })
-            .collect()
-    }
+    use rt_testkit::rays::rays_through_unit_cube as rays;
 
     /// Answers bit for bit those of `reference` on `rays`.
     fn same_answers(a: &dyn Accel, reference: &dyn Accel, rays: &[Ray]) -> bool {

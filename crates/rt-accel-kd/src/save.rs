@@ -287,18 +287,10 @@ fn read_params(r: &mut Reader) -> Result<KdParams, LoadError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rt_geom::{Ray, Vec3};
-    use rt_testkit::{Rng, scenes};
+    use rt_geom::Vec3;
+    use rt_testkit::scenes;
 
-    fn rays(n: usize) -> Vec<Ray> {
-        let mut rng = Rng::new(17);
-        (0..n)
-            .map(|_| {
-                let o = rng.point_in(Vec3::splat(-0.5), Vec3::splat(1.5));
-                Ray::new(o, rng.point_in(Vec3::ZERO, Vec3::ONE) - o)
-            })
-            .collect()
-    }
+    use rt_testkit::rays::rays_through_unit_cube as rays;
 
     /// Every builder round-trips: the same answers bit for bit, the same bytes again.
     #[test]

@@ -235,6 +235,19 @@ pub fn conformance_rays<P: SamplePoints>(
     out
 }
 
+/// `n` rays from points around the unit cube (`-0.5..1.5` on each axis) towards points in it:
+/// most cross the random soups of [`crate::scenes`], some start inside them (the saved
+/// structures' round-trip tests).
+pub fn rays_through_unit_cube(n: usize) -> Vec<Ray> {
+    let mut rng = Rng::new(17);
+    (0..n)
+        .map(|_| {
+            let o = rng.point_in(Vec3::splat(-0.5), Vec3::splat(1.5));
+            Ray::new(o, rng.point_in(Vec3::ZERO, Vec3::ONE) - o)
+        })
+        .collect()
+}
+
 /// A pinhole camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct View {
