@@ -23,7 +23,7 @@
 //! bounce's rays one group for [`Queries`] (a packet path takes the eye rays as packets).
 
 use crate::wavefront::{Queries, in_groups};
-use crate::whitted::{Whitted, fresnel, mirror, refract};
+use crate::whitted::{Whitted, mirror};
 use crate::{CameraFrame, RayStats};
 use glam::Vec3;
 use rt_geom::Hit;
@@ -146,7 +146,6 @@ impl Whitted<'_> {
         stats: &mut RayStats,
     ) -> Vec<Vec3> {
         let scene = self.scene();
-        let fresnel_split = self.options().fresnel;
         let tw = x1 - x0;
         let mut out = vec![Vec3::ZERO; (tw * (y1 - y0)) as usize];
         for sample in 0..options.samples {
@@ -195,17 +194,14 @@ impl Whitted<'_> {
                     out[path.pixel as usize] += path.throughput * m.emit;
                     if m.diffuse.max_element() > 0.0 {
                         for light in &scene.lights {
-                            let to_light = light.position - s.point;
-                            let cos = s.shading.dot(to_light.normalize_or_zero());
-                            if !(cos > 0.0) {
+                            let Some((ray, leaving, cos, _)) = self.shadow_ray(&s, light.position)
+                            else {
                                 continue;
-                            }
+                            };
                             stats.shadow += 1;
-                            let spawn = self.leave(&s, to_light);
                             let lit = path.throughput * m.diffuse * light.colour * cos;
-                            shadow_rays
-                                .push(spawn.ray(light.position - spawn.origin, 1.0f32.next_down()));
-                            shadow_leaving.push(spawn.leaving);
+                            shadow_rays.push(ray);
+                            shadow_leaving.push(leaving);
                             shadow_light.push((path.pixel, lit));
                         }
                     }
@@ -214,22 +210,7 @@ impl Whitted<'_> {
                     }
                     // The lobes and their weights, total internal reflection and Fresnel's
                     // split applied as the Whitted rules apply them.
-                    let (mut kr, mut kt, mut transmitted) = (m.reflect, Vec3::ZERO, None);
-                    if m.is_transmissive() {
-                        let eta = if s.entering { 1.0 / m.ior } else { m.ior };
-                        match refract(d, &s, eta) {
-                            None => kr += m.transmit,
-                            Some(t) => {
-                                kt = m.transmit;
-                                if fresnel_split {
-                                    let f = fresnel(s.shading.dot(-d), t.dot(-s.shading), eta);
-                                    kr += kt * f;
-                                    kt *= 1.0 - f;
-                                }
-                                transmitted = Some(t);
-                            }
-                        }
-                    }
+                    let (kr, kt, transmitted) = self.reflect_and_transmit(d, &s);
                     let weights = [weight(m.diffuse), weight(kr), weight(kt)];
                     let total: f32 = weights.iter().sum();
                     if !(total > 0.0) {
@@ -282,14 +263,7 @@ impl Whitted<'_> {
                     next_leaving.push(spawn.leaving);
                     next_paths.push(path);
                 }
-                let mut blocked = vec![false; shadow_rays.len()];
-                if self.masked_shadows() {
-                    self.occluded_masked(&shadow_rays, &shadow_leaving, &mut blocked);
-                } else {
-                    in_groups(&shadow_rays, &shadow_leaving, &mut blocked, |r, l, o| {
-                        queries.occluded(r, l, o)
-                    });
-                }
+                let blocked = self.shadows_blocked(&shadow_rays, &shadow_leaving, queries);
                 for (&(pixel, lit), blocked) in shadow_light.iter().zip(blocked) {
                     if !blocked {
                         out[pixel as usize] += lit;

@@ -6,7 +6,7 @@
 //! as packets. Every colour is computed with the operations, in the order, of the recursive
 //! rules ([`crate::whitted`]), so the image is the same bit for bit whatever traces the rays.
 
-use crate::whitted::{Whitted, fresnel, mirror, refract};
+use crate::whitted::{Surface, Whitted, fresnel, mirror, refract};
 use crate::{Material, RayStats};
 use glam::Vec3;
 use rt_geom::{Accel, FilteredAccel, Hit, Ray};
@@ -129,6 +129,69 @@ struct Lit {
 }
 
 impl Whitted<'_> {
+    /// The shadow ray from surface `s` to a light at `light` (and the primitive it leaves),
+    /// the cosine at the shading normal and the unit direction to the light; `None` for a
+    /// light behind the surface.
+    pub(crate) fn shadow_ray(
+        &self,
+        s: &Surface,
+        light: Vec3,
+    ) -> Option<(Ray, Option<u32>, f32, Vec3)> {
+        let to_light = light - s.point;
+        let l = to_light.normalize_or_zero();
+        let cos = s.shading.dot(l);
+        if !(cos > 0.0) {
+            return None;
+        }
+        let spawn = self.leave(s, to_light);
+        let ray = spawn.ray(light - spawn.origin, 1.0f32.next_down());
+        Some((ray, spawn.leaving, cos, l))
+    }
+
+    /// The weights of the reflected and the refracted ray at surface `s` hit along the unit
+    /// direction `d`, and the refracted direction: total internal reflection gives the
+    /// transmitted weight to the reflection, and with [`ShadeOptions::fresnel`] Fresnel's
+    /// equations split it.
+    pub(crate) fn reflect_and_transmit(&self, d: Vec3, s: &Surface) -> (Vec3, Vec3, Option<Vec3>) {
+        let m = s.material;
+        let (mut kr, mut kt) = (m.reflect, m.transmit);
+        if !m.is_transmissive() {
+            return (kr, kt, None);
+        }
+        let eta = if s.entering { 1.0 / m.ior } else { m.ior };
+        match refract(d, s, eta) {
+            None => (kr + kt, Vec3::ZERO, None),
+            Some(t) => {
+                if self.options().fresnel {
+                    let f = fresnel(s.shading.dot(-d), t.dot(-s.shading), eta);
+                    kr += kt * f;
+                    kt *= 1.0 - f;
+                }
+                (kr, kt, Some(t))
+            }
+        }
+    }
+
+    /// Whether each shadow ray (leaving the primitives of `leaving`) is blocked: through the
+    /// filtered queries with the surfaces that cast no shadow masked out where the scene has
+    /// such, else as groups through `queries`.
+    pub(crate) fn shadows_blocked(
+        &self,
+        rays: &[Ray],
+        leaving: &[Option<u32>],
+        queries: &dyn Queries,
+    ) -> Vec<bool> {
+        let mut blocked = vec![false; rays.len()];
+        if self.masked_shadows() {
+            self.occluded_masked(rays, leaving, &mut blocked);
+        } else {
+            in_groups(rays, leaving, &mut blocked, |r, l, o| {
+                queries.occluded(r, l, o)
+            });
+        }
+        blocked
+    }
+
     /// The colour seen along an eye ray.
     pub fn eye(&self, ray: &Ray, stats: &mut RayStats) -> Vec3 {
         self.shade_group(
@@ -230,17 +293,12 @@ impl Whitted<'_> {
                     material: m,
                 });
                 for (light, shadows) in scene.lights.iter().zip(&mut shadow) {
-                    let to_light = light.position - s.point;
-                    let l = to_light.normalize_or_zero();
-                    let cos = s.shading.dot(l);
-                    if !(cos > 0.0) {
+                    let Some((ray, leaving, cos, l)) = self.shadow_ray(&s, light.position) else {
                         continue;
-                    }
+                    };
                     stats.shadow += 1;
-                    let spawn = self.leave(&s, to_light);
-                    let ray = spawn.ray(light.position - spawn.origin, 1.0f32.next_down());
                     shadows.rays.push(ray);
-                    shadows.leaving.push(spawn.leaving);
+                    shadows.leaving.push(leaving);
                     shadows.lit.push(Lit { surface, cos, l });
                 }
                 let mut out = Node {
@@ -249,27 +307,7 @@ impl Whitted<'_> {
                     refracted: None,
                 };
                 if p.depth < options.max_depth {
-                    let mut kr = m.reflect;
-                    let mut kt = m.transmit;
-                    let mut transmitted = None;
-                    if m.is_transmissive() {
-                        let eta = if s.entering { 1.0 / m.ior } else { m.ior };
-                        match refract(d, &s, eta) {
-                            None => {
-                                // Total internal reflection: the transmitted light is reflected.
-                                kr += kt;
-                                kt = Vec3::ZERO;
-                            }
-                            Some(t) => {
-                                if options.fresnel {
-                                    let f = fresnel(s.shading.dot(view), t.dot(-s.shading), eta);
-                                    kr += kt * f;
-                                    kt *= 1.0 - f;
-                                }
-                                transmitted = Some(t);
-                            }
-                        }
-                    }
+                    let (kr, kt, transmitted) = self.reflect_and_transmit(d, &s);
                     // The reflected ray, then the refracted one, each where its weight counts.
                     let reflected_dir = m.spawns_reflection().then(|| mirror(d, &s));
                     for (dir, k, refr) in [(reflected_dir, kr, false), (transmitted, kt, true)] {
@@ -298,15 +336,7 @@ impl Whitted<'_> {
             }
             // Each light's shadow rays as groups; a node adds its lights in the lights' order.
             for (light, shadows) in scene.lights.iter().zip(&shadow) {
-                let mut blocked = vec![false; shadows.rays.len()];
-                let (rays, leaving) = (&shadows.rays, &shadows.leaving);
-                if self.masked_shadows() {
-                    self.occluded_masked(rays, leaving, &mut blocked);
-                } else {
-                    in_groups(rays, leaving, &mut blocked, |r, l, o| {
-                        queries.occluded(r, l, o)
-                    });
-                }
+                let blocked = self.shadows_blocked(&shadows.rays, &shadows.leaving, queries);
                 for (lit, blocked) in shadows.lit.iter().zip(blocked) {
                     if blocked {
                         continue;
