@@ -7,6 +7,7 @@
 //! | `build` | split at the centre while a node holds more than `max_prims`; primitives clipped to each octant |
 //! | `traverse` | the classic recursive nearest-first walk, and the parametric walk of Revelles et al. |
 //! | `stats` | `stats()` and `validate()` |
+//! | [`save`] | saved octrees over triangles: `to_bytes`, `from_bytes`, checked on load |
 //!
 //! ```
 //! use rt_accel_octree::{Octree, OctreeParams};
@@ -28,6 +29,7 @@ mod build;
 pub mod node;
 mod octree;
 pub mod params;
+pub mod save;
 mod stats;
 mod traverse;
 

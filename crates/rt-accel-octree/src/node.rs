@@ -117,6 +117,24 @@ impl OctNode {
         }
     }
 
+    /// The node with these fields (a saved tree's node, checked by the loader).
+    pub(crate) fn from_parts(
+        (inner_base, leaf_base): (u32, u32),
+        (mask, leaf_mask): (u8, u8),
+        lo: [[u8; 8]; 3],
+        hi: [[u8; 8]; 3],
+    ) -> Self {
+        Self {
+            inner_base,
+            leaf_base,
+            mask,
+            leaf_mask,
+            _pad: [0; 6],
+            lo,
+            hi,
+        }
+    }
+
     /// Marks octant `i` non-empty (a leaf when `leaf`) with quantized content `q` (from
     /// [`quantize_content`]). Octants must be set in increasing order of `i`.
     pub fn set_octant(&mut self, i: usize, leaf: bool, q: [u8; 6]) {

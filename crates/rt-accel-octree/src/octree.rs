@@ -32,16 +32,9 @@ impl<P: Primitive> Octree<P> {
         params.validate()?;
         check_primitives(prims, MAX_NODES - 1)?;
         let mut flat = build::Flat::default();
-        let mut bounds = Aabb::EMPTY;
         let mut root = ChildRef::inner(0);
-        let world = Aabb::around(prims);
-        let frame = Frame::of(&world);
+        let (frame, bounds) = Self::root_cube(prims);
         if !prims.is_empty() {
-            let b = frame.to_local(&world);
-            // A cube, so that octants stay cubes (no flat octants duplicating everything).
-            let half = Vec3::splat(0.5 * b.extent().max_element());
-            let c = b.center();
-            bounds = Aabb::new((c - half).min(b.min), (c + half).max(b.max));
             let ctx = build::Ctx {
                 prims,
                 params: &params,
@@ -65,6 +58,23 @@ impl<P: Primitive> Octree<P> {
             params,
             frame,
         })
+    }
+
+    /// The frame of `prims` and the cube the root covers in it (empty for no primitives): a
+    /// cube, so that octants stay cubes (no flat octants duplicating everything).
+    pub(crate) fn root_cube(prims: &[P]) -> (Frame, Aabb) {
+        let world = Aabb::around(prims);
+        let frame = Frame::of(&world);
+        if prims.is_empty() {
+            return (frame, Aabb::EMPTY);
+        }
+        let b = frame.to_local(&world);
+        let half = Vec3::splat(0.5 * b.extent().max_element());
+        let c = b.center();
+        (
+            frame,
+            Aabb::new((c - half).min(b.min), (c + half).max(b.max)),
+        )
     }
 
     /// The inner nodes, root first.

@@ -41,9 +41,11 @@ impl<P: Primitive> Octree<P> {
                 Err("no leaves for a non-empty scene".into())
             };
         }
-        let mut seen = vec![false; self.prims.len()];
         let mut err = None;
         let (mut inner_reached, mut leaves_reached) = (0, 0);
+        // The leaves reached, with their cells and content boxes; their primitives are checked
+        // after the walk, in parallel.
+        let mut reached = Vec::new();
         self.walk(&mut |r, b, d, content| {
             let i = r.index();
             if d > self.params.max_depth as usize {
@@ -68,41 +70,19 @@ impl<P: Primitive> Octree<P> {
                 return;
             }
             leaves_reached += 1;
-            let Some(leaf) = self.leaves.get(i) else {
-                err.get_or_insert(format!("leaf {i} out of range"));
-                return;
-            };
-            let list = (leaf.first, leaf.count);
-            if let Err(e) = self.leaf_prims.check_list(&self.prims, &self.indices, list) {
-                err.get_or_insert(format!("leaf {i}: {e}"));
-                return;
-            }
-            for &p in &self.indices[leaf.prims()] {
-                match self.prims.get(p as usize) {
-                    None => {
-                        err.get_or_insert(format!("leaf {i} holds primitive {p}, out of range"));
-                    }
-                    Some(prim) if !rt_geom::touches_cell(prim, &self.frame.to_world(b)) => {
-                        err.get_or_insert(format!(
-                            "primitive {p} is in leaf {i} but not in its box"
-                        ));
-                    }
-                    Some(prim)
-                        if !holds(
-                            content,
-                            &self.frame.clipped_bounds(prim, b).intersection(*b),
-                        ) =>
-                    {
-                        err.get_or_insert(format!(
-                            "primitive {p} reaches outside the content box of leaf {i}"
-                        ));
-                    }
-                    Some(_) => seen[p as usize] = true,
-                }
-            }
+            reached.push((i, *b, *content));
         });
         if let Some(e) = err {
             return Err(e);
+        }
+        use rayon::prelude::*;
+        let listed: Result<Vec<&[u32]>, String> = reached
+            .par_iter()
+            .map(|&(i, b, content)| self.check_leaf(i, &b, &content))
+            .collect();
+        let mut seen = vec![false; self.prims.len()];
+        for &p in listed?.iter().copied().flatten() {
+            seen[p as usize] = true;
         }
         if inner_reached != self.nodes.len() || leaves_reached != self.leaves.len() {
             return Err(format!(
@@ -112,6 +92,45 @@ impl<P: Primitive> Octree<P> {
             ));
         }
         rt_geom::all_referenced(&seen)
+    }
+}
+
+impl<P: Primitive> Octree<P> {
+    /// Leaf `i` (whose cell is `b` and content box `content`) in range, its list laid out as
+    /// the index array says, and each of its primitives in range, overlapping the cell, and
+    /// inside the content box where inside the cell; its primitives.
+    fn check_leaf(&self, i: usize, b: &Aabb, content: &Aabb) -> Result<&[u32], String> {
+        let leaf = self.leaves.get(i).ok_or(format!("leaf {i} out of range"))?;
+        let list = (leaf.first, leaf.count);
+        self.leaf_prims
+            .check_list(&self.prims, &self.indices, list)
+            .map_err(|e| format!("leaf {i}: {e}"))?;
+        let ids = &self.indices[leaf.prims()];
+        for &p in ids {
+            let prim = self
+                .prims
+                .get(p as usize)
+                .ok_or(format!("leaf {i} holds primitive {p}, out of range"))?;
+            // Most primitives lie in one cell: their whole box decides both checks without
+            // clipping (it lies in the cell, and holds the part in the cell).
+            let bounds = self.frame.to_local(&prim.bounds());
+            let inside = !bounds.is_empty() && holds(b, &bounds);
+            if !inside && !rt_geom::touches_cell(prim, &self.frame.to_world(b)) {
+                return Err(format!("primitive {p} is in leaf {i} but not in its box"));
+            }
+            let whole = bounds.intersection(*b);
+            if !holds(content, &whole)
+                && !holds(
+                    content,
+                    &self.frame.clipped_bounds(prim, b).intersection(*b),
+                )
+            {
+                return Err(format!(
+                    "primitive {p} reaches outside the content box of leaf {i}"
+                ));
+            }
+        }
+        Ok(ids)
     }
 }
 

@@ -139,6 +139,12 @@ pub fn polygon(t: &Triangle) -> (Vec<crate::DVec3>, f64) {
 /// far below the `f32` resolution the box tests' padding covers.
 pub fn covered(t: &Triangle, boxes: &[Aabb]) -> bool {
     let (tri, size) = polygon(t);
+    polygon_covered(tri, size, boxes)
+}
+
+/// [`covered`] for a triangle given as its polygon (in whatever frame `boxes` are in) and its
+/// size (from [`polygon`], in world coordinates).
+pub fn polygon_covered(tri: Vec<crate::DVec3>, size: f64, boxes: &[Aabb]) -> bool {
     let mut left = vec![tri];
     for b in boxes {
         let mut rest = Vec::new();

@@ -121,8 +121,8 @@ pub fn load_bvh_triangles() -> Vec<Triangle> {
 /// The saved-structure loaders (`TriBvh::from_bytes`, `KdTree::from_bytes`): any bytes are
 /// refused with an error or load a structure that answers rays exactly as brute force does,
 /// and saves back to the same bytes. Tried as each layout (`TriBvh8`, `TriBvh4`,
-/// `CompressedTriBvh8`, `Bvh8` and the binary `Bvh` over the triangles as primitives, and
-/// the kd-tree).
+/// `CompressedTriBvh8`, `Bvh8` and the binary `Bvh` over the triangles as primitives, the
+/// kd-tree and the octree).
 pub fn load_bvh(bytes: &[u8]) -> Result<(), String> {
     use rt_accel_bvh::{Bvh, Bvh8, CompressedTriBvh8, TriBvh4, TriBvh8};
     let tris = load_bvh_triangles();
@@ -135,6 +135,8 @@ pub fn load_bvh(bytes: &[u8]) -> Result<(), String> {
         Bvh8::from_bytes(bytes, &tris).map(|b| (b.to_bytes(), Box::new(b) as Box<dyn Accel>)),
         Bvh::from_bytes(bytes, &tris).map(|b| (b.to_bytes(), Box::new(b) as Box<dyn Accel>)),
         rt_accel_kd::KdTree::from_bytes(bytes, &tris)
+            .map(|b| (b.to_bytes(), Box::new(b) as Box<dyn Accel>)),
+        rt_accel_octree::Octree::from_bytes(bytes, &tris)
             .map(|b| (b.to_bytes(), Box::new(b) as Box<dyn Accel>)),
     ]
     .into_iter()

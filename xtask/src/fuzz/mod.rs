@@ -214,6 +214,14 @@ pub fn generated_seeds(name: &str) -> Vec<(String, Vec<u8>)> {
                     rt_accel_kd::KdTree::build(&tris, rt_accel_kd::KdParams::midpoint())
                         .map(|b| b.to_bytes()),
                 ),
+                (
+                    "gen-octree",
+                    rt_accel_octree::Octree::build(
+                        &tris,
+                        rt_accel_octree::OctreeParams::standard(),
+                    )
+                    .map(|b| b.to_bytes()),
+                ),
             ];
             saved
                 .into_iter()
