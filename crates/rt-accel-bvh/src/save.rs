@@ -284,13 +284,7 @@ fn read_header(
     expected: (u8, u8, u8),
     (count, hash): (usize, u64),
 ) -> Result<BvhParams, LoadError> {
-    if r.take::<8>().ok().as_ref() != Some(MAGIC) {
-        return Err(LoadError::NotASavedStructure);
-    }
-    let found = r.u32()?;
-    if found != VERSION {
-        return Err(LoadError::Version { found });
-    }
+    r.header(MAGIC, VERSION)?;
     let layout = (r.u8()?, r.u8()?, r.u8()?);
     if layout != expected {
         return Err(LoadError::Layout {
@@ -299,9 +293,7 @@ fn read_header(
         });
     }
     let params = read_params(r)?;
-    if (r.u64()?, r.u64()?) != (count as u64, hash) {
-        return Err(LoadError::OtherPrimitives);
-    }
+    r.primitives((count, hash))?;
     Ok(params)
 }
 
@@ -312,14 +304,12 @@ fn write_header(
     params: &BvhParams,
     (count, hash): (usize, u64),
 ) {
-    out.0.extend_from_slice(MAGIC);
-    out.u32(VERSION);
+    out.header(MAGIC, VERSION);
     out.u8(layout.0);
     out.u8(layout.1);
     out.u8(layout.2);
     write_params(out, params);
-    out.u64(count as u64);
-    out.u64(hash);
+    out.primitives((count, hash));
 }
 
 /// Reads what [`write_tree`] wrote for `count` primitives of hash `hash`, and checks the

@@ -48,7 +48,7 @@ fn refines(params: &GridParams, depth: u32, count: usize) -> bool {
 
 /// The cells of `level` (in `frame`) that primitive `p` overlaps, each cell widened by the
 /// level's band ([`Level::widened`]), appended to `out`.
-fn cells_of<P: Primitive>(p: &P, level: &Level, frame: &Frame, out: &mut Vec<u32>) {
+pub(crate) fn cells_of<P: Primitive>(p: &P, level: &Level, frame: &Frame, out: &mut Vec<u32>) {
     let b = frame.clipped_bounds(p, &level.widened(&level.bounds));
     if b.is_empty() {
         return;
@@ -91,6 +91,11 @@ fn content_box<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], cell: &Aabb) -> Aabb {
     let content = ids.iter().fold(Aabb::EMPTY, |b, &id| {
         b.union(ctx.frame.clipped_bounds(&ctx.prims[id as usize], cell))
     });
+    sub_grid_box(content, cell)
+}
+
+/// The box a sub-grid of `cell` spans, from the union of its primitives' clipped boxes.
+pub(crate) fn sub_grid_box(content: Aabb, cell: &Aabb) -> Aabb {
     let content = content.intersection(*cell);
     if content.is_empty() { *cell } else { content }
 }
@@ -230,11 +235,6 @@ pub(crate) fn flatten(b: &LevelBuild, out: &mut Flat) -> u32 {
     let me = out.levels.len();
     let mut level = b.level.clone();
     level.first = out.offsets.len() as u32;
-    for a in 0..3 {
-        level.plane_first[a] = out.planes.len() as u32;
-        out.planes
-            .extend((0..=level.res[a]).map(|i| level.plane(a, i)));
-    }
     let count = level.cell_count();
     level.first_child = if b.children.is_empty() {
         NO_CHILD
@@ -261,9 +261,12 @@ pub(crate) fn flatten(b: &LevelBuild, out: &mut Flat) -> u32 {
     for (c, _) in &b.children {
         occupied[*c as usize] = true;
     }
-    out.skip
-        .extend(skip::chessboard_distances(b.level.res, |c| occupied[c]));
-    out.skip.push(0);
+    add_tables(
+        &mut out.levels[me],
+        |c| occupied[c],
+        &mut out.planes,
+        &mut out.skip,
+    );
     debug_assert_eq!(out.skip.len(), out.offsets.len());
     for (c, child) in &b.children {
         let l = flatten(child, out);
@@ -271,4 +274,21 @@ pub(crate) fn flatten(b: &LevelBuild, out: &mut Flat) -> u32 {
         out.children[first_child as usize + *c as usize] = l;
     }
     me as u32
+}
+
+/// Appends `level`'s plane table to `planes` (setting its `plane_first`), and its cells' skip
+/// distances, `occupied` telling which cells hold references or a sub-grid, then the entry
+/// that closes the level, to `skip`: the tables the walk reads.
+pub(crate) fn add_tables(
+    level: &mut Level,
+    occupied: impl Fn(usize) -> bool,
+    planes: &mut Vec<f32>,
+    skip: &mut Vec<u8>,
+) {
+    for a in 0..3 {
+        level.plane_first[a] = planes.len() as u32;
+        planes.extend((0..=level.res[a]).map(|i| level.plane(a, i)));
+    }
+    skip.extend(skip::chessboard_distances(level.res, occupied));
+    skip.push(0);
 }

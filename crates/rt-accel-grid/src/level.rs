@@ -71,6 +71,13 @@ impl Level {
                 res = [1; 3];
             }
         }
+        Self::tiling(bounds, res)
+    }
+
+    /// The level tiling `bounds` with `res` cells per axis (its layout fields unset): what
+    /// [`Self::new`] makes once it has chosen `res`, and a saved grid's levels are rebuilt by.
+    pub fn tiling(bounds: Aabb, res: [u32; 3]) -> Self {
+        let e = bounds.extent();
         let cell: [f32; 3] = std::array::from_fn(|a| e[a] / res[a] as f32);
         let inv_cell = cell.map(|c| if c > 0.0 { 1.0 / c } else { 0.0 });
         Self {

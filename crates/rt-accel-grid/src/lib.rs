@@ -8,6 +8,7 @@
 //! | [`skip`] | per cell, the distance to the nearest occupied cell, to cross empty space in one step |
 //! | `traverse` | the 3D-DDA (Amanatides & Woo 1987) through every level, optional mailboxes |
 //! | `stats` | `stats()` and `validate()` |
+//! | [`save`] | saved grids over triangles: `to_bytes`, `from_bytes`, checked on load |
 //!
 //! ```
 //! use rt_accel_grid::{Grid, GridParams};
@@ -29,6 +30,7 @@ mod build;
 mod grid;
 pub mod level;
 pub mod params;
+pub mod save;
 pub mod skip;
 mod stats;
 mod traverse;

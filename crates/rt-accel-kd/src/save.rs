@@ -47,11 +47,9 @@ impl KdTree<Triangle> {
     /// The tree as bytes (the format is in the [module](self) documentation).
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut out = Writer::default();
-        out.0.extend_from_slice(MAGIC);
-        out.u32(VERSION);
+        out.header(MAGIC, VERSION);
         write_params(&mut out, &self.params);
-        out.u64(self.prims.len() as u64);
-        out.u64(triangle_hash(&self.prims));
+        out.primitives((self.prims.len(), triangle_hash(&self.prims)));
         out.u64(self.nodes.len() as u64);
         for n in &self.nodes {
             let (data, meta) = n.words();
@@ -69,17 +67,9 @@ impl KdTree<Triangle> {
     /// bit. Any other bytes or triangles give a [`LoadError`].
     pub fn from_bytes(bytes: &[u8], tris: &[Triangle]) -> Result<Self, LoadError> {
         let mut r = Reader(bytes);
-        if r.take::<8>().ok().as_ref() != Some(MAGIC) {
-            return Err(LoadError::NotASavedStructure);
-        }
-        let found = r.u32()?;
-        if found != VERSION {
-            return Err(LoadError::Version { found });
-        }
+        r.header(MAGIC, VERSION)?;
         let params = read_params(&mut r)?;
-        if (r.u64()?, r.u64()?) != (tris.len() as u64, triangle_hash(tris)) {
-            return Err(LoadError::OtherPrimitives);
-        }
+        r.primitives((tris.len(), triangle_hash(tris)))?;
         let corrupt = |e: String| LoadError::Corrupt(e);
         let count = r.count(8)?;
         let mut nodes = Vec::with_capacity(count);
@@ -301,13 +291,8 @@ mod tests {
         for params in [KdParams::sah(), KdParams::midpoint(), KdParams::centroid()] {
             for tris in [&tris[..], &tris[..1], &[]] {
                 let kd = KdTree::build(tris, params).unwrap();
-                let bytes = kd.to_bytes();
-                let loaded = KdTree::from_bytes(&bytes, tris).unwrap();
-                for r in rays(2000) {
-                    assert_eq!(loaded.intersect(&r), kd.intersect(&r));
-                    assert_eq!(loaded.occluded(&r), kd.occluded(&r));
-                }
-                assert_eq!(loaded.to_bytes(), bytes);
+                let load = |b: &[u8]| KdTree::from_bytes(b, tris);
+                rt_testkit::assert_round_trip(&kd, KdTree::to_bytes, load, &rays(2000));
             }
         }
     }
@@ -324,27 +309,17 @@ mod tests {
         }
     }
 
-    /// Damaged bytes are refused, never loaded wrong: every prefix, every byte changed, and a
-    /// triangle dropped from a leaf (found by the coverage check alone).
+    /// Damaged bytes are refused, never loaded wrong: every prefix, every byte changed (every
+    /// eighth unless the long tests run), and a triangle dropped from a leaf (found by the
+    /// coverage check alone).
     #[test]
     fn damage_is_refused() {
         let tris = scenes::random_soup(120, 5);
         let kd = KdTree::build(&tris, KdParams::sah()).unwrap();
         let bytes = kd.to_bytes();
-        for len in 0..bytes.len() {
-            assert!(KdTree::from_bytes(&bytes[..len], &tris).is_err());
-        }
         let brute = rt_geom::BruteForce::build(&tris).unwrap();
-        let rays = rays(300);
-        for at in 0..bytes.len() {
-            let mut damaged = bytes.clone();
-            damaged[at] ^= 0x5a;
-            if let Ok(loaded) = KdTree::from_bytes(&damaged, &tris) {
-                for r in &rays {
-                    assert_eq!(loaded.intersect(r), brute.intersect(r), "byte {at}");
-                }
-            }
-        }
+        let load = |b: &[u8]| KdTree::from_bytes(b, &tris);
+        rt_testkit::assert_damage_refused(&bytes, load, &brute, &rays(300));
         assert_eq!(
             KdTree::from_bytes(&bytes, &tris[1..]).err(),
             Some(LoadError::OtherPrimitives)

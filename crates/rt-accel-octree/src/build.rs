@@ -38,7 +38,7 @@ pub(crate) struct Ctx<'a, P> {
 }
 
 /// The primitives of each octant of `bounds`.
-fn distribute<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], bounds: &Aabb) -> [Vec<u32>; 8] {
+pub(crate) fn distribute<P: Primitive>(ctx: &Ctx<P>, ids: &[u32], bounds: &Aabb) -> [Vec<u32>; 8] {
     let c = bounds.center();
     let boxes: [Aabb; 8] = std::array::from_fn(|i| octant(bounds, i));
     let mut out: [Vec<u32>; 8] = Default::default();

@@ -120,7 +120,8 @@ impl<P: Primitive> Octree<P> {
     }
 
     /// Calls `f(node, cell, depth, content)` for every node, parents first, where `content`
-    /// is the node's content box as its parent stores it (the cell for the root).
+    /// is the node's content box as its parent stores it, cut to its ancestors' (the cell for
+    /// the root): a walk reaches a node only through all of them.
     pub(crate) fn walk(&self, f: &mut impl FnMut(ChildRef, &Aabb, usize, &Aabb)) {
         if self.leaves.is_empty() {
             return;
@@ -136,7 +137,12 @@ impl<P: Primitive> Octree<P> {
             };
             for o in 0..8 {
                 if let Some(c) = n.child(o) {
-                    stack.push((c, octant(&cell, o), d + 1, n.content_box(&cell, o)));
+                    stack.push((
+                        c,
+                        octant(&cell, o),
+                        d + 1,
+                        n.content_box(&cell, o).intersection(content),
+                    ));
                 }
             }
         }

@@ -59,6 +59,13 @@ impl fmt::Display for LoadError {
 
 impl std::error::Error for LoadError {}
 
+/// Saved contents a build would refuse (for loaders that run a build's own checks).
+impl From<crate::BuildError> for LoadError {
+    fn from(e: crate::BuildError) -> Self {
+        Self::Corrupt(e.to_string())
+    }
+}
+
 /// Little-endian writer of a saved structure.
 #[derive(Default)]
 pub struct Writer(pub Vec<u8>);
@@ -79,6 +86,16 @@ impl Writer {
     /// Appends an `f32`'s bits.
     pub fn f32(&mut self, v: f32) {
         self.u32(v.to_bits());
+    }
+    /// Starts a saved structure: its magic bytes and format version.
+    pub fn header(&mut self, magic: &[u8; 8], version: u32) {
+        self.0.extend_from_slice(magic);
+        self.u32(version);
+    }
+    /// Appends the count of the primitives a structure was built over and their hash.
+    pub fn primitives(&mut self, (count, hash): (usize, u64)) {
+        self.u64(count as u64);
+        self.u64(hash);
     }
 }
 
@@ -112,6 +129,24 @@ impl Reader<'_> {
     pub fn f32(&mut self) -> Result<f32, LoadError> {
         Ok(f32::from_bits(self.u32()?))
     }
+    /// Checks what [`Writer::header`] wrote: `magic` (else not a saved structure of this
+    /// kind) and `version`.
+    pub fn header(&mut self, magic: &[u8; 8], version: u32) -> Result<(), LoadError> {
+        if self.take::<8>().ok().as_ref() != Some(magic) {
+            return Err(LoadError::NotASavedStructure);
+        }
+        match self.u32()? {
+            found if found == version => Ok(()),
+            found => Err(LoadError::Version { found }),
+        }
+    }
+    /// Checks what [`Writer::primitives`] wrote against the primitives given.
+    pub fn primitives(&mut self, (count, hash): (usize, u64)) -> Result<(), LoadError> {
+        if (self.u64()?, self.u64()?) != (count as u64, hash) {
+            return Err(LoadError::OtherPrimitives);
+        }
+        Ok(())
+    }
     /// A count of items of `size` bytes each, no more than the bytes left hold.
     pub fn count(&mut self, size: usize) -> Result<usize, LoadError> {
         let n = self.u64()?;
@@ -139,12 +174,6 @@ pub fn polygon(t: &Triangle) -> (Vec<crate::DVec3>, f64) {
 /// far below the `f32` resolution the box tests' padding covers.
 pub fn covered(t: &Triangle, boxes: &[Aabb]) -> bool {
     let (tri, size) = polygon(t);
-    polygon_covered(tri, size, boxes)
-}
-
-/// [`covered`] for a triangle given as its polygon (in whatever frame `boxes` are in) and its
-/// size (from [`polygon`], in world coordinates).
-pub fn polygon_covered(tri: Vec<crate::DVec3>, size: f64, boxes: &[Aabb]) -> bool {
     let mut left = vec![tri];
     for b in boxes {
         let mut rest = Vec::new();
@@ -227,10 +256,12 @@ pub fn thick(p: &[crate::DVec3], size: f64) -> bool {
 /// A 64-bit FNV-1a hash taken over 32-bit words (not bytes): the triangle count, then every
 /// vertex coordinate's bits.
 pub fn triangle_hash(tris: &[Triangle]) -> u64 {
+    let coordinates = tris.iter().flat_map(|t| t.v).flat_map(|v| v.to_array());
+    words_hash(std::iter::once(tris.len() as u32).chain(coordinates.map(f32::to_bits)))
+}
+
+/// The 64-bit FNV-1a hash of `words`, taken word by word.
+pub fn words_hash(words: impl IntoIterator<Item = u32>) -> u64 {
     let eat = |h: u64, w: u32| (h ^ w as u64).wrapping_mul(0x0100_0000_01b3);
-    let h = eat(0xcbf2_9ce4_8422_2325, tris.len() as u32);
-    tris.iter()
-        .flat_map(|t| t.v)
-        .flat_map(|v| v.to_array())
-        .fold(h, |h, x| eat(h, x.to_bits()))
+    words.into_iter().fold(0xcbf2_9ce4_8422_2325, eat)
 }

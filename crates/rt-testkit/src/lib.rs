@@ -105,6 +105,48 @@ pub fn save_load_report<A: rt_geom::Accel, E: std::error::Error + 'static>(
     Ok(bytes)
 }
 
+/// For saved-structure tests: `built` loads back from its bytes (`save`, `load`) answering
+/// every ray of `rays` as it does, and saves to the same bytes again.
+pub fn assert_round_trip<A: rt_geom::Accel, E: std::fmt::Debug>(
+    built: &A,
+    save: impl Fn(&A) -> Vec<u8>,
+    load: impl Fn(&[u8]) -> Result<A, E>,
+    rays: &[rt_geom::Ray],
+) {
+    let bytes = save(built);
+    let loaded = load(&bytes).expect("a saved structure loads");
+    for r in rays {
+        assert_eq!(loaded.intersect(r), built.intersect(r), "{r:?}");
+        assert_eq!(loaded.occluded(r), built.occluded(r), "{r:?}");
+    }
+    assert_eq!(save(&loaded), bytes, "saved again, other bytes");
+}
+
+/// For saved-structure tests: every prefix of `bytes` is refused by `load`, and with each
+/// byte changed (every eighth unless [`long_tests`]) `load` refuses them or loads a
+/// structure that answers every ray of `rays` as `brute` does.
+pub fn assert_damage_refused<A: rt_geom::Accel, E>(
+    bytes: &[u8],
+    load: impl Fn(&[u8]) -> Result<A, E>,
+    brute: &dyn rt_geom::Accel,
+    rays: &[rt_geom::Ray],
+) {
+    for len in 0..bytes.len() {
+        assert!(load(&bytes[..len]).is_err(), "{len} bytes loaded");
+    }
+    let stride = if long_tests() { 1 } else { 8 };
+    for at in (0..bytes.len()).step_by(stride) {
+        let mut damaged = bytes.to_vec();
+        damaged[at] ^= 0x5a;
+        if let Ok(loaded) = load(&damaged) {
+            for r in rays {
+                assert_eq!(loaded.intersect(r), brute.intersect(r), "byte {at}");
+                assert_eq!(loaded.occluded(r), brute.occluded(r), "byte {at}");
+            }
+        }
+    }
+}
+
 /// The bytes of a fuzz target's saved finding, `fuzz/regressions/<target>/<file>`, for the
 /// tests that hold each finding refused for its fault.
 pub fn fuzz_regression(target: &str, file: &str) -> Vec<u8> {

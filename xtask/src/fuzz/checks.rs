@@ -118,11 +118,18 @@ pub fn load_bvh_triangles() -> Vec<Triangle> {
     rt_testkit::scenes::tessellated_sphere(40, Vec3::ZERO, 1.0)
 }
 
+/// The one object the saved two-level scenes of [`load_bvh`] are loaded over: the triangles
+/// under a `TriBvh8`.
+pub fn load_bvh_object(tris: &[Triangle]) -> rt_accel_bvh::Object<rt_accel_bvh::TriBvh8> {
+    rt_accel_bvh::Object::build(tris, rt_accel_bvh::TriBvh8::build_for_tracing)
+        .expect("the fuzz triangles build")
+}
+
 /// The saved-structure loaders (`TriBvh::from_bytes`, `KdTree::from_bytes`): any bytes are
 /// refused with an error or load a structure that answers rays exactly as brute force does,
 /// and saves back to the same bytes. Tried as each layout (`TriBvh8`, `TriBvh4`,
 /// `CompressedTriBvh8`, `Bvh8` and the binary `Bvh` over the triangles as primitives, the
-/// kd-tree and the octree).
+/// kd-tree, the octree, the grids, and a two-level scene over the triangles as one object).
 pub fn load_bvh(bytes: &[u8]) -> Result<(), String> {
     use rt_accel_bvh::{Bvh, Bvh8, CompressedTriBvh8, TriBvh4, TriBvh8};
     let tris = load_bvh_triangles();
@@ -137,6 +144,10 @@ pub fn load_bvh(bytes: &[u8]) -> Result<(), String> {
         rt_accel_kd::KdTree::from_bytes(bytes, &tris)
             .map(|b| (b.to_bytes(), Box::new(b) as Box<dyn Accel>)),
         rt_accel_octree::Octree::from_bytes(bytes, &tris)
+            .map(|b| (b.to_bytes(), Box::new(b) as Box<dyn Accel>)),
+        rt_accel_grid::Grid::from_bytes(bytes, &tris)
+            .map(|b| (b.to_bytes(), Box::new(b) as Box<dyn Accel>)),
+        rt_accel_bvh::InstanceBvh::from_bytes(bytes, vec![load_bvh_object(&tris)])
             .map(|b| (b.to_bytes(), Box::new(b) as Box<dyn Accel>)),
     ]
     .into_iter()

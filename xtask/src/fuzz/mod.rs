@@ -215,6 +215,33 @@ pub fn generated_seeds(name: &str) -> Vec<(String, Vec<u8>)> {
                         .map(|b| b.to_bytes()),
                 ),
                 (
+                    "gen-grid",
+                    rt_accel_grid::Grid::build(&tris, rt_accel_grid::GridParams::uniform())
+                        .map(|b| b.to_bytes()),
+                ),
+                (
+                    "gen-grid2",
+                    rt_accel_grid::Grid::build(&tris, rt_accel_grid::GridParams::two_level())
+                        .map(|b| b.to_bytes()),
+                ),
+                (
+                    "gen-grid-adaptive",
+                    rt_accel_grid::Grid::build(&tris, rt_accel_grid::GridParams::adaptive())
+                        .map(|b| b.to_bytes()),
+                ),
+                (
+                    "gen-instances",
+                    rt_accel_bvh::InstanceBvh::build(
+                        vec![checks::load_bvh_object(&tris)],
+                        &[rt_accel_bvh::Instance {
+                            object: 0,
+                            transform: rt_geom::glam::Affine3A::IDENTITY,
+                        }],
+                        BvhParams::balanced(),
+                    )
+                    .map(|b| b.to_bytes()),
+                ),
+                (
                     "gen-octree",
                     rt_accel_octree::Octree::build(
                         &tris,

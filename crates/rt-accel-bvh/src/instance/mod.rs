@@ -38,6 +38,7 @@
 //! ```
 
 mod geometries;
+mod save;
 
 pub use geometries::{InstanceGeometryHit, InstancedGeometries};
 
@@ -162,12 +163,23 @@ impl<O: Accel> InstanceBvh<O> {
         params: BvhParams,
     ) -> Result<Self, BuildError> {
         params.validate()?;
+        Self::over(objects, instances, |boxes| Bvh::build(boxes, params))
+    }
+
+    /// The scene of `instances` of `objects` (checked as [`Self::build`] says) whose top
+    /// level `top` makes over the instances' world boxes: built, or loaded.
+    pub(crate) fn over<E: From<BuildError>>(
+        objects: Vec<Object<O>>,
+        instances: &[Instance],
+        top: impl FnOnce(&[WorldBox]) -> Result<Bvh<WorldBox>, E>,
+    ) -> Result<Self, E> {
         if let Some(i) = objects.iter().position(|o| o.accel.filtered().is_none()) {
             return Err(BuildError::InvalidParameter {
                 name: "Object::accel",
                 value: format!("object {i}, a structure without filtered queries"),
                 expected: "a structure whose `Accel::filtered` answers (every rt structure)",
-            });
+            }
+            .into());
         }
         let mut first_prim = Vec::with_capacity(instances.len() + 1);
         let mut total = 0u64;
@@ -186,20 +198,21 @@ impl<O: Accel> InstanceBvh<O> {
                 return Err(BuildError::TooManyPrimitives {
                     count: total as usize,
                     max: u32::MAX as usize - 1,
-                });
+                }
+                .into());
             }
         }
         first_prim.push(total as u32);
         let to_object = inverses(instances)?;
         let boxes = world_boxes(&objects, instances);
-        let top = Bvh::build(&boxes, params)?;
+        let top = top(&boxes)?;
         Ok(Self {
             objects,
             instances: instances.to_vec(),
             to_object,
             first_prim,
+            params: top.params,
             top,
-            params,
         })
     }
 
