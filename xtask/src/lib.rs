@@ -1,6 +1,6 @@
 //! # xtask: the command-line face of rt
 //!
-//! `cargo xtask accels | verify | bench | render | trace | rays | stress | fuzz`. Everything is a library function first
+//! `cargo xtask accels | verify | bench | render | view | trace | rays | stress | fuzz`. Everything is a library function first
 //! (so that tests call it directly) and a subcommand second (`main.rs`).
 //!
 //! | module | what it holds |
@@ -14,6 +14,7 @@
 //! | [`stress`] | pathological scenes: every structure's build time, peak memory, size and answers |
 //! | [`sweep`] | the scaling sweep: build time and time per ray against N (`bench --sweep`) |
 //! | [`render`] | Whitted renders of the chess, OBJ and NFF scenes with any structure (rt-shade) |
+//! | [`view`] | frame after frame: the interactive window (feature `window`) and its headless frame-rate mode |
 //! | [`trace`] | ray files in, hit files out; standard ray sets out |
 //! | [`rayfile`] | the `.rays` / `.hits` formats (re-exported from rt-testkit, which reads and writes them) |
 //! | [`run`] | timed parallel tracing, medians, progress bars |
@@ -42,6 +43,7 @@ pub mod table;
 pub mod tinybvh;
 pub mod trace;
 pub mod verify;
+pub mod view;
 
 /// `.rays` and `.hits` files (the one module, in rt-testkit).
 pub use rt_testkit::rayfile;

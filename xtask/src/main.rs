@@ -1,7 +1,7 @@
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use xtask::{bench, native, registry, render, report, sweep, trace, verify};
+use xtask::{bench, native, registry, render, report, sweep, trace, verify, view};
 
 /// rt's command line: list, verify, measure and run the acceleration structures.
 #[derive(Parser)]
@@ -97,6 +97,11 @@ enum Command {
     },
     /// Whitted ray tracing of a scene to a PNG with any structure, with ray statistics.
     Render(render::RenderArgs),
+    /// A window ray tracing the scene every frame: keys move the camera (W A S D Q E, arrows)
+    /// and switch the structure (Tab), the shading (M) and the frame size (F); with --frames,
+    /// no window: the frame rate along an orbit (runs the release build with the window,
+    /// target/view).
+    View(view::ViewArgs),
     /// One figure: the tests of each pixel's eye ray as a heatmap, for bvh8-tri, kd, grid2,
     /// octree, per-piece boxes and brute force, on the chess scene and sponza (runs the
     /// counting build).
@@ -191,6 +196,7 @@ fn main() -> ExitCode {
         _ => (false, None),
     };
     let rerun = match (count, measuring) {
+        _ if matches!(cli.command, Command::View(_)) => native::rerun_view(),
         (true, _) => native::rerun_counting(),
         (false, Some(native)) => native::rerun_for_measuring(native),
         (false, None) => None,
@@ -364,6 +370,10 @@ fn run(command: Command) -> Result<ExitCode, String> {
             }
             println!("-> {}", out.display());
         }
+        Command::View(args) => match args.frames {
+            Some(frames) => println!("{}", view::headless(&args, frames)?),
+            None => view::run_window(&args)?,
+        },
         Command::Render(args) => {
             let summary = render::render(&args)?;
             for w in &summary.warnings {

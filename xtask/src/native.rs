@@ -31,6 +31,21 @@ pub fn rerun_for_measuring(native: bool) -> Option<ExitCode> {
     }
 }
 
+/// Runs the release build with the window (the `window` feature, `target/view`, cargo's
+/// default release settings, as a dependent crate gets them) with the current arguments,
+/// unless this is that build.
+pub fn rerun_view() -> Option<ExitCode> {
+    if cfg!(feature = "window") || std::env::var_os(MARKER).is_some() {
+        return None;
+    }
+    eprintln!("running the release build with the window (feature window, target/view)");
+    let defaults = [
+        ("CARGO_PROFILE_RELEASE_LTO", "false"),
+        ("CARGO_PROFILE_RELEASE_CODEGEN_UNITS", "16"),
+    ];
+    Some(rerun("target/view", "", &["window"], &defaults))
+}
+
 /// Runs the counting build (the `counters` feature: every bounding-volume and primitive test
 /// counted) with the current arguments, unless this is that build.
 pub fn rerun_counting() -> Option<ExitCode> {

@@ -109,6 +109,7 @@ impl RenderArgs {
                 max_depth: self.depth,
                 min_weight: self.min_weight,
                 fresnel: self.fresnel,
+                ..ShadeOptions::default()
             },
             integrator: match self.integrator {
                 IntegratorArg::Whitted => Integrator::Whitted,
@@ -365,7 +366,7 @@ fn output_path(args: &RenderArgs) -> Result<Option<PathBuf>, String> {
 
 /// Load: the scene (with `--orthographic` and `--aperture` applied), and its objects and
 /// instances when `--objects` asks for two levels.
-fn load(args: &RenderArgs) -> Result<(Scene, Option<SceneObjects>), String> {
+pub(crate) fn load(args: &RenderArgs) -> Result<(Scene, Option<SceneObjects>), String> {
     let spinner = (!args.quiet).then(|| spinner(format!("loading {}", args.scene)));
     let (mut scene, objects) = match (args.objects, args.scene.as_str()) {
         (Objects::Flat, _) => (
@@ -396,7 +397,7 @@ fn load(args: &RenderArgs) -> Result<(Scene, Option<SceneObjects>), String> {
 
 /// What the build phase made: the structure single rays go through, the packet path when
 /// the tiles go through one, and how long it took.
-struct Built {
+pub(crate) struct Built {
     single: Box<dyn Accel>,
     packets: Option<Arc<dyn PacketAccel>>,
     seconds: f64,
@@ -407,7 +408,7 @@ struct Built {
 /// Build: a two-level structure (`--objects`), or the entry's packet path over a triangle
 /// scene (its single rays the packet structure's own unless they belong to another entry),
 /// or the entry over the scene's shapes.
-fn build(
+pub(crate) fn build(
     entry: &registry::AccelEntry,
     scene: &Scene,
     objects: Option<&SceneObjects>,
@@ -459,7 +460,7 @@ fn build(
 
 /// Trace: the image tile by tile on the pool, a tile's rays through the packet path when
 /// there is one; the tests counted per thread when the build counts them.
-fn trace(
+pub(crate) fn trace(
     scene: &Scene,
     built: &Built,
     options: &RenderOptions,

@@ -654,6 +654,19 @@ mod tests {
         round_trip(TriBvh8::build_for_tracing(&[]).unwrap(), &[]);
     }
 
+    /// Every conformance scene (slivers, shared edges and vertices, axis-aligned and
+    /// coplanar sets, far coordinates) loads back as built with spatial splits, whose
+    /// coverage check is the strictest: the checks refuse no tree the build makes.
+    #[test]
+    fn every_conformance_scene_loads_back() {
+        let spatial = BvhParams::spatial().for_soa_leaves();
+        for scene in scenes::conformance_triangle_scenes() {
+            let bvh = TriBvh8::build(&scene.prims, spatial).unwrap();
+            let loaded = TriBvh8::from_bytes(&bvh.to_bytes(), &scene.prims);
+            assert!(loaded.is_ok(), "{}: {:?}", scene.name, loaded.err());
+        }
+    }
+
     /// Wide BVHs over any primitive: spheres, mixed shapes, every layout; spatial splits of
     /// triangles load (their coverage is checked), of other primitives are refused.
     #[test]

@@ -297,6 +297,25 @@ mod tests {
         }
     }
 
+    /// Every conformance scene (slivers, shared edges and vertices, axis-aligned and
+    /// coplanar sets, far coordinates) loads back as built under every builder: the checks
+    /// refuse no tree the build makes.
+    #[test]
+    fn every_conformance_scene_loads_back() {
+        for scene in scenes::conformance_triangle_scenes() {
+            for params in [KdParams::sah(), KdParams::midpoint(), KdParams::centroid()] {
+                let kd = KdTree::build(&scene.prims, params).unwrap();
+                let loaded = KdTree::from_bytes(&kd.to_bytes(), &scene.prims);
+                assert!(
+                    loaded.is_ok(),
+                    "{} {params:?}: {:?}",
+                    scene.name,
+                    loaded.err()
+                );
+            }
+        }
+    }
+
     /// The loader fuzzer's finding (`fuzz/regressions/load_bvh`): an index entry no leaf lists,
     /// out of range, panicked laying out the leaves; it is refused for what it is.
     #[test]

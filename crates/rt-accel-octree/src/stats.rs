@@ -100,7 +100,10 @@ impl<P: Primitive> Octree<P> {
     /// the index array says, and each of its primitives in range, overlapping the cell, and
     /// inside the content box where inside the cell; its primitives.
     fn check_leaf(&self, i: usize, b: &Aabb, content: &Aabb) -> Result<&[u32], String> {
-        let leaf = self.leaves.get(i).ok_or(format!("leaf {i} out of range"))?;
+        let leaf = self
+            .leaves
+            .get(i)
+            .ok_or_else(|| format!("leaf {i} out of range"))?;
         let list = (leaf.first, leaf.count);
         self.leaf_prims
             .check_list(&self.prims, &self.indices, list)
@@ -110,7 +113,7 @@ impl<P: Primitive> Octree<P> {
             let prim = self
                 .prims
                 .get(p as usize)
-                .ok_or(format!("leaf {i} holds primitive {p}, out of range"))?;
+                .ok_or_else(|| format!("leaf {i} holds primitive {p}, out of range"))?;
             // Most primitives lie in one cell: their whole box decides both checks without
             // clipping (it lies in the cell, and holds the part in the cell).
             let bounds = self.frame.to_local(&prim.bounds());

@@ -128,6 +128,14 @@ struct Lit {
     l: Vec3,
 }
 
+/// The cosine at surface `s`'s shading normal of the direction to a light at `light`, and
+/// that unit direction; `None` for a light behind the surface.
+fn toward(s: &Surface, light: Vec3) -> Option<(f32, Vec3)> {
+    let l = (light - s.point).normalize_or_zero();
+    let cos = s.shading.dot(l);
+    (cos > 0.0).then_some((cos, l))
+}
+
 impl Whitted<'_> {
     /// The shadow ray from surface `s` to a light at `light` (and the primitive it leaves),
     /// the cosine at the shading normal and the unit direction to the light; `None` for a
@@ -137,13 +145,8 @@ impl Whitted<'_> {
         s: &Surface,
         light: Vec3,
     ) -> Option<(Ray, Option<u32>, f32, Vec3)> {
-        let to_light = light - s.point;
-        let l = to_light.normalize_or_zero();
-        let cos = s.shading.dot(l);
-        if !(cos > 0.0) {
-            return None;
-        }
-        let spawn = self.leave(s, to_light);
+        let (cos, l) = toward(s, light)?;
+        let spawn = self.leave(s, light - s.point);
         let ray = spawn.ray(light - spawn.origin, 1.0f32.next_down());
         Some((ray, spawn.leaving, cos, l))
     }
@@ -293,6 +296,12 @@ impl Whitted<'_> {
                     material: m,
                 });
                 for (light, shadows) in scene.lights.iter().zip(&mut shadow) {
+                    if !options.shadows {
+                        if let Some((cos, l)) = toward(&s, light.position) {
+                            shadows.lit.push(Lit { surface, cos, l });
+                        }
+                        continue;
+                    }
                     let Some((ray, leaving, cos, l)) = self.shadow_ray(&s, light.position) else {
                         continue;
                     };
@@ -336,7 +345,10 @@ impl Whitted<'_> {
             }
             // Each light's shadow rays as groups; a node adds its lights in the lights' order.
             for (light, shadows) in scene.lights.iter().zip(&shadow) {
-                let blocked = self.shadows_blocked(&shadows.rays, &shadows.leaving, queries);
+                let blocked = match options.shadows {
+                    true => self.shadows_blocked(&shadows.rays, &shadows.leaving, queries),
+                    false => vec![false; shadows.lit.len()],
+                };
                 for (lit, blocked) in shadows.lit.iter().zip(blocked) {
                     if blocked {
                         continue;

@@ -62,6 +62,9 @@ pub struct ShadeOptions {
     /// Weight reflection and refraction of transmitting surfaces by the dielectric Fresnel
     /// equations (off: the material's coefficients as given, the classic model).
     pub fresnel: bool,
+    /// Cast shadow rays (off: every light lights every surface facing it, no shadow ray cast:
+    /// with `max_depth` 1, eye rays alone, for interactive previews). Whitted shading only.
+    pub shadows: bool,
 }
 
 impl Default for ShadeOptions {
@@ -70,6 +73,7 @@ impl Default for ShadeOptions {
             max_depth: 5,
             min_weight: 0.0,
             fresnel: false,
+            shadows: true,
         }
     }
 }

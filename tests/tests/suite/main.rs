@@ -14,3 +14,4 @@ mod readme;
 mod render;
 mod spd;
 mod trace;
+mod view;
