@@ -195,11 +195,11 @@ fn main() -> ExitCode {
         Command::Trace { native, .. } => (false, Some(*native)),
         _ => (false, None),
     };
-    let rerun = match (count, measuring) {
-        _ if matches!(cli.command, Command::View(_)) => native::rerun_view(),
-        (true, _) => native::rerun_counting(),
-        (false, Some(native)) => native::rerun_for_measuring(native),
-        (false, None) => None,
+    let rerun = match (&cli.command, count, measuring) {
+        (Command::View(args), _, _) => native::rerun_view(args.counting),
+        (_, true, _) => native::rerun_counting(),
+        (_, false, Some(native)) => native::rerun_for_measuring(native),
+        (_, false, None) => None,
     };
     if let Some(code) = rerun {
         return code;

@@ -32,18 +32,26 @@ pub fn rerun_for_measuring(native: bool) -> Option<ExitCode> {
 }
 
 /// Runs the release build with the window (the `window` feature, `target/view`, cargo's
-/// default release settings, as a dependent crate gets them) with the current arguments,
-/// unless this is that build.
-pub fn rerun_view() -> Option<ExitCode> {
-    if cfg!(feature = "window") || std::env::var_os(MARKER).is_some() {
+/// default release settings, as a dependent crate gets them; with `counting`, the counting
+/// build of it, `target/view-counting`) with the current arguments, unless this is that build.
+pub fn rerun_view(counting: bool) -> Option<ExitCode> {
+    let this = cfg!(feature = "window") && rt_geom::counters::ENABLED == counting;
+    if this || std::env::var_os(MARKER).is_some() {
         return None;
     }
-    eprintln!("running the release build with the window (feature window, target/view)");
+    let (dir, features): (&str, &[&str]) = match counting {
+        false => ("target/view", &["window"]),
+        true => ("target/view-counting", &["window", "counters"]),
+    };
+    eprintln!(
+        "running the release build with the window ({}, {dir})",
+        features.join(", ")
+    );
     let defaults = [
         ("CARGO_PROFILE_RELEASE_LTO", "false"),
         ("CARGO_PROFILE_RELEASE_CODEGEN_UNITS", "16"),
     ];
-    Some(rerun("target/view", "", &["window"], &defaults))
+    Some(rerun(dir, "", features, &defaults))
 }
 
 /// Runs the counting build (the `counters` feature: every bounding-volume and primitive test

@@ -398,7 +398,7 @@ pub(crate) fn load(args: &RenderArgs) -> Result<(Scene, Option<SceneObjects>), S
 /// What the build phase made: the structure single rays go through, the packet path when
 /// the tiles go through one, and how long it took.
 pub(crate) struct Built {
-    single: Box<dyn Accel>,
+    pub(crate) single: Box<dyn Accel>,
     packets: Option<Arc<dyn PacketAccel>>,
     seconds: f64,
     /// Whether tests are counted (`--count` in a counting build).

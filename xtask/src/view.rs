@@ -42,6 +42,11 @@ pub struct ViewArgs {
     /// No refinement while the camera rests (every frame one eye ray or path per pixel).
     #[arg(long)]
     pub no_refine: bool,
+    /// Count each eye ray's tests, so that `M` also shows them as heatmaps (box tests,
+    /// primitive tests): runs the counting build (`target/view-counting`), whose frames are
+    /// slower.
+    #[arg(long)]
+    pub counting: bool,
 }
 
 /// How the window shades.
@@ -54,6 +59,10 @@ pub enum Shading {
     Eye,
     /// Path tracing, one path per pixel per frame, accumulated while the camera rests.
     Path,
+    /// Each eye ray's bounding-volume tests as a heatmap (the counting build: `--counting`).
+    Boxes,
+    /// Each eye ray's primitive tests as a heatmap (the counting build: `--counting`).
+    Prims,
 }
 
 impl Shading {
@@ -63,15 +72,29 @@ impl Shading {
             Shading::Whitted => "whitted",
             Shading::Eye => "eye rays",
             Shading::Path => "path",
+            Shading::Boxes => "box tests",
+            Shading::Prims => "primitive tests",
         }
     }
 
-    /// The shading `M` switches to.
+    /// The shading `M` switches to: the heatmaps only in the counting build.
     pub fn next(self) -> Self {
+        let counting = rt_geom::counters::ENABLED;
         match self {
             Shading::Whitted => Shading::Eye,
             Shading::Eye => Shading::Path,
-            Shading::Path => Shading::Whitted,
+            Shading::Path if counting => Shading::Boxes,
+            Shading::Boxes => Shading::Prims,
+            Shading::Path | Shading::Prims => Shading::Whitted,
+        }
+    }
+
+    /// The heatmap this shading draws, if it is one.
+    fn heatmap(self) -> Option<crate::heatmap::Heatmap> {
+        match self {
+            Shading::Boxes => Some(crate::heatmap::Heatmap::Boxes),
+            Shading::Prims => Some(crate::heatmap::Heatmap::Prims),
+            _ => None,
         }
     }
 
@@ -79,7 +102,9 @@ impl Shading {
     pub fn options(self, (width, height): (u32, u32), step: u32) -> RenderOptions {
         let (samples_per_axis, max_depth, integrator) = match self {
             Shading::Whitted => (1 + step.min(3), 5, Integrator::Whitted),
-            Shading::Eye => (1 + step.min(3), 1, Integrator::Whitted),
+            Shading::Eye | Shading::Boxes | Shading::Prims => {
+                (1 + step.min(3), 1, Integrator::Whitted)
+            }
             Shading::Path => (
                 1,
                 5,
@@ -123,6 +148,8 @@ pub struct Frame {
     pub rays: u64,
     /// Seconds of tracing.
     pub seconds: f64,
+    /// Box and primitive tests per eye ray (heatmaps).
+    pub tests: Option<(f64, f64)>,
 }
 
 /// The scene and a structure built over it, ready to render frames.
@@ -150,15 +177,32 @@ impl Viewer {
         })
     }
 
-    /// Renders one frame with `options` from the scene's camera.
-    pub fn frame(&self, options: &RenderOptions) -> Result<Frame, String> {
+    /// Renders one frame of `shading` with `options` from the scene's camera.
+    pub fn frame(&self, shading: Shading, options: &RenderOptions) -> Result<Frame, String> {
         options.check()?;
-        let (rendered, _) = trace(&self.scene, &self.built, options, &self.pool, true)?;
+        let (mut rendered, counts) = match shading.heatmap() {
+            Some(_) if !rt_geom::counters::ENABLED => {
+                return Err("the heatmaps need the counting build (`view --counting`)".into());
+            }
+            Some(kind) => self.pool.install(|| {
+                let accel = self.built.single.as_ref();
+                crate::heatmap::heatmap(&self.scene, accel, options, kind)
+            })?,
+            None => trace(&self.scene, &self.built, options, &self.pool, true)?,
+        };
+        // A heatmap's legend strip below the picture is left out: the title gives the means.
+        let pixels = (options.width * options.height) as usize;
+        rendered.image.pixels.truncate(pixels);
+        rendered.image.height = options.height;
+        let per_ray = |n: u64| n as f64 / rendered.stats.eye_rays.max(1) as f64;
+        let tests = (rt_geom::counters::ENABLED && shading.heatmap().is_some())
+            .then(|| (per_ray(counts.nodes), per_ray(counts.prims)));
         Ok(Frame {
             pixels: words(&rendered.image),
             linear: rendered.image.pixels,
             rays: rendered.stats.total(),
             seconds: rendered.seconds,
+            tests,
         })
     }
 }
@@ -209,7 +253,7 @@ pub fn headless(args: &ViewArgs, frames: u32) -> Result<String, String> {
     for i in 0..frames {
         let angle = std::f32::consts::TAU * i as f32 / frames as f32;
         viewer.scene.camera = orbit(&base, angle);
-        let frame = viewer.frame(&options)?;
+        let frame = viewer.frame(args.shading, &options)?;
         seconds.push(frame.seconds);
         rays += frame.rays;
     }
@@ -229,22 +273,26 @@ pub fn headless(args: &ViewArgs, frames: u32) -> Result<String, String> {
     ))
 }
 
-/// The window title: structure, shading, the last frame's time and rays per second (`None`
-/// before the first), refinement, and the structure being built with its seconds so far.
+/// The window title: structure, shading, the last frame's time and rays per second (and
+/// tests per ray for heatmaps; nothing before the first frame), refinement, and the structure
+/// being built with its seconds so far.
 pub fn title(
     accel: &str,
     shading: Shading,
-    last: Option<(f64, u64)>,
+    last: Option<&Frame>,
     step: u32,
     building: Option<(&str, f64)>,
 ) -> String {
     let mut t = format!("rt view: {accel} | {}", shading.name());
-    if let Some((seconds, rays)) = last {
+    if let Some(f) = last {
         t += &format!(
             " | {:.0} ms | {:.1} Mrays/s",
-            seconds * 1e3,
-            rays as f64 / seconds.max(1e-9) / 1e6
+            f.seconds * 1e3,
+            f.rays as f64 / f.seconds.max(1e-9) / 1e6
         );
+        if let Some((boxes, prims)) = f.tests {
+            t += &format!(" | {boxes:.1} boxes, {prims:.1} prims per ray");
+        }
     }
     if step > 0 {
         t += &format!(" | refined x{}", step + 1);
@@ -272,7 +320,7 @@ pub fn run_window(_: &ViewArgs) -> Result<(), String> {
 #[cfg(feature = "window")]
 mod window {
     use super::*;
-    use minifb::{Key, KeyRepeat, Window, WindowOptions};
+    use minifb::{Key, KeyRepeat, MouseButton, MouseMode, Window, WindowOptions};
     use std::sync::mpsc;
 
     /// Opens the window and renders until it closes (see the module documentation).
@@ -285,7 +333,9 @@ mod window {
         let mut accumulated: Vec<rt_geom::Vec3> = Vec::new();
         // A structure being built on another thread: its name and where it arrives.
         let mut pending: Option<(String, Instant, mpsc::Receiver<Result<Built, String>>)> = None;
-        let mut last = None;
+        let mut last: Option<Frame> = None;
+        // Where the pointer was while the left button was down (dragging turns the camera).
+        let mut drag: Option<(f32, f32)> = None;
         // Whether the next frame starts over (the first one, and after any change).
         let mut restart = true;
         while window.is_open() && !window.is_key_down(Key::Escape) {
@@ -293,6 +343,17 @@ mod window {
             // Moves repeat while a key is held; switches act once per press.
             for key in window.get_keys_pressed(KeyRepeat::Yes) {
                 moved |= steer(&mut viewer.scene.camera, key);
+            }
+            let pointer = window.get_mouse_pos(MouseMode::Discard);
+            match (pointer, window.get_mouse_down(MouseButton::Left)) {
+                (Some((x, y)), true) => {
+                    if let Some((px, py)) = drag.filter(|&p| p != (x, y)) {
+                        turn(&mut viewer.scene.camera, (px - x) * 0.005, (py - y) * 0.005);
+                        moved = true;
+                    }
+                    drag = Some((x, y));
+                }
+                _ => drag = None,
             }
             for key in window.get_keys_pressed(KeyRepeat::No) {
                 match key {
@@ -342,24 +403,25 @@ mod window {
                 // At rest and refined: nothing new to show but the build's progress.
                 if let Some((name, since, _)) = &pending {
                     let building = Some((name.as_str(), since.elapsed().as_secs_f64()));
+                    let last = last.as_ref();
                     window.set_title(&title(&viewer.accel, shading, last, step, building));
                 }
                 window.update();
                 std::thread::sleep(std::time::Duration::from_millis(10));
                 continue;
             }
-            let mut frame = viewer.frame(&shading.options(size, step))?;
+            let mut frame = viewer.frame(shading, &shading.options(size, step))?;
             if shading == Shading::Path {
                 accumulate(&mut accumulated, &mut frame, step, size);
             }
-            last = Some((frame.seconds, frame.rays));
             let building = pending
                 .as_ref()
                 .map(|(n, since, _)| (n.as_str(), since.elapsed().as_secs_f64()));
-            window.set_title(&title(&viewer.accel, shading, last, step, building));
+            window.set_title(&title(&viewer.accel, shading, Some(&frame), step, building));
             window
                 .update_with_buffer(&frame.pixels, size.0 as usize, size.1 as usize)
                 .map_err(|e| e.to_string())?;
+            last = Some(frame);
         }
         Ok(())
     }
@@ -392,16 +454,26 @@ mod window {
             camera.look_at += shift;
             return true;
         }
-        let turn = 0.05;
-        let rotation = match key {
-            Key::Left => rt_geom::glam::Quat::from_axis_angle(up, turn),
-            Key::Right => rt_geom::glam::Quat::from_axis_angle(up, -turn),
-            Key::Up => rt_geom::glam::Quat::from_axis_angle(right, turn),
-            Key::Down => rt_geom::glam::Quat::from_axis_angle(right, -turn),
+        let (yaw, pitch) = match key {
+            Key::Left => (0.05, 0.0),
+            Key::Right => (-0.05, 0.0),
+            Key::Up => (0.0, 0.05),
+            Key::Down => (0.0, -0.05),
             _ => return false,
         };
-        camera.look_at = camera.eye + rotation * forward;
+        turn(camera, yaw, pitch);
         true
+    }
+
+    /// Turns the camera about its eye: `yaw` radians about its up axis, `pitch` about its
+    /// right axis.
+    fn turn(camera: &mut Camera, yaw: f32, pitch: f32) {
+        use rt_geom::glam::Quat;
+        let forward = camera.look_at - camera.eye;
+        let up = camera.up.normalize();
+        let right = forward.cross(up).normalize_or_zero();
+        let rotation = Quat::from_axis_angle(up, yaw) * Quat::from_axis_angle(right, pitch);
+        camera.look_at = camera.eye + rotation * forward;
     }
 
     /// Path tracing at rest: the frame's linear colours averaged with the `step` before it,

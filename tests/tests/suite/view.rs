@@ -12,6 +12,7 @@ fn args(shading: Shading) -> ViewArgs {
         frames: Some(3),
         threads: 1,
         no_refine: true,
+        counting: false,
     }
 }
 
@@ -28,17 +29,26 @@ fn headless_mode_reports_frames_per_second() {
     assert!(headless(&args(Shading::Whitted), 0).is_err());
 }
 
-/// Eye-ray shading casts the eye rays alone; a frame from the scene's camera is what
-/// `render` makes of it; the orbit's first step is that camera and a quarter turn is not.
+/// Eye-ray shading casts the eye rays alone, Whitted shading more; the heatmaps count tests
+/// in the counting build (which the tests' build is) and are refused elsewhere (`M` offers
+/// them only there); the orbit's first step is the scene's
+/// camera and a turn is not; `Tab` goes through the structures in order.
 #[test]
-fn frames_are_the_renderers() {
+fn frames_shadings_orbit_and_structures() {
     let viewer = Viewer::new("chess", "bvh8-tri", 1).unwrap();
-    let eye = viewer.frame(&Shading::Eye.options((48, 36), 0)).unwrap();
+    let frame = |s: Shading| viewer.frame(s, &s.options((48, 36), 0));
+    let eye = frame(Shading::Eye).unwrap();
     assert_eq!(eye.rays, 48 * 36);
-    let whitted = viewer
-        .frame(&Shading::Whitted.options((48, 36), 0))
-        .unwrap();
-    assert!(whitted.rays > eye.rays);
+    assert!(frame(Shading::Whitted).unwrap().rays > eye.rays);
+    if rt_geom::counters::ENABLED {
+        let boxes = frame(Shading::Boxes).unwrap();
+        let (per_ray, _) = boxes.tests.unwrap();
+        assert!(per_ray > 1.0 && boxes.rays == 48 * 36, "{per_ray}");
+        assert_eq!(Shading::Path.next(), Shading::Boxes);
+    } else {
+        assert!(frame(Shading::Boxes).is_err());
+        assert_eq!(Shading::Path.next(), Shading::Whitted);
+    }
     let cam = viewer.scene.camera;
     assert_eq!(orbit(&cam, 0.0).eye, cam.eye);
     assert!((orbit(&cam, 1.0).eye - cam.eye).length() > 1e-3);
