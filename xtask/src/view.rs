@@ -2,10 +2,11 @@
 //! path where it has one, the tiles spread over the cores), in a window or headless.
 //!
 //! The window (the `window` feature: minifb, a CPU frame buffer, no GPU API) takes keys: `W`
-//! `A` `S` `D` move, `Q` `E` down and up, the arrows turn; `Tab` switches the structure
-//! (rebuilt on another thread while the old one keeps rendering), `M` the shading, `F` the
-//! frame size; `Esc` closes. The title names the structure and the shading and gives the
-//! frame time and the rays per second. While the camera rests the picture refines: Whitted and
+//! `A` `S` `D` move, `Q` `E` down and up, the arrows (or a drag with the left button) turn;
+//! `Tab` switches the structure (rebuilt on another thread while the old one keeps
+//! rendering), `M` the shading (in the counting build, `--counting`, also the heatmaps of each
+//! eye ray's tests), `F` the frame size; `Esc` closes. The title names the structure and the
+//! shading and gives the frame time and the rays per second. While the camera rests the picture refines: Whitted and
 //! eye-ray shading take 2x2, then 3x3, then 4x4 eye rays per pixel; path tracing adds a
 //! path per pixel each frame. Headless (`--frames N`), the camera orbits the scene's look-at
 //! point in `N` steps and the frame rate is printed: what the window would show, measured.
