@@ -660,11 +660,8 @@ mod tests {
     #[test]
     fn every_conformance_scene_loads_back() {
         let spatial = BvhParams::spatial().for_soa_leaves();
-        for scene in scenes::conformance_triangle_scenes() {
-            let bvh = TriBvh8::build(&scene.prims, spatial).unwrap();
-            let loaded = TriBvh8::from_bytes(&bvh.to_bytes(), &scene.prims);
-            assert!(loaded.is_ok(), "{}: {:?}", scene.name, loaded.err());
-        }
+        let build = |t: &[Triangle]| TriBvh8::build(t, spatial).unwrap();
+        rt_testkit::assert_conformance_scenes_load(build, TriBvh8::to_bytes, TriBvh8::from_bytes);
     }
 
     /// Wide BVHs over any primitive: spheres, mixed shapes, every layout; spatial splits of

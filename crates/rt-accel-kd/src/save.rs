@@ -302,17 +302,9 @@ mod tests {
     /// refuse no tree the build makes.
     #[test]
     fn every_conformance_scene_loads_back() {
-        for scene in scenes::conformance_triangle_scenes() {
-            for params in [KdParams::sah(), KdParams::midpoint(), KdParams::centroid()] {
-                let kd = KdTree::build(&scene.prims, params).unwrap();
-                let loaded = KdTree::from_bytes(&kd.to_bytes(), &scene.prims);
-                assert!(
-                    loaded.is_ok(),
-                    "{} {params:?}: {:?}",
-                    scene.name,
-                    loaded.err()
-                );
-            }
+        for params in [KdParams::sah(), KdParams::midpoint(), KdParams::centroid()] {
+            let build = |t: &[Triangle]| KdTree::build(t, params).unwrap();
+            rt_testkit::assert_conformance_scenes_load(build, KdTree::to_bytes, KdTree::from_bytes);
         }
     }
 

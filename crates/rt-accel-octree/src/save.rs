@@ -304,12 +304,9 @@ mod tests {
     #[test]
     fn every_conformance_scene_loads_back() {
         let s = OctreeParams::standard();
-        for scene in scenes::conformance_triangle_scenes() {
-            for params in [s, OctreeParams { max_prims: 1, ..s }] {
-                let tree = Octree::build(&scene.prims, params).unwrap();
-                let loaded = Octree::from_bytes(&tree.to_bytes(), &scene.prims);
-                assert!(loaded.is_ok(), "{}: {:?}", scene.name, loaded.err());
-            }
+        for params in [s, OctreeParams { max_prims: 1, ..s }] {
+            let build = |t: &[Triangle]| Octree::build(t, params).unwrap();
+            rt_testkit::assert_conformance_scenes_load(build, Octree::to_bytes, Octree::from_bytes);
         }
     }
 

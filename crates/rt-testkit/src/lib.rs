@@ -122,6 +122,19 @@ pub fn assert_round_trip<A: rt_geom::Accel, E: std::fmt::Debug>(
     assert_eq!(save(&loaded), bytes, "saved again, other bytes");
 }
 
+/// For saved-structure tests: every conformance scene (triangles), built by `build`, loads
+/// back from its bytes (`save`, `load`): the loader's checks refuse nothing the build makes.
+pub fn assert_conformance_scenes_load<A, E: std::fmt::Debug>(
+    build: impl Fn(&[rt_geom::Triangle]) -> A,
+    save: impl Fn(&A) -> Vec<u8>,
+    load: impl Fn(&[u8], &[rt_geom::Triangle]) -> Result<A, E>,
+) {
+    for scene in scenes::conformance_triangle_scenes() {
+        let loaded = load(&save(&build(&scene.prims)), &scene.prims);
+        assert!(loaded.is_ok(), "{}: {:?}", scene.name, loaded.err());
+    }
+}
+
 /// For saved-structure tests: every prefix of `bytes` is refused by `load`, and with each
 /// byte changed (every eighth unless [`long_tests`]) `load` refuses them or loads a
 /// structure that answers every ray of `rays` as `brute` does.
