@@ -177,7 +177,8 @@ pub(crate) mod sealed {
         fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32;
         /// [`hits_outside`](crate::triangle::hits_outside), compiled for the level.
         fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32;
-        /// The `f64` refinement of an accepted triangle, compiled for the level.
+        /// The `f64` refinement of an accepted triangle of nonzero area (the caller drops
+        /// zero-area ones), compiled for the level.
         fn finish(self, tri: &Triangle, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit>;
     }
 }
@@ -217,7 +218,7 @@ impl sealed::Sealed for BaseLevel {
 
     #[inline(always)]
     fn finish(self, tri: &Triangle, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
-        tri.finish_accepted(ray, e)
+        tri.finish_nondegenerate(ray, e)
     }
 }
 

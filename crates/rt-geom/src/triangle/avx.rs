@@ -135,10 +135,10 @@ pub(crate) fn outside_avx2<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32, tmax: f
     super::bounds::outside_lanes(t, tmin, tmax)
 }
 
-/// [`Triangle::finish_accepted`] (the `f64` refinement) compiled for AVX2, out of line as it
-/// is.
+/// [`Triangle::finish_nondegenerate`] (the `f64` refinement of a triangle of nonzero area)
+/// compiled for AVX2, out of line as it is.
 #[target_feature(enable = "avx2,fma")]
 #[inline(never)]
 pub(crate) fn finish_avx2(tri: &Triangle, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
-    tri.finish_accepted_inline(ray, e)
+    tri.finish_nondegenerate_inline(ray, e)
 }

@@ -189,6 +189,24 @@ impl Triangle {
         if self.is_degenerate() {
             return None;
         }
+        self.finish_nondegenerate_inline(ray, (u, v, w))
+    }
+
+    /// [`Self::finish_accepted`] of a triangle known to have nonzero area (leaf tests that
+    /// drop the zero-area ones beforehand), out of line.
+    #[inline(never)]
+    pub(crate) fn finish_nondegenerate(&self, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
+        self.finish_nondegenerate_inline(ray, e)
+    }
+
+    /// [`Self::finish_nondegenerate`]'s body, inlined where a level's own out-of-line copy is
+    /// compiled.
+    #[inline(always)]
+    pub(crate) fn finish_nondegenerate_inline(
+        &self,
+        ray: &Ray,
+        (u, v, w): (f32, f32, f32),
+    ) -> Option<PrimHit> {
         let sum = u + v + w;
         if sum == 0.0 || !sum.is_finite() {
             return self.refine_in_f64(ray);
@@ -213,7 +231,7 @@ impl Triangle {
     ///   an edge or vertex, typically grazing the plane, where the plane equation would put the
     ///   hit far along the ray, outside the triangle's box), `t` is the ray parameter of the
     ///   point of the ray closest to the triangle's boundary.
-    #[inline]
+    #[inline(always)]
     pub fn refine(&self, ray: &Ray, (u, v, w): (f32, f32, f32)) -> Option<PrimHit> {
         let orient = if u + v + w < 0.0 { -1.0 } else { 1.0 };
         let edges = self.edges_in_f64(ray, orient);
@@ -254,6 +272,7 @@ impl Triangle {
     /// The edge functions `(U, V, W)` times `orient`, in `f64` from the `f32` inputs in the
     /// ray's exact shear (vertex minus origin is exact, each product rounded once), and the
     /// vertices' depths along the ray.
+    #[inline(always)]
     fn edges_in_f64(&self, ray: &Ray, orient: f64) -> EdgesF64 {
         // Coordinates as arrays indexed by the ray's axes (one load each; a `DVec3` indexed
         // at run time branches on the index).
