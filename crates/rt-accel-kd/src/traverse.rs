@@ -13,7 +13,7 @@ use crate::bsp::PlaneRay;
 use crate::params::{KdTraversal, MAX_DEPTH};
 use crate::{KdNode, KdTree};
 use rt_geom::aabb::{PAD, SlabRay};
-use rt_geom::{Aabb, Hit, Keep, LeafPrims, Primitive, Ray, test_primitives};
+use rt_geom::{Aabb, BaseLevel, Hit, Keep, LeafPrims, Level, Primitive, Ray, test_primitives};
 
 /// Which children of an inner node the ray visits, first = on the side of the origin.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -120,15 +120,16 @@ pub(crate) fn ordered_children(i: usize, node: &KdNode, below_first: bool) -> (u
     (children[f], children[f ^ 1])
 }
 
-/// What leaves test: the caller's primitives (a leaf of one names it in its node) and the
-/// listed copies of the leaves of several ([`LeafPrims`], ranges of the index array).
-pub(crate) type LeafData<'a, P> = (&'a [P], &'a LeafPrims<P>);
+/// What leaves test: the caller's primitives (a leaf of one names it in its node), the
+/// listed copies of the leaves of several ([`LeafPrims`], ranges of the index array), and the
+/// level their triangle windows run at ([`Level`]).
+pub(crate) type LeafData<'a, P, V> = (&'a [P], &'a LeafPrims<P>, V);
 
 /// Tests leaf `node`'s primitives against `r`, shrinking `r.tmax` to the closest hit.
 /// Returns true when `ANY_HIT` and something was hit.
 #[inline(always)]
-pub(crate) fn test_leaf<P: Primitive, const ANY_HIT: bool>(
-    (prims, listed): LeafData<'_, P>,
+pub(crate) fn test_leaf<P: Primitive, const ANY_HIT: bool, V: Level>(
+    (prims, listed, level): LeafData<'_, P, V>,
     node: &KdNode,
     indices: &[u32],
     r: &mut Ray,
@@ -137,7 +138,7 @@ pub(crate) fn test_leaf<P: Primitive, const ANY_HIT: bool>(
     match node.list() {
         Some((first, count)) => {
             let places = (first as usize, count as usize);
-            listed.test::<ANY_HIT>(places, indices, r, best, |_| false)
+            listed.test_at::<ANY_HIT, V>(level, places, indices, r, best, |_| false)
         }
         None => test_primitives::<P, ANY_HIT>(prims, node.leaf_prims(indices), r, best, |_| false),
     }
@@ -147,9 +148,10 @@ pub(crate) fn test_leaf<P: Primitive, const ANY_HIT: bool>(
 /// ray's interval `[t0, t1]` inside the root cell. `on_leaf` sees each leaf before it is
 /// tested (queries pass one that does nothing; [`crate::KdTree::leaves_tested`] records them).
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Keep>(
+#[inline(always)]
+pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Keep, V: Level>(
     tree: &T,
-    leaves: LeafData<'_, P>,
+    leaves: LeafData<'_, P, V>,
     ray: &Ray,
     data: T::RayData,
     (mut t0, mut t1): (f32, f32),
@@ -185,7 +187,7 @@ pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Ke
             continue;
         }
         on_leaf(i);
-        if test_leaf::<P, ANY_HIT>(leaves, &nodes[i], indices, &mut r, &mut best) {
+        if test_leaf::<P, ANY_HIT, V>(leaves, &nodes[i], indices, &mut r, &mut best) {
             return best.best();
         }
         // The next pending cell that starts before the closest hit.
@@ -204,10 +206,11 @@ pub(crate) fn iterative<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Ke
 }
 
 /// The classic recursive traversal: the near child, then, unless a hit already lies before
-/// the far child, the far child.
+/// the far child, the far child. Its leaves run at the baseline level: a recursive function
+/// is not inlined into a level's copy of the query.
 pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Keep>(
     tree: &T,
-    leaves: LeafData<'_, P>,
+    leaves: LeafData<'_, P, BaseLevel>,
     ray: &Ray,
     data: T::RayData,
     (t0, t1): (f32, f32),
@@ -215,7 +218,7 @@ pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Ke
 ) -> Option<Hit> {
     struct Walk<'a, T: SplitPlanes, P, K> {
         tree: &'a T,
-        leaves: LeafData<'a, P>,
+        leaves: LeafData<'a, P, BaseLevel>,
         data: T::RayData,
         r: Ray,
         best: K,
@@ -227,7 +230,7 @@ pub(crate) fn recursive<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Ke
             let node = &self.tree.nodes()[i];
             if node.is_leaf() {
                 let indices = self.tree.indices();
-                return test_leaf::<P, ANY_HIT>(
+                return test_leaf::<P, ANY_HIT, BaseLevel>(
                     self.leaves,
                     node,
                     indices,
@@ -339,24 +342,24 @@ impl<P: Primitive> SplitPlanes for InFrame<'_, P> {
 
 /// A whole query: empty trees and invalid rays miss; otherwise the ray is clipped to the root
 /// cell `bounds` and walked the configured way.
-#[inline]
-pub(crate) fn query<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Keep>(
+#[inline(always)]
+pub(crate) fn query<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Keep, V: Level>(
     tree: &T,
-    leaves: LeafData<'_, P>,
+    leaves: LeafData<'_, P, V>,
     bounds: &Aabb,
     traversal: KdTraversal,
     ray: &Ray,
     best: impl FnOnce() -> K,
 ) -> Option<Hit> {
-    query_with::<T, P, ANY_HIT, K>(tree, leaves, bounds, traversal, ray, best, |_| {})
+    query_with::<T, P, ANY_HIT, K, V>(tree, leaves, bounds, traversal, ray, best, |_| {})
 }
 
 /// [`query`], the iterative walk handing each leaf to `on_leaf` before testing it.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn query_with<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Keep>(
+pub(crate) fn query_with<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: Keep, V: Level>(
     tree: &T,
-    leaves: LeafData<'_, P>,
+    leaves: LeafData<'_, P, V>,
     bounds: &Aabb,
     traversal: KdTraversal,
     ray: &Ray,
@@ -371,9 +374,10 @@ pub(crate) fn query_with<T: SplitPlanes, P: Primitive, const ANY_HIT: bool, K: K
     let data = tree.ray_data(ray, inv);
     match traversal {
         KdTraversal::Iterative => {
-            iterative::<T, P, ANY_HIT, K>(tree, leaves, ray, data, span, best, on_leaf)
+            iterative::<T, P, ANY_HIT, K, V>(tree, leaves, ray, data, span, best, on_leaf)
         }
         KdTraversal::Recursive => {
+            let leaves = (leaves.0, leaves.1, BaseLevel);
             recursive::<T, P, ANY_HIT, K>(tree, leaves, ray, data, span, best)
         }
     }

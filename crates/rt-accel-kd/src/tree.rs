@@ -2,8 +2,8 @@
 
 use crate::{KdBuilder, KdNode, KdParams, KdTraversal, build, node, traverse};
 use rt_geom::{
-    Aabb, Accel, BuildError, FilteredAccel, Frame, Hit, Keep, LeafPrims, Primitive, Ray,
-    check_primitives,
+    Aabb, Accel, AccelStats, BuildError, FilteredAccel, Frame, Hit, Isa, Keep, LeafPrims, Level,
+    Primitive, Ray, Walk, check_primitives,
 };
 
 /// A kd-tree over primitives `P`: 8-byte nodes flattened depth-first, leaves referring to the
@@ -25,6 +25,8 @@ pub struct KdTree<P> {
     /// The root cell in the frame (where the planes split it).
     pub(crate) root: Aabb,
     pub(crate) params: KdParams,
+    /// The instruction set queries run the walk compiled for ([`Isa::selected`] when built).
+    pub(crate) isa: Isa,
 }
 
 impl<P: Primitive> KdTree<P> {
@@ -84,7 +86,15 @@ impl<P: Primitive> KdTree<P> {
             frame,
             root,
             params,
+            isa: Isa::selected(),
         }
+    }
+
+    /// The same tree, its queries run compiled for `isa` (or, where this CPU lacks it, for the
+    /// best level it has): for tests and measurements of each level.
+    pub fn with_isa(mut self, isa: Isa) -> Self {
+        self.isa = isa.or_best();
+        self
     }
 
     /// The flattened nodes (read-only; layout in [`node`]).
@@ -131,11 +141,11 @@ impl<P: Primitive> KdTree<P> {
     #[cfg(feature = "research")]
     pub fn leaves_tested<const ANY_HIT: bool>(&self, ray: &Ray) -> (Vec<u32>, Option<Hit>) {
         let mut tested = Vec::new();
-        let leaves = (self.prims.as_slice(), &self.listed);
+        let leaves = (self.prims.as_slice(), &self.listed, rt_geom::BaseLevel);
         let iterative = KdTraversal::Iterative;
         let on_leaf = |i| tested.push(i as u32);
         let hit = if self.frame.is_world() {
-            traverse::query_with::<_, _, ANY_HIT, _>(
+            traverse::query_with::<_, _, ANY_HIT, _, _>(
                 self,
                 leaves,
                 &self.bounds,
@@ -146,7 +156,7 @@ impl<P: Primitive> KdTree<P> {
             )
         } else {
             let framed = &traverse::InFrame(self);
-            traverse::query_with::<_, _, ANY_HIT, _>(
+            traverse::query_with::<_, _, ANY_HIT, _, _>(
                 framed,
                 leaves,
                 &self.bounds,
@@ -173,44 +183,78 @@ impl<P: Primitive> KdTree<P> {
         let Some(leaf) = self.nodes.get(node).filter(|n| n.is_leaf()) else {
             return false;
         };
-        let leaves = (self.prims.as_slice(), &self.listed);
-        traverse::test_leaf::<P, ANY_HIT>(leaves, leaf, &self.indices, ray, best)
+        let leaves = (self.prims.as_slice(), &self.listed, rt_geom::BaseLevel);
+        traverse::test_leaf::<P, ANY_HIT, _>(leaves, leaf, &self.indices, ray, best)
     }
 }
 
-impl<P: Primitive> KdTree<P> {
-    /// The walk, for the closest hit or any hit.
-    #[inline]
-    fn traverse<const ANY_HIT: bool, K: Keep>(
+impl<P: Primitive> Walk for KdTree<P> {
+    fn isa(&self) -> Isa {
+        self.isa
+    }
+
+    /// The walk, for the closest hit or any hit, its leaves' triangle windows at `level`.
+    #[inline(always)]
+    fn walk<const ANY_HIT: bool, L: Level, K: Keep>(
         &self,
         ray: &Ray,
-        best: impl FnOnce() -> K,
+        level: L,
+        best: K,
     ) -> Option<Hit> {
-        let (t, leaves) = (self.params.traversal, (self.prims.as_slice(), &self.listed));
-        let bounds = &self.bounds;
+        let t = self.params.traversal;
+        let leaves = (self.prims.as_slice(), &self.listed, level);
+        let (bounds, best) = (&self.bounds, || best);
         if self.frame.is_world() {
-            traverse::query::<_, _, ANY_HIT, K>(self, leaves, bounds, t, ray, best)
+            traverse::query::<_, _, ANY_HIT, K, L>(self, leaves, bounds, t, ray, best)
         } else {
             let framed = &traverse::InFrame(self);
-            traverse::query::<_, _, ANY_HIT, K>(framed, leaves, bounds, t, ray, best)
+            traverse::query::<_, _, ANY_HIT, K, L>(framed, leaves, bounds, t, ray, best)
         }
     }
 }
 
 impl<P: Primitive> Accel for KdTree<P> {
-    rt_geom::queries_from_walk!(stats: compute_stats, validate: check);
+    rt_geom::queries_from_walk!(per_isa);
+
+    fn stats(&self) -> AccelStats {
+        self.compute_stats()
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        self.check()
+    }
 }
 
 impl<P: Primitive> FilteredAccel for KdTree<P> {
-    rt_geom::filtered_from_walk!();
+    rt_geom::filtered_from_walk!(per_isa);
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::{BspParams, BspTree, MAX_DEPTH};
-    use rt_geom::AccelStats;
     use rt_geom::{Triangle, Vec3};
+
+    /// Every instruction set's walk answers as brute force (the default one, the best this
+    /// CPU has, runs everywhere else); a level this CPU lacks runs its best one.
+    macro_rules! per_isa {
+        ($($name:ident: $isa:expr;)*) => {$(
+            mod $name {
+                use super::*;
+                rt_testkit::conformance_tests!(
+                    triangles: |p: &[Triangle]| KdTree::build(p, KdParams::sah()).map(|t| t.with_isa($isa)),
+                    spheres: |p: &[rt_geom::Sphere]| KdTree::build(p, KdParams::sah()).map(|t| t.with_isa($isa)),
+                );
+                rt_testkit::filter_tests!(
+                    triangles: |p: &[Triangle]| KdTree::build(p, KdParams::sah()).map(|t| t.with_isa($isa)),
+                );
+            }
+        )*};
+    }
+    per_isa! {
+        isa_baseline: Isa::Baseline;
+        isa_avx2: Isa::Avx2;
+    }
 
     /// The leaves a walk tests, tested again alone in order, give the walk's answer; nodes
     /// that are not leaves (or not nodes) test nothing.

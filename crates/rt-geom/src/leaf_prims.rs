@@ -267,6 +267,21 @@ impl<P: Primitive> LeafPrims<P> {
     #[inline(always)]
     pub fn test<const ANY_HIT: bool>(
         &self,
+        places: (usize, usize),
+        indices: &[u32],
+        ray: &mut Ray,
+        best: &mut impl Keep,
+        skip: impl FnMut(u32) -> bool,
+    ) -> bool {
+        self.test_at::<ANY_HIT, _>(BaseLevel, places, indices, ray, best, skip)
+    }
+
+    /// [`Self::test`] with the triangles' windows on `level`'s vectors ([`Level`]: inside a
+    /// walk [`crate::isa::run`] runs, the level it runs at).
+    #[inline(always)]
+    pub fn test_at<const ANY_HIT: bool, V: Level>(
+        &self,
+        level: V,
         (first, count): (usize, usize),
         indices: &[u32],
         ray: &mut Ray,
@@ -274,14 +289,7 @@ impl<P: Primitive> LeafPrims<P> {
         mut skip: impl FnMut(u32) -> bool,
     ) -> bool {
         if let Some(soa) = &self.soa {
-            return soa.test_range::<ANY_HIT, _>(
-                BaseLevel,
-                (first, count),
-                indices,
-                ray,
-                skip,
-                best,
-            );
+            return soa.test_range::<ANY_HIT, V>(level, (first, count), indices, ray, skip, best);
         }
         let ids = &indices[first..first + count];
         for (p, &id) in self.listed[first..first + count].iter().zip(ids) {

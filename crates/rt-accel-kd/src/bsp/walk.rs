@@ -6,7 +6,7 @@ use crate::KdNode;
 use crate::traverse::{self, SplitPlanes, Step, ordered_children};
 use rt_geom::aabb::{pad_down, pad_up};
 use rt_geom::glam::DVec3;
-use rt_geom::{Frame, Hit, Keep, Primitive, Ray};
+use rt_geom::{BaseLevel, Frame, Hit, Keep, Primitive, Ray};
 
 /// The ray in `f64`, where the crossing with an arbitrary plane is computed, its origin in
 /// the tree's frame (exact: two `f32` subtracted in `f64`).
@@ -84,7 +84,8 @@ impl<P: Primitive> BspTree<P> {
         ray: &Ray,
         best: impl FnOnce() -> K,
     ) -> Option<Hit> {
-        let (t, leaves) = (self.params.traversal, (self.prims.as_slice(), &self.listed));
-        traverse::query::<_, _, ANY_HIT, K>(self, leaves, &self.bounds, t, ray, best)
+        let leaves = (self.prims.as_slice(), &self.listed, BaseLevel);
+        let t = self.params.traversal;
+        traverse::query::<_, _, ANY_HIT, K, _>(self, leaves, &self.bounds, t, ray, best)
     }
 }
