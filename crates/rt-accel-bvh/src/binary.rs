@@ -4,7 +4,8 @@
 
 use crate::{BvhBuilder, BvhNode, BvhParams, build};
 use rt_geom::{
-    Aabb, Accel, AccelStats, BuildError, FilteredAccel, Frame, Primitive, check_primitives,
+    Aabb, Accel, AccelStats, BuildError, FilteredAccel, Frame, Hit, Isa, Keep, Level, Primitive,
+    Ray, Walk, check_primitives,
 };
 
 /// A binary BVH over primitives `P`, flattened depth-first, primitives stored in leaf order.
@@ -18,6 +19,8 @@ pub struct Bvh<P> {
     /// Primitives the tree was built from (`prims` may hold some several times).
     pub(crate) count: usize,
     pub(crate) params: BvhParams,
+    /// The instruction set its queries (and rt-packet's packet queries) run compiled for.
+    pub(crate) isa: Isa,
 }
 
 impl<P: Primitive> Bvh<P> {
@@ -36,6 +39,7 @@ impl<P: Primitive> Bvh<P> {
                 ids: vec![],
                 count: 0,
                 params,
+                isa: Isa::selected(),
             });
         }
         let frame = Frame::of(&Aabb::around(prims));
@@ -71,6 +75,7 @@ impl<P: Primitive> Bvh<P> {
             ids,
             count: prims_len,
             params,
+            isa: Isa::selected(),
         };
         if !frame.is_world() {
             bvh.boxes_to_world(&frame);
@@ -102,14 +107,37 @@ impl<P: Primitive> Bvh<P> {
     pub fn primitive_count(&self) -> usize {
         self.count
     }
+
+    /// The same tree, its queries run compiled for `isa` (or, where this CPU lacks it, for the
+    /// best level it has): for tests and measurements of each level.
+    pub fn with_isa(mut self, isa: Isa) -> Self {
+        self.isa = isa.or_best();
+        self
+    }
+}
+
+impl<P: Primitive> Walk for Bvh<P> {
+    fn isa(&self) -> Isa {
+        self.isa
+    }
+
+    #[inline(always)]
+    fn walk<const ANY_HIT: bool, L: Level, K: Keep>(
+        &self,
+        ray: &Ray,
+        _level: L,
+        best: K,
+    ) -> Option<Hit> {
+        self.traverse::<ANY_HIT, K>(ray, || best)
+    }
 }
 
 impl<P: Primitive> FilteredAccel for Bvh<P> {
-    rt_geom::filtered_from_walk!();
+    rt_geom::filtered_from_walk!(per_isa);
 }
 
 impl<P: Primitive> Accel for Bvh<P> {
-    rt_geom::queries_from_walk!();
+    rt_geom::queries_from_walk!(per_isa);
 
     fn stats(&self) -> AccelStats {
         self.compute_stats()
@@ -168,6 +196,23 @@ mod tests {
         },
         reinserted_spatial: BvhParams::spatial().with_reinsertion(0.5),
     });
+
+    /// Each instruction set's walk answers as brute force (a level this CPU lacks runs its
+    /// best one).
+    mod isa_baseline {
+        use super::*;
+        rt_testkit::conformance_tests!(
+            triangles: |p: &[Triangle]| Bvh::build(p, BvhParams::balanced()).map(|b| b.with_isa(Isa::Baseline)),
+            spheres: |p: &[Sphere]| Bvh::build(p, BvhParams::balanced()).map(|b| b.with_isa(Isa::Baseline)),
+        );
+    }
+    mod isa_avx2 {
+        use super::*;
+        rt_testkit::conformance_tests!(
+            triangles: |p: &[Triangle]| Bvh::build(p, BvhParams::balanced()).map(|b| b.with_isa(Isa::Avx2)),
+            spheres: |p: &[Sphere]| Bvh::build(p, BvhParams::balanced()).map(|b| b.with_isa(Isa::Avx2)),
+        );
+    }
 
     #[test]
     fn spatial_splits_duplicate_long_triangles() {

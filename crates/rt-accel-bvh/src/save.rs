@@ -509,6 +509,7 @@ impl<P: Primitive> Bvh<P> {
             ids,
             count: prims.len(),
             params,
+            isa: Isa::selected(),
         };
         bvh.validate().map_err(corrupt)?;
         if params.splits_primitives() {

@@ -88,14 +88,19 @@ impl<P> Bvh<P> {
 
 impl<P: Primitive> Bvh<P> {
     /// The walk over the tree's own primitives. With `ANY_HIT`, returns the first hit found.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn traverse<const ANY_HIT: bool, K: Keep>(
         &self,
         ray: &Ray,
         best: impl FnOnce() -> K,
     ) -> Option<Hit> {
-        self.walk_ray::<ANY_HIT, K>(ray, best, |first, count, r, best| {
-            test_leaf::<P, _, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
-        })
+        self.walk_ray::<ANY_HIT, K>(
+            ray,
+            best,
+            #[inline(always)]
+            |first, count, r, best| {
+                test_leaf::<P, _, ANY_HIT>(&self.prims, &self.ids, first, count, r, best)
+            },
+        )
     }
 }

@@ -132,6 +132,10 @@ fn detect() -> Isa {
 /// [`BaseLevel`], or [`Avx2Level`] (made only by [`run`], on a CPU it checked). The value is
 /// the proof that the CPU runs the level: every operation that uses its instructions takes it.
 pub trait Level: Copy + Send + Sync + std::fmt::Debug + sealed::Sealed {
+    /// The instruction set of this level, for kernels outside rt-geom that pick their own
+    /// vectors by it (a compile-time constant in each level's copy).
+    const ISA: Isa;
+
     /// Bit `l` set where `a[l] <= b[l]` (false for NaN): one compare of the level's eight-lane
     /// vectors (the wide walk's hit mask).
     #[inline(always)]
@@ -149,8 +153,12 @@ pub struct BaseLevel;
 #[derive(Clone, Copy, Debug)]
 pub struct Avx2Level(());
 
-impl Level for BaseLevel {}
-impl Level for Avx2Level {}
+impl Level for BaseLevel {
+    const ISA: Isa = Isa::Baseline;
+}
+impl Level for Avx2Level {
+    const ISA: Isa = Isa::Avx2;
+}
 
 /// The hooks behind [`Level`]: not nameable outside rt-geom.
 pub(crate) mod sealed {

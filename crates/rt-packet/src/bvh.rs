@@ -16,10 +16,11 @@
 
 use crate::beam::Beam;
 use crate::lanes::{PacketPrimitive, enter_mask, test_block};
+use crate::simd::{F8, PacketKernel};
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_bvh::{Bvh, MAX_DEPTH};
-use rt_geom::Hit;
 use rt_geom::aabb::{pad_down, pad_up};
+use rt_geom::{Hit, Walk};
 
 /// Whether lane `i` of `p` enters `node`'s box within its `[tmin, tmax]` (the single-ray
 /// traversal's padded slab test, [`rt_geom::aabb::SlabRay::entry`], with the packet's folded
@@ -110,7 +111,7 @@ impl Culling {
 /// whole packet before the following lanes are tried a block at a time; the last lane is
 /// found the same way from the other end.
 #[inline(always)]
-pub(crate) fn entering_range<const N: usize, const W: usize>(
+pub(crate) fn entering_range<V: F8, const N: usize, const W: usize>(
     node: Bounds<'_>,
     p: &RayPacket<'_, N>,
     culling: &mut Culling,
@@ -119,7 +120,7 @@ pub(crate) fn entering_range<const N: usize, const W: usize>(
     let first = (from..=to).find(|&i| p.active[i])?;
     let last = (first..=to).rev().find(|&i| p.active[i])?;
     let first_entry = lane_entry(node, p, first);
-    let range = narrow_range::<N, W>(
+    let range = narrow_range::<V, N, W>(
         node,
         p,
         culling,
@@ -136,7 +137,7 @@ pub(crate) fn entering_range<const N: usize, const W: usize>(
 /// the last lane can be asked: the first lane that enters (with its entry when it is
 /// `first`) and the last.
 #[inline(always)]
-pub(crate) fn narrow_range<const N: usize, const W: usize>(
+pub(crate) fn narrow_range<V: F8, const N: usize, const W: usize>(
     node: Bounds<'_>,
     p: &RayPacket<'_, N>,
     culling: &mut Culling,
@@ -150,20 +151,30 @@ pub(crate) fn narrow_range<const N: usize, const W: usize>(
             if !culling.may_enter(node, p) {
                 return None;
             }
-            scan::<N, W>(node, p, first + 1..=to, false)?
+            scan::<V, N, W>(node, p, first + 1..=to, false)?
         }
     };
     if last == lo || last_enters() {
         return Some((lo, last, first_entry));
     }
-    Some((lo, scan::<N, W>(node, p, lo..=last - 1, true)?, first_entry))
+    Some((
+        lo,
+        scan::<V, N, W>(node, p, lo..=last - 1, true)?,
+        first_entry,
+    ))
 }
 
 /// Tests the primitives `first..first + count` (leaf order, with their ids) against the lanes
 /// in `[lo, hi]` that enter the box `b`, a block at a time. Returns whether some lane hit
 /// (its `tmax` changed).
 #[inline(always)]
-pub(crate) fn test_leaf<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
+pub(crate) fn test_leaf<
+    V: F8,
+    P: PacketPrimitive,
+    const N: usize,
+    const W: usize,
+    const ANY_HIT: bool,
+>(
     (prims, ids): (&[P], &[u32]),
     (first, count): (u32, u32),
     b: Bounds<'_>,
@@ -174,11 +185,11 @@ pub(crate) fn test_leaf<P: PacketPrimitive, const N: usize, const W: usize, cons
     let range = first as usize..(first + count) as usize;
     let mut changed = false;
     for base in (lo / W..=hi / W).map(|k| k * W) {
-        let lanes = enter_mask::<N, W>(b.0, b.1, p, base);
+        let lanes = enter_mask::<V, N, W>(b.0, b.1, p, base);
         let leaf = prims[range.clone()]
             .iter()
             .zip(ids[range.clone()].iter().copied());
-        changed |= test_block::<P, N, W, ANY_HIT>(leaf, p, best, base, lanes) != 0;
+        changed |= test_block::<V, P, N, W, ANY_HIT>(leaf, p, best, base, lanes) != 0;
     }
     changed
 }
@@ -186,7 +197,7 @@ pub(crate) fn test_leaf<P: PacketPrimitive, const N: usize, const W: usize, cons
 /// The first (or with `backwards`, the last) lane in `lanes` that enters `node`, testing a
 /// block of lanes at a time.
 #[inline(always)]
-fn scan<const N: usize, const W: usize>(
+fn scan<V: F8, const N: usize, const W: usize>(
     (min, max): Bounds<'_>,
     p: &RayPacket<'_, N>,
     lanes: std::ops::RangeInclusive<usize>,
@@ -199,7 +210,7 @@ fn scan<const N: usize, const W: usize>(
     // The lanes of the block at `base` that enter, among those inside `lanes` (`base <= hi`
     // for every block). A function, not a closure: see `rt_geom::isa`.
     #[inline(always)]
-    fn mask<const N: usize, const W: usize>(
+    fn mask<V: F8, const N: usize, const W: usize>(
         (min, max): Bounds<'_>,
         p: &RayPacket<'_, N>,
         (lo, hi): (usize, usize),
@@ -207,19 +218,19 @@ fn scan<const N: usize, const W: usize>(
     ) -> u32 {
         let (from, to) = (lo.saturating_sub(base), (hi - base).min(W - 1));
         let inside = (u32::MAX >> (31 - to)) & (u32::MAX << from);
-        enter_mask::<N, W>(min, max, p, base) & inside
+        enter_mask::<V, N, W>(min, max, p, base) & inside
     }
     let (first_block, last_block) = (lo / W, hi / W);
     if backwards {
         for b in (first_block..=last_block).rev() {
-            let m = mask::<N, W>((min, max), p, (lo, hi), b * W);
+            let m = mask::<V, N, W>((min, max), p, (lo, hi), b * W);
             if m != 0 {
                 return Some(b * W + 31 - m.leading_zeros() as usize);
             }
         }
     } else {
         for b in first_block..=last_block {
-            let m = mask::<N, W>((min, max), p, (lo, hi), b * W);
+            let m = mask::<V, N, W>((min, max), p, (lo, hi), b * W);
             if m != 0 {
                 return Some(b * W + m.trailing_zeros() as usize);
             }
@@ -231,20 +242,42 @@ fn scan<const N: usize, const W: usize>(
 impl<P: PacketPrimitive> PacketTraversal for Bvh<P> {
     fn intersect_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [Option<Hit>; N] {
         let mut best: [Option<Hit>; N] = [None; N];
-        by_block_width!(N, W => traverse::<P, N, W, false>(self, packet, &mut best));
+        let query = Query::<_, N, false>(self, packet, &mut best);
+        crate::simd::run(self.isa(), query);
         best
     }
 
     fn occluded_packet<const N: usize>(&self, packet: &mut RayPacket<'_, N>) -> [bool; N] {
         let mut best: [Option<Hit>; N] = [None; N];
-        by_block_width!(N, W => traverse::<P, N, W, true>(self, packet, &mut best));
+        let query = Query::<_, N, true>(self, packet, &mut best);
+        crate::simd::run(self.isa(), query);
         best.map(|h| h.is_some())
+    }
+}
+
+/// A packet query of a structure `T` as work compiled per instruction set: the structure,
+/// the packet and the lanes' answers.
+pub(crate) struct Query<'a, 'r, T, const N: usize, const ANY_HIT: bool>(
+    pub(crate) &'a T,
+    pub(crate) &'a mut RayPacket<'r, N>,
+    pub(crate) &'a mut [Option<Hit>; N],
+);
+
+impl<P: PacketPrimitive, const N: usize, const ANY_HIT: bool> PacketKernel
+    for Query<'_, '_, Bvh<P>, N, ANY_HIT>
+{
+    type Output = ();
+    #[inline(always)]
+    fn run<V: F8>(self) {
+        let Query(bvh, p, best) = self;
+        by_block_width!(N, W => traverse::<V, P, N, W, ANY_HIT>(bvh, p, best));
     }
 }
 
 /// The one traversal behind both queries, over blocks of `W` lanes. With `ANY_HIT`, a lane
 /// that hits anything is done (made inactive) at once.
-fn traverse<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
+#[inline(always)]
+fn traverse<V: F8, P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
     bvh: &Bvh<P>,
     p: &mut RayPacket<'_, N>,
     best: &mut [Option<Hit>; N],
@@ -268,14 +301,14 @@ fn traverse<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: b
     }) {
         let node = &nodes[index];
         let Some((first, last)) =
-            entering_range::<N, W>((&node.min, &node.max), p, &mut culling, (from, to))
+            entering_range::<V, N, W>((&node.min, &node.max), p, &mut culling, (from, to))
         else {
             continue;
         };
         if node.is_leaf() {
             let leaf = (node.offset, node.count());
             let b = (&node.min, &node.max);
-            if test_leaf::<P, N, W, ANY_HIT>((prims, ids), leaf, b, p, best, (first, last)) {
+            if test_leaf::<V, P, N, W, ANY_HIT>((prims, ids), leaf, b, p, best, (first, last)) {
                 culling.lanes_hit();
             }
             continue;
@@ -304,18 +337,29 @@ mod tests {
     fn conformance_rays_in_packets_equal_single_rays() {
         // The adversarial ray families, in file order: packets of mixed directions, rays
         // starting inside boxes, tmin/tmax limits, invalid rays, partial last packets.
-        for scene in scenes::conformance_triangle_scenes() {
-            let bvh = Bvh::build(&scene.prims, BvhParams::balanced()).unwrap();
-            all_sizes(&bvh, &conformance_rays(&scene.prims, 60, 7), &scene.name);
+        // On every instruction set this CPU runs (each level's vectors, `crate::simd`).
+        for isa in rt_geom::Isa::available() {
+            for scene in scenes::conformance_triangle_scenes() {
+                let bvh = Bvh::build(&scene.prims, BvhParams::balanced()).unwrap();
+                let name = format!("{} {isa}", scene.name);
+                all_sizes(
+                    &bvh.with_isa(isa),
+                    &conformance_rays(&scene.prims, 60, 7),
+                    &name,
+                );
+            }
         }
     }
 
     #[test]
     fn camera_tiles_equal_single_rays() {
         let tris = scenes::tessellated_sphere(5000, rt_geom::Vec3::splat(0.5), 0.4);
-        let bvh = Bvh::build(&tris, BvhParams::balanced()).unwrap();
-        crate::check::camera_tiles(&bvh, &tris);
-        crate::check::enclosed_tiles(|t| Bvh::build(t, BvhParams::balanced()).unwrap());
+        for isa in rt_geom::Isa::available() {
+            let bvh = Bvh::build(&tris, BvhParams::balanced()).unwrap();
+            crate::check::camera_tiles(&bvh.with_isa(isa), &tris);
+            let build = |t: &[rt_geom::Triangle]| Bvh::build(t, BvhParams::balanced()).unwrap();
+            crate::check::enclosed_tiles(|t| build(t).with_isa(isa));
+        }
     }
 
     #[test]

@@ -19,14 +19,18 @@
 
 use crate::api::{each_lane, each_lane_occluded};
 use crate::lanes::{
-    BlockRegs, PacketPrimitive, active_mask, block_width, clip_block, lane_mask, le_bits, load,
+    BlockRegs as Regs, PacketPrimitive, active_mask, block_width, clip_block, le_bits, load,
     negative_bits, registers, select_lanes, test_block,
 };
+use crate::simd::F8;
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_kd::{KdTree, MAX_DEPTH};
 use rt_geom::aabb::PAD;
 use rt_geom::{Aabb, Hit};
 use wide::{CmpGt, CmpLe, CmpLt, f32x8};
+
+/// A block's registers on `wide`'s vectors (the kd-tree's packets run at the baseline).
+type BlockRegs = Regs<f32x8>;
 
 /// The lanes of the block at `base` in `lanes`, traced from node `start` whose cell is `cell`.
 /// Each lane's interval starts as its ray clipped to the cell (the single-ray query clips to
@@ -50,13 +54,13 @@ pub(crate) fn trace_block<
     // Each lane's ray clipped to the cell, over `[tmin, tmax]` with `tmax` its closest hit so
     // far: a lane whose hit lies before the cell skips it (a cell after the first).
     let (t0, t1, entering) =
-        clip_block::<N, W>(&cell.min.to_array(), &cell.max.to_array(), p, base);
+        clip_block::<f32x8, N, W>(&cell.min.to_array(), &cell.max.to_array(), p, base);
     let mut live = lanes & entering;
     if live == 0 {
         return;
     }
     // Split by direction octant: lanes of one octant share the near child at every plane.
-    let negative = negative_bits::<N, W>(p, base);
+    let negative = negative_bits::<f32x8, N, W>(p, base);
     while live != 0 {
         let first = live.trailing_zeros();
         let mut group = live;
@@ -123,8 +127,8 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
             let mut next = [[f32x8::ZERO; 2]; 4];
             let (mut any_near, mut any_far) = (0, 0);
             for h in 0..registers(W) {
-                let o = load::<N, W>(&p.origin[axis], base + 8 * h);
-                let inv = load::<N, W>(&p.inv_dir[axis], base + 8 * h);
+                let o = load::<f32x8, N, W>(&p.origin[axis], base + 8 * h);
+                let inv = load::<f32x8, N, W>(&p.inv_dir[axis], base + 8 * h);
                 let [n0, n1, f0, f1] = step8(split, o, inv, t0[h], t1[h]);
                 any_near |= n0.cmp_le(n1).move_mask();
                 any_far |= f0.cmp_le(f1).move_mask();
@@ -143,12 +147,12 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
                 continue;
             }
         } else {
-            let lanes = le_bits::<W>(&t0, &t1) & active(hit);
+            let lanes = le_bits::<f32x8, W>(&t0, &t1) & active(hit);
             let leaf = node
                 .leaf_prims(indices)
                 .iter()
                 .map(|&id| (&prims[id as usize], id));
-            hit |= test_block::<P, N, W, ANY_HIT>(leaf, p, best, base, lanes);
+            hit |= test_block::<f32x8, P, N, W, ANY_HIT>(leaf, p, best, base, lanes);
         }
         // The next pending cell that some lane enters before its closest hit.
         loop {
@@ -159,14 +163,16 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
             // the closest hit.
             let mut tmax = [f32x8::ZERO; 2];
             for (h, r) in tmax.iter_mut().enumerate().take(registers(W)) {
-                *r = load::<N, W>(&p.tmax, base + 8 * h);
+                *r = load::<f32x8, N, W>(&p.tmax, base + 8 * h);
             }
-            let keep = le_bits::<W>(&a, &b) & (!hit | le_bits::<W>(&a, &tmax)) & active(hit);
+            let keep =
+                le_bits::<f32x8, W>(&a, &b) & (!hit | le_bits::<f32x8, W>(&a, &tmax)) & active(hit);
             if keep != 0 {
                 // The lanes not kept start past their end: an empty interval.
                 let mut a = a;
                 for (h, r) in a.iter_mut().enumerate().take(registers(W)) {
-                    *r = lane_mask(keep >> (8 * h)).blend(*r, f32x8::splat(f32::INFINITY));
+                    *r = <f32x8 as F8>::from_bits(keep >> (8 * h))
+                        .blend(*r, f32x8::splat(f32::INFINITY));
                 }
                 (i, t0, t1) = (n as usize, a, b);
                 break;

@@ -1,18 +1,19 @@
 //! The per-lane kernels, over blocks of `W` consecutive lanes (8, 4 for packets of 4, 16 for
 //! the kd-tree's walks, as two halves): the slab test of one box against every lane, and
-//! [`PacketPrimitive`], one primitive against every lane, on `wide::f32x8` (and `f64x4` for
-//! the refinement of accepted triangle hits). Each lane computes exactly what the single-ray
+//! [`PacketPrimitive`], one primitive against every lane, on the level's eight-lane vectors
+//! ([`F8`]; `wide::f64x4` for the refinement of accepted triangle hits). Each lane computes exactly what the single-ray
 //! code computes for its ray (same operations in the same order, no fused multiply-add), so
 //! the answers agree bit for bit.
 //!
 //! A block's lanes are a bit mask (`u32`, bit `l` = lane `base + l`).
 
 use crate::RayPacket;
+use crate::simd::F8;
 use rt_geom::aabb::PAD;
 #[cfg(doc)]
 use rt_geom::aabb::{pad_down, pad_up};
 use rt_geom::{Cone, Hit, PrimHit, Primitive, Shape, Sphere, Triangle, Vec3, keep_hit};
-use wide::{CmpEq, CmpGe, CmpGt, CmpLe, CmpLt, CmpNe, f32x8, f64x4, i32x8};
+use wide::{CmpGe, CmpGt, f64x4};
 
 /// The block width for packets of `N` lanes.
 pub(crate) const fn block_width(n: usize) -> usize {
@@ -22,24 +23,20 @@ pub(crate) const fn block_width(n: usize) -> usize {
 /// Lanes `base..base + min(W, 8)` of `v` in one SIMD register (for `W` = 4 the upper four are
 /// zero; the masks below keep only the block's own bits).
 #[inline(always)]
-pub(crate) fn load<const N: usize, const W: usize>(v: &[f32; N], base: usize) -> f32x8 {
+pub(crate) fn load<V: F8, const N: usize, const W: usize>(v: &[f32; N], base: usize) -> V {
+    if W >= 8 {
+        return V::load(&v[base..]);
+    }
     let mut a = [0.0; 8];
-    let n = W.min(8);
-    a[..n].copy_from_slice(&v[base..base + n]);
-    f32x8::new(a)
+    a[..W].copy_from_slice(&v[base..base + W]);
+    V::new(a)
 }
 
 /// The bits of the SIMD lanes of `m` (all ones or all zeros each) that belong to a block of
 /// `W` lanes (the first 8 of them when `W` is larger).
 #[inline(always)]
-fn bits<const W: usize>(m: f32x8) -> u32 {
-    m.move_mask() as u32 & ((1 << W.min(8)) - 1)
-}
-
-/// `if c { a } else { b }` per lane, `c` a comparison result.
-#[inline(always)]
-pub(crate) fn select(c: f32x8, a: f32x8, b: f32x8) -> f32x8 {
-    c.blend(a, b)
+fn bits<V: F8, const W: usize>(m: V) -> u32 {
+    m.bits() & ((1 << W.min(8)) - 1)
 }
 
 /// The slab test of 8 lanes from `base` (4 for `W` = 4) against the box `[min, max]`, each lane
@@ -47,39 +44,39 @@ pub(crate) fn select(c: f32x8, a: f32x8, b: f32x8) -> f32x8 {
 /// (`inv_lo`, `inv_hi`), computed as [`rt_geom::aabb::SlabRay::entry`] computes them; unpadded
 /// for the lanes that do not fold (see `RayPacket::pad_after`).
 #[inline(always)]
-fn slabs<const N: usize, const W: usize>(
+fn slabs<V: F8, const N: usize, const W: usize>(
     min: &[f32; 3],
     max: &[f32; 3],
     p: &RayPacket<'_, N>,
     base: usize,
-) -> (f32x8, f32x8) {
-    let mut t0 = load::<N, W>(&p.tmin, base);
-    let mut t1 = load::<N, W>(&p.tmax, base);
+) -> (V, V) {
+    let mut t0 = load::<V, N, W>(&p.tmin, base);
+    let mut t1 = load::<V, N, W>(&p.tmax, base);
     for a in 0..3 {
-        let o = load::<N, W>(&p.origin[a], base);
+        let o = load::<V, N, W>(&p.origin[a], base);
         let (inv_lo, inv_hi) = (
-            load::<N, W>(&p.inv_lo[a], base),
-            load::<N, W>(&p.inv_hi[a], base),
+            load::<V, N, W>(&p.inv_lo[a], base),
+            load::<V, N, W>(&p.inv_hi[a], base),
         );
         // Both planes, then the near one by the sign of the direction (`inv < 0` is
         // `is_sign_negative` for every active lane: an inverse of -0 or NaN belongs to an
         // invalid ray).
-        let t_lo = (f32x8::splat(min[a]) - o) * inv_lo;
-        let t_hi = (f32x8::splat(max[a]) - o) * inv_hi;
-        let neg = inv_lo.cmp_lt(f32x8::ZERO);
-        let tn = select(neg, t_hi, t_lo);
-        let tf = select(neg, t_lo, t_hi);
+        let t_lo = (V::splat(min[a]) - o) * inv_lo;
+        let t_hi = (V::splat(max[a]) - o) * inv_hi;
+        let neg = inv_lo.lt(V::zero());
+        let tn = neg.select(t_hi, t_lo);
+        let tf = neg.select(t_lo, t_hi);
         // `if tn > t0 { tn } else { t0 }`: NaN keeps the interval as it is.
-        t0 = select(tn.cmp_gt(t0), tn, t0);
-        t1 = select(tf.cmp_lt(t1), tf, t1);
+        t0 = tn.gt(t0).select(tn, t0);
+        t1 = tf.lt(t1).select(tf, t1);
     }
     (t0, t1)
 }
 
 /// `t - |t| PAD` and `t + |t| PAD` on 8 lanes ([`pad_down`], [`pad_up`]).
 #[inline(always)]
-pub(crate) fn pad(t: f32x8, up: bool) -> f32x8 {
-    let m = t.abs() * f32x8::splat(PAD);
+pub(crate) fn pad<V: F8>(t: V, up: bool) -> V {
+    let m = t.abs() * V::splat(PAD);
     if up { t + m } else { t - m }
 }
 
@@ -87,7 +84,7 @@ pub(crate) fn pad(t: f32x8, up: bool) -> f32x8 {
 /// their `[tmin, tmax]`: the single-ray traversal's padded slab test
 /// ([`rt_geom::aabb::SlabRay::entry`]) lane by lane.
 #[inline(always)]
-pub(crate) fn enter_mask<const N: usize, const W: usize>(
+pub(crate) fn enter_mask<V: F8, const N: usize, const W: usize>(
     min: &[f32; 3],
     max: &[f32; 3],
     p: &RayPacket<'_, N>,
@@ -95,20 +92,20 @@ pub(crate) fn enter_mask<const N: usize, const W: usize>(
 ) -> u32 {
     let mut mask = 0;
     for half in (0..W).step_by(8) {
-        let (t0, t1) = slabs::<N, W>(min, max, p, base + half);
+        let (t0, t1) = slabs::<V, N, W>(min, max, p, base + half);
         let (t0, t1) = if p.pad_after {
             (pad(t0, false), pad(t1, true))
         } else {
             (t0, t1)
         };
-        mask |= bits::<W>(t0.cmp_le(t1)) << half;
+        mask |= bits::<V, W>(t0.le(t1)) << half;
     }
     mask & active_mask::<N, W>(p, base)
 }
 
 /// A block's values per lane, eight lanes per register: blocks of 16 use both, blocks of 8
 /// and 4 the first (lanes past the block hold what the function that made them says).
-pub(crate) type BlockRegs = [f32x8; 2];
+pub(crate) type BlockRegs<V> = [V; 2];
 
 /// Registers of a block of `w` lanes.
 pub(crate) const fn registers(w: usize) -> usize {
@@ -117,43 +114,35 @@ pub(crate) const fn registers(w: usize) -> usize {
 
 /// The lanes `l` of a block of `W` where `x[l] <= y[l]` (false when either is NaN).
 #[inline(always)]
-pub(crate) fn le_bits<const W: usize>(x: &BlockRegs, y: &BlockRegs) -> u32 {
+pub(crate) fn le_bits<V: F8, const W: usize>(x: &BlockRegs<V>, y: &BlockRegs<V>) -> u32 {
     let mut mask = 0;
     for h in 0..registers(W) {
-        mask |= (x[h].cmp_le(y[h]).move_mask() as u32) << (8 * h);
+        mask |= x[h].le(y[h]).bits() << (8 * h);
     }
     mask & (u32::MAX >> (32 - W))
 }
 
-/// The lanes of the low eight bits of `bits` as a SIMD mask (all bits set where on).
-#[inline(always)]
-pub(crate) fn lane_mask(bits: u32) -> f32x8 {
-    let lane = i32x8::new([1, 2, 4, 8, 16, 32, 64, 128]);
-    let on = (i32x8::splat(bits as i32) & lane).cmp_eq(lane);
-    f32x8::from_i32x8(on).cmp_ne(f32x8::ZERO)
-}
-
 /// `v` in the lanes of `bits`, `other` elsewhere (past the block too).
 #[inline(always)]
-pub(crate) fn select_lanes(bits: u32, v: &BlockRegs, other: f32) -> BlockRegs {
-    let other = f32x8::splat(other);
+pub(crate) fn select_lanes<V: F8>(bits: u32, v: &BlockRegs<V>, other: f32) -> BlockRegs<V> {
+    let other = V::splat(other);
     [
-        select(lane_mask(bits), v[0], other),
-        select(lane_mask(bits >> 8), v[1], other),
+        V::from_bits(bits).select(v[0], other),
+        V::from_bits(bits >> 8).select(v[1], other),
     ]
 }
 
 /// The lanes of the block at `base` whose direction is negative (sign bit set, `-0`
 /// included) along each axis, as the sign of `inv_dir`.
 #[inline(always)]
-pub(crate) fn negative_bits<const N: usize, const W: usize>(
+pub(crate) fn negative_bits<V: F8, const N: usize, const W: usize>(
     p: &RayPacket<'_, N>,
     base: usize,
 ) -> [u32; 3] {
     std::array::from_fn(|a| {
         let mut mask = 0;
         for h in 0..registers(W) {
-            mask |= (load::<N, W>(&p.inv_dir[a], base + 8 * h).move_mask() as u32) << (8 * h);
+            mask |= load::<V, N, W>(&p.inv_dir[a], base + 8 * h).bits() << (8 * h);
         }
         mask & (u32::MAX >> (32 - W))
     })
@@ -163,25 +152,25 @@ pub(crate) fn negative_bits<const N: usize, const W: usize>(
 /// [`rt_geom::Aabb::clip_ray`]): the padded entry and exit of each lane, in registers, and the
 /// mask of the active lanes that enter.
 #[inline(always)]
-pub(crate) fn clip_block<const N: usize, const W: usize>(
+pub(crate) fn clip_block<V: F8, const N: usize, const W: usize>(
     min: &[f32; 3],
     max: &[f32; 3],
     p: &RayPacket<'_, N>,
     base: usize,
-) -> (BlockRegs, BlockRegs, u32) {
-    let (mut near, mut far, mut mask) = ([f32x8::ZERO; 2], [f32x8::ZERO; 2], 0);
+) -> (BlockRegs<V>, BlockRegs<V>, u32) {
+    let (mut near, mut far, mut mask) = ([V::zero(); 2], [V::zero(); 2], 0);
     for h in 0..registers(W) {
-        let (t0, t1) = slabs::<N, W>(min, max, p, base + 8 * h);
+        let (t0, t1) = slabs::<V, N, W>(min, max, p, base + 8 * h);
         let (t0, t1) = if p.pad_after {
             let (t0, t1) = (pad(t0, false), pad(t1, true));
             // `t0.max(tmin)` of `clip_ray` (t0 is never NaN for a lane that enters).
-            let tmin = load::<N, W>(&p.tmin, base + 8 * h);
-            (select(tmin.cmp_gt(t0), tmin, t0), t1)
+            let tmin = load::<V, N, W>(&p.tmin, base + 8 * h);
+            (tmin.gt(t0).select(tmin, t0), t1)
         } else {
             // Never below `tmin`: the slabs start from it and only raise it.
             (t0, t1)
         };
-        mask |= bits::<W>(t0.cmp_le(t1)) << (8 * h);
+        mask |= bits::<V, W>(t0.le(t1)) << (8 * h);
         (near[h], far[h]) = (t0, t1);
     }
     (near, far, mask & active_mask::<N, W>(p, base))
@@ -215,8 +204,9 @@ pub trait PacketPrimitive: Primitive {
     /// The hits of the lanes in `mask` (bits relative to `base`) of the block at `base`, each
     /// lane over `[tmin, tmax]` of the packet: exactly `self.intersect(&p.ray(lane))`. Returns
     /// the lanes that hit, each one's hit in `out` (other lanes of `out` are left as they are).
+    /// `V`: the vectors of the level the traversal runs at.
     #[inline(always)]
-    fn intersect_block<const N: usize, const W: usize>(
+    fn intersect_block<V: F8, const N: usize, const W: usize>(
         &self,
         p: &RayPacket<'_, N>,
         base: usize,
@@ -241,7 +231,7 @@ pub trait PacketPrimitive: Primitive {
 /// (made inactive, its `tmax` `-inf`). Returns the lanes whose `tmax` changed (that hit
 /// something).
 #[inline(always)]
-pub(crate) fn test_block<'a, P, const N: usize, const W: usize, const ANY_HIT: bool>(
+pub(crate) fn test_block<'a, V: F8, P, const N: usize, const W: usize, const ANY_HIT: bool>(
     prims: impl Iterator<Item = (&'a P, u32)>,
     p: &mut RayPacket<'_, N>,
     best: &mut [Option<Hit>; N],
@@ -262,7 +252,7 @@ where
         } else {
             lanes
         };
-        let hit = prim.intersect_block::<N, W>(p, base, tested, &mut hits);
+        let hit = prim.intersect_block::<V, N, W>(p, base, tested, &mut hits);
         for_each_lane(hit, |l| {
             let h = hits[l];
             let lane = base + l;
@@ -310,7 +300,7 @@ impl PacketPrimitive for Triangle {
     /// [`Triangle::finish_watertight`], and lanes with an edge function of exactly zero through
     /// the whole scalar kernel (its `f64` recomputation).
     #[inline(always)]
-    fn intersect_block<const N: usize, const W: usize>(
+    fn intersect_block<V: F8, const N: usize, const W: usize>(
         &self,
         p: &RayPacket<'_, N>,
         base: usize,
@@ -327,17 +317,17 @@ impl PacketPrimitive for Triangle {
             // copies the loaded lanes, and a closure that stays out of line runs at the
             // baseline level inside the AVX2 walks (`rt_geom::isa`).
             let o = [
-                load::<N, W>(&p.origin[0], sub),
-                load::<N, W>(&p.origin[1], sub),
-                load::<N, W>(&p.origin[2], sub),
+                load::<V, N, W>(&p.origin[0], sub),
+                load::<V, N, W>(&p.origin[1], sub),
+                load::<V, N, W>(&p.origin[2], sub),
             ];
             let s = [
-                load::<N, W>(&p.shear[0], sub),
-                load::<N, W>(&p.shear[1], sub),
-                load::<N, W>(&p.shear[2], sub),
-                load::<N, W>(&p.shear[3], sub),
-                load::<N, W>(&p.shear[4], sub),
-                load::<N, W>(&p.shear[5], sub),
+                load::<V, N, W>(&p.shear[0], sub),
+                load::<V, N, W>(&p.shear[1], sub),
+                load::<V, N, W>(&p.shear[2], sub),
+                load::<V, N, W>(&p.shear[3], sub),
+                load::<V, N, W>(&p.shear[4], sub),
+                load::<V, N, W>(&p.shear[5], sub),
             ];
             let (ax, ay) = sheared(self.v[0], &o, &s);
             let (bx, by) = sheared(self.v[1], &o, &s);
@@ -345,41 +335,61 @@ impl PacketPrimitive for Triangle {
             let u = cx * by - cy * bx;
             let v = ax * cy - ay * cx;
             let w = bx * ay - by * ax;
-            let z = f32x8::ZERO;
-            let neg = u.cmp_lt(z) | v.cmp_lt(z) | w.cmp_lt(z);
-            let pos = u.cmp_gt(z) | v.cmp_gt(z) | w.cmp_gt(z);
-            let mixed = bits::<W>(neg & pos);
-            let zero = bits::<W>(u.cmp_eq(z) | v.cmp_eq(z) | w.cmp_eq(z));
+            let z = V::zero();
+            let neg = u.lt(z) | v.lt(z) | w.lt(z);
+            let pos = u.gt(z) | v.gt(z) | w.gt(z);
+            let mixed = bits::<V, W>(neg & pos);
+            let zero = bits::<V, W>(u.eq(z) | v.eq(z) | w.eq(z));
             let (eu, ev, ew) = (u.to_array(), v.to_array(), w.to_array());
-            let mut keep = |l: usize, h: Option<PrimHit>| {
-                if let Some(h) = h {
-                    out[half + l] = h;
-                    hits |= 1 << (half + l);
-                }
-            };
-            for_each_lane(mask & zero, |l| keep(l, self.intersect(&p.ray(sub + l))));
+            for_each_lane(
+                mask & zero,
+                #[inline(always)]
+                |l| keep(out, &mut hits, half + l, self.intersect(&p.ray(sub + l))),
+            );
             let candidates = mask & !mixed & !zero;
             if candidates.count_ones() < 4 {
-                for_each_lane(candidates, |l| {
-                    let edges = (eu[l], ev[l], ew[l]);
-                    keep(l, self.finish_watertight(&p.ray(sub + l), edges));
-                });
+                for_each_lane(
+                    candidates,
+                    #[inline(always)]
+                    |l| {
+                        let edges = (eu[l], ev[l], ew[l]);
+                        let h = self.finish_watertight_inline(&p.ray(sub + l), edges);
+                        keep(out, &mut hits, half + l, h);
+                    },
+                );
             } else if !self.is_degenerate() {
-                refine_lanes(self, p, sub, candidates, (&eu, &ev, &ew), keep);
+                refine_lanes(
+                    self,
+                    p,
+                    sub,
+                    candidates,
+                    (&eu, &ev, &ew),
+                    #[inline(always)]
+                    |l, h| keep(out, &mut hits, half + l, h),
+                );
             }
         }
         hits
     }
 }
 
+/// Lane `lane`'s answer `h` into `out`, its bit into `hits` when it hits.
+#[inline(always)]
+fn keep<const W: usize>(out: &mut [PrimHit; W], hits: &mut u32, lane: usize, h: Option<PrimHit>) {
+    if let Some(h) = h {
+        out[lane] = h;
+        *hits |= 1 << lane;
+    }
+}
+
 /// A vertex in every lane's sheared frame: `(x, y)` from the lanes' origins `o` and shear
 /// rows `s`, as the scalar kernel computes them.
 #[inline(always)]
-fn sheared(v: Vec3, o: &[f32x8; 3], s: &[f32x8; 6]) -> (f32x8, f32x8) {
+fn sheared<V: F8>(v: Vec3, o: &[V; 3], s: &[V; 6]) -> (V, V) {
     let (x, y, z) = (
-        f32x8::splat(v.x) - o[0],
-        f32x8::splat(v.y) - o[1],
-        f32x8::splat(v.z) - o[2],
+        V::splat(v.x) - o[0],
+        V::splat(v.y) - o[1],
+        V::splat(v.z) - o[2],
     );
     (
         x * s[0] + y * s[1] + z * s[2],
@@ -396,7 +406,7 @@ fn sheared(v: Vec3, o: &[f32x8; 3], s: &[f32x8; 6]) -> (f32x8, f32x8) {
 /// and the last lanes, fewer than four, through the scalar path altogether (gathering them
 /// costs more than it saves where a triangle meets one or two lanes). Each lane's answer goes to `keep(lane, answer)`
 /// (lanes relative to `base`); a lane whose interval excludes the hit is not handed over.
-#[inline(never)]
+#[inline(always)]
 fn refine_lanes<const N: usize>(
     tri: &Triangle,
     p: &RayPacket<'_, N>,
@@ -408,12 +418,16 @@ fn refine_lanes<const N: usize>(
     while lanes != 0 {
         if lanes.count_ones() < 4 {
             // Fewer than four lanes: the scalar refinement costs less than gathering them.
-            for_each_lane(lanes, |l| {
-                keep(
-                    l,
-                    tri.finish_watertight(&p.ray(base + l), (eu[l], ev[l], ew[l])),
-                );
-            });
+            for_each_lane(
+                lanes,
+                #[inline(always)]
+                |l| {
+                    keep(
+                        l,
+                        tri.finish_watertight_inline(&p.ray(base + l), (eu[l], ev[l], ew[l])),
+                    );
+                },
+            );
             return;
         }
         // Up to four lanes; spare slots repeat the first (their results are not used).
@@ -429,8 +443,14 @@ fn refine_lanes<const N: usize>(
         }
         // Per lane, by its axes (kx, ky, kz): direction, origin and the vertices' coordinates.
         let (mut d, mut o, mut v) = ([[0.0f64; 4]; 3], [[0.0f64; 4]; 3], [[[0.0f64; 4]; 3]; 3]);
-        let verts = tri.v.map(|v| v.to_array());
-        let axes = pick.map(|l| p.rays[base + l].watertight_axes());
+        let verts = tri.v.map(
+            #[inline(always)]
+            |v| v.to_array(),
+        );
+        let axes = pick.map(
+            #[inline(always)]
+            |l| p.rays[base + l].watertight_axes(),
+        );
         if axes.iter().all(|a| *a == axes[0]) {
             // One permutation for the four (rays of a tile share their dominant axis): the
             // vertices' coordinates once, the lanes' from the packet's rows.
@@ -457,27 +477,33 @@ fn refine_lanes<const N: usize>(
                 }
             }
         }
-        let orient = pick.map(|l| {
-            if eu[l] + ev[l] + ew[l] < 0.0 {
-                -1.0
-            } else {
-                1.0
-            }
-        });
+        let orient = pick.map(
+            #[inline(always)]
+            |l| {
+                if eu[l] + ev[l] + ew[l] < 0.0 {
+                    -1.0
+                } else {
+                    1.0
+                }
+            },
+        );
         let [dx, dy, dz] = d.map(f64x4::new);
         let [ox, oy, oz] = o.map(f64x4::new);
         let (sx, sy, sz) = (dx / dz, dy / dz, f64x4::ONE / dz);
-        let shear = |vert: [[f64; 4]; 3]| {
+        // A function, not a closure: see `rt_geom::isa`.
+        #[inline(always)]
+        fn shear(vert: [[f64; 4]; 3], o: [f64x4; 3], s: [f64x4; 3]) -> [f64x4; 3] {
             let (px, py, pz) = (
-                f64x4::new(vert[0]) - ox,
-                f64x4::new(vert[1]) - oy,
-                f64x4::new(vert[2]) - oz,
+                f64x4::new(vert[0]) - o[0],
+                f64x4::new(vert[1]) - o[1],
+                f64x4::new(vert[2]) - o[2],
             );
-            (px - sx * pz, py - sy * pz, pz * sz)
-        };
-        let (ax, ay, az) = shear(v[0]);
-        let (bx, by, bz) = shear(v[1]);
-        let (cx, cy, cz) = shear(v[2]);
+            [px - s[0] * pz, py - s[1] * pz, pz * s[2]]
+        }
+        let (o, s) = ([ox, oy, oz], [sx, sy, sz]);
+        let [ax, ay, az] = shear(v[0], o, s);
+        let [bx, by, bz] = shear(v[1], o, s);
+        let [cx, cy, cz] = shear(v[2], o, s);
         let orient = f64x4::new(orient);
         let e0 = (cx * by - cy * bx) * orient;
         let e1 = (ax * cy - ay * cx) * orient;
@@ -520,8 +546,37 @@ impl PacketPrimitive for Shape {}
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::simd::{PacketKernel, run};
+    use rt_geom::Isa;
     use rt_geom::Ray;
     use rt_geom::aabb::SlabRay;
+
+    /// Every triangle of `tris` against every block of 8 of `rays`, on each level's vectors:
+    /// every lane's answer must be the scalar kernel's, bit for bit.
+    fn blocks_equal_the_scalar_kernel(tris: &[Triangle], rays: &[Ray]) {
+        struct Blocks<'a>(&'a [Triangle], &'a [Ray]);
+        impl PacketKernel for Blocks<'_> {
+            type Output = ();
+            #[inline(always)]
+            fn run<V: F8>(self) {
+                for chunk in self.1.chunks(8) {
+                    let p = RayPacket::<8>::new(chunk);
+                    for t in self.0 {
+                        let mut got = [PrimHit::default(); 8];
+                        let mask = active_mask::<8, 8>(&p, 0);
+                        let hit = t.intersect_block::<V, 8, 8>(&p, 0, mask, &mut got);
+                        for (l, r) in chunk.iter().enumerate() {
+                            let got = (hit >> l & 1 == 1).then_some(got[l]);
+                            assert_eq!(got, t.intersect(r), "{t:?} {r:?}");
+                        }
+                    }
+                }
+            }
+        }
+        for isa in Isa::available() {
+            run(isa, Blocks(tris, rays));
+        }
+    }
 
     #[test]
     fn triangle_lanes_equal_the_scalar_kernel() {
@@ -538,18 +593,7 @@ mod tests {
             }
         }
         rays.push(Ray::new(Vec3::ZERO, Vec3::X));
-        for chunk in rays.chunks(8) {
-            let p = RayPacket::<8>::new(chunk);
-            for t in &tris {
-                let mut got = [PrimHit::default(); 8];
-                let mask = active_mask::<8, 8>(&p, 0);
-                let hit = t.intersect_block::<8, 8>(&p, 0, mask, &mut got);
-                for (l, r) in chunk.iter().enumerate() {
-                    let got = (hit >> l & 1 == 1).then_some(got[l]);
-                    assert_eq!(got, t.intersect(r), "{t:?} {r:?}");
-                }
-            }
-        }
+        blocks_equal_the_scalar_kernel(&tris, &rays);
     }
 
     #[test]
@@ -601,16 +645,7 @@ mod tests {
                     rays.push(Ray::segment(*o, d, 0.0, tmax));
                 }
             }
-            for chunk in rays.chunks(8) {
-                let p = RayPacket::<8>::new(chunk);
-                let mut got = [PrimHit::default(); 8];
-                let mask = active_mask::<8, 8>(&p, 0);
-                let hit = t.intersect_block::<8, 8>(&p, 0, mask, &mut got);
-                for (l, r) in chunk.iter().enumerate() {
-                    let got = (hit >> l & 1 == 1).then_some(got[l]);
-                    assert_eq!(got, t.intersect(r), "{t:?} {r:?}");
-                }
-            }
+            blocks_equal_the_scalar_kernel(std::slice::from_ref(t), &rays);
         }
     }
 
@@ -646,7 +681,7 @@ mod tests {
             assert_eq!(p.pad_after, tmin < 0.0);
             for base in [0, 8] {
                 let (min, max) = (b.min.to_array(), b.max.to_array());
-                let (t0, t1, m) = clip_block::<16, 8>(&min, &max, &p, base);
+                let (t0, t1, m) = clip_block::<wide::f32x8, 16, 8>(&min, &max, &p, base);
                 let (t0, t1) = (t0[0].to_array(), t1[0].to_array());
                 for l in 0..8 {
                     let r = &rays[base + l];
@@ -664,7 +699,7 @@ mod tests {
                         }
                     }
                 }
-                assert_eq!(enter_mask::<16, 8>(&min, &max, &p, base), m);
+                assert_eq!(enter_mask::<wide::f32x8, 16, 8>(&min, &max, &p, base), m);
             }
         }
     }

@@ -57,6 +57,7 @@ pub mod mlrta;
 pub mod packet;
 #[cfg(test)]
 mod properties;
+pub mod simd;
 pub mod wide;
 
 pub use api::{

@@ -7,9 +7,10 @@
 //! wide BVH's single-ray answer.
 
 use crate::api::{each_lane, each_lane_occluded};
+use crate::bvh::Query;
 use crate::bvh::{Culling, lane_entry, narrow_range, test_leaf};
-use crate::lanes::PacketPrimitive;
-use crate::lanes::{pad, select};
+use crate::lanes::{PacketPrimitive, pad};
+use crate::simd::{F8, PacketKernel};
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_bvh::{NodeLayout, WideBvh, WideNode};
 use rt_geom::Hit;
@@ -30,44 +31,48 @@ fn child_box<const K: usize>(node: &WideNode<K>, c: usize) -> ([f32; 3], [f32; 3
 /// Lane `i`'s [`lane_entry`] into every child box of `node` at once (up to 8 children, one
 /// SIMD lane each): the children it enters, and the entries.
 #[inline(always)]
-fn lane_entries<const K: usize, const N: usize>(
+fn lane_entries<V: F8, const K: usize, const N: usize>(
     node: &WideNode<K>,
     p: &RayPacket<'_, N>,
     i: usize,
 ) -> (u32, [f32; 8]) {
-    use wide::{CmpGt, CmpLe, CmpLt, f32x8};
     const { assert!(K <= 8, "wide nodes of at most 8 children") };
-    let row = |v: &[f32; K], empty: f32| {
+    // A function, not a closure: see `rt_geom::isa`.
+    #[inline(always)]
+    fn row<V: F8, const K: usize>(v: &[f32; K], empty: f32) -> V {
+        if K == 8 {
+            return V::load(v);
+        }
         let mut a = [empty; 8];
         a[..K].copy_from_slice(v);
-        f32x8::new(a)
-    };
-    let mut t0 = f32x8::splat(p.tmin[i]);
-    let mut t1 = f32x8::splat(p.tmax[i]);
+        V::new(a)
+    }
+    let mut t0 = V::splat(p.tmin[i]);
+    let mut t1 = V::splat(p.tmax[i]);
     for a in 0..3 {
         let (inv_lo, inv_hi) = (p.inv_lo[a][i], p.inv_hi[a][i]);
-        let o = f32x8::splat(p.origin[a][i]);
-        let t_lo = (row(&node.min[a], f32::INFINITY) - o) * f32x8::splat(inv_lo);
-        let t_hi = (row(&node.max[a], f32::NEG_INFINITY) - o) * f32x8::splat(inv_hi);
+        let o = V::splat(p.origin[a][i]);
+        let t_lo = (row::<V, K>(&node.min[a], f32::INFINITY) - o) * V::splat(inv_lo);
+        let t_hi = (row::<V, K>(&node.max[a], f32::NEG_INFINITY) - o) * V::splat(inv_hi);
         let (tn, tf) = if inv_lo.is_sign_negative() {
             (t_hi, t_lo)
         } else {
             (t_lo, t_hi)
         };
-        t0 = select(tn.cmp_gt(t0), tn, t0);
-        t1 = select(tf.cmp_lt(t1), tf, t1);
+        t0 = tn.gt(t0).select(tn, t0);
+        t1 = tf.lt(t1).select(tf, t1);
     }
     if p.pad_after {
         (t0, t1) = (pad(t0, false), pad(t1, true));
     }
-    let enters = t0.cmp_le(t1).move_mask() as u32 & ((1u32 << K) - 1);
+    let enters = t0.le(t1).bits() & ((1u32 << K) - 1);
     (enters, t0.to_array())
 }
 
 /// Pushes the children of node `index` that some lane in `[from, to]` enters, far to near
 /// by the entry of their first lane (so the nearest is visited next).
 #[inline(always)]
-fn expand<const K: usize, const N: usize, const W: usize>(
+fn expand<V: F8, const K: usize, const N: usize, const W: usize>(
     nodes: &[WideNode<K>],
     index: u32,
     p: &RayPacket<'_, N>,
@@ -84,8 +89,8 @@ fn expand<const K: usize, const N: usize, const W: usize>(
         return;
     };
     let last = (first..=to).rev().find(|&i| p.active[i]).unwrap_or(first);
-    let (first_in, first_entry) = lane_entries(node, p, first);
-    let last_in = lane_entries(node, p, last).0;
+    let (first_in, first_entry) = lane_entries::<V, K, N>(node, p, first);
+    let last_in = lane_entries::<V, K, N>(node, p, last).0;
     for c in (0..K).filter(|&c| node.is_used(c)) {
         let (min, max) = child_box(node, c);
         let b = (&min, &max);
@@ -93,7 +98,7 @@ fn expand<const K: usize, const N: usize, const W: usize>(
         let range = (first, last, to);
         let last_enters = || last_in >> c & 1 == 1;
         let Some((lo, hi, entry)) =
-            narrow_range::<N, W>(b, p, culling, range, first_entry, last_enters)
+            narrow_range::<V, N, W>(b, p, culling, range, first_entry, last_enters)
         else {
             continue;
         };
@@ -108,7 +113,9 @@ fn expand<const K: usize, const N: usize, const W: usize>(
 }
 
 /// The one traversal behind both queries, over blocks of `W` lanes, for `K`-wide nodes.
+#[inline(always)]
 fn traverse<
+    V: F8,
     P: PacketPrimitive,
     const K: usize,
     const N: usize,
@@ -128,7 +135,7 @@ fn traverse<
     if let Some(root) = tree.root_leaf() {
         let b = tree.root_bounds();
         let (min, max) = (b.min.to_array(), b.max.to_array());
-        test_leaf::<P, N, W, ANY_HIT>(prims, root, (&min, &max), p, best, (first, last));
+        test_leaf::<V, P, N, W, ANY_HIT>(prims, root, (&min, &max), p, best, (first, last));
         return;
     }
     let nodes = tree.nodes();
@@ -138,7 +145,7 @@ fn traverse<
     let mut culling = Culling::new();
     // At most K - 1 pending siblings per level, plus the children of the deepest node.
     let mut stack: Vec<Pending> = Vec::with_capacity((K - 1) * (tree.depth() + 1) + K);
-    expand::<K, N, W>(nodes, 0, p, &mut culling, (first, last), &mut stack);
+    expand::<V, K, N, W>(nodes, 0, p, &mut culling, (first, last), &mut stack);
     while let Some((parent, c, lo, hi)) = stack.pop() {
         let node = &nodes[parent as usize];
         let c = c as usize;
@@ -146,11 +153,11 @@ fn traverse<
         if node.count[c] > 0 {
             let (min, max) = child_box(node, c);
             let range = (node.child[c], node.count[c]);
-            if test_leaf::<P, N, W, ANY_HIT>(prims, range, (&min, &max), p, best, lanes) {
+            if test_leaf::<V, P, N, W, ANY_HIT>(prims, range, (&min, &max), p, best, lanes) {
                 culling.lanes_hit();
             }
         } else {
-            expand::<K, N, W>(nodes, node.child[c], p, &mut culling, lanes, &mut stack);
+            expand::<V, K, N, W>(nodes, node.child[c], p, &mut culling, lanes, &mut stack);
         }
     }
 }
@@ -170,7 +177,8 @@ impl<P: PacketPrimitive, const K: usize> PacketTraversal for WideBvh<P, K> {
             return each_lane(self, packet);
         }
         let mut best = [None; N];
-        by_block_width!(N, W => traverse::<P, K, N, W, false>(self, packet, &mut best));
+        let query = Query::<_, N, false>(self, packet, &mut best);
+        crate::simd::run(self.tree().isa(), query);
         best
     }
 
@@ -179,8 +187,20 @@ impl<P: PacketPrimitive, const K: usize> PacketTraversal for WideBvh<P, K> {
             return each_lane_occluded(self, packet);
         }
         let mut best = [None; N];
-        by_block_width!(N, W => traverse::<P, K, N, W, true>(self, packet, &mut best));
+        let query = Query::<_, N, true>(self, packet, &mut best);
+        crate::simd::run(self.tree().isa(), query);
         best.map(|h| h.is_some())
+    }
+}
+
+impl<P: PacketPrimitive, const K: usize, const N: usize, const ANY_HIT: bool> PacketKernel
+    for Query<'_, '_, WideBvh<P, K>, N, ANY_HIT>
+{
+    type Output = ();
+    #[inline(always)]
+    fn run<V: F8>(self) {
+        let Query(bvh, p, best) = self;
+        by_block_width!(N, W => traverse::<V, P, K, N, W, ANY_HIT>(bvh, p, best));
     }
 }
 
@@ -193,12 +213,23 @@ mod tests {
 
     #[test]
     fn conformance_rays_in_packets_equal_single_rays() {
-        for scene in scenes::conformance_triangle_scenes() {
-            let rays = conformance_rays(&scene.prims, 60, 7);
-            let bvh8 = Bvh8::build(&scene.prims, BvhParams::balanced()).unwrap();
-            all_sizes(&bvh8, &rays, &format!("{} bvh8", scene.name));
-            let bvh4 = Bvh4::build(&scene.prims, BvhParams::spatial()).unwrap();
-            all_sizes(&bvh4, &rays, &format!("{} bvh4", scene.name));
+        // On every instruction set this CPU runs (each level's vectors, `crate::simd`).
+        for isa in rt_geom::Isa::available() {
+            for scene in scenes::conformance_triangle_scenes() {
+                let rays = conformance_rays(&scene.prims, 60, 7);
+                let bvh8 = Bvh8::build(&scene.prims, BvhParams::balanced()).unwrap();
+                all_sizes(
+                    &bvh8.with_isa(isa),
+                    &rays,
+                    &format!("{} bvh8 {isa}", scene.name),
+                );
+                let bvh4 = Bvh4::build(&scene.prims, BvhParams::spatial()).unwrap();
+                all_sizes(
+                    &bvh4.with_isa(isa),
+                    &rays,
+                    &format!("{} bvh4 {isa}", scene.name),
+                );
+            }
         }
     }
 

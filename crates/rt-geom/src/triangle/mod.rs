@@ -170,6 +170,17 @@ impl Triangle {
         self.finish_accepted(ray, edges)
     }
 
+    /// [`Self::finish_watertight`] inlined whole into the caller, refinement included: for
+    /// kernels compiled per instruction set, where an out-of-line refinement would run at the
+    /// baseline ([`crate::isa`]).
+    #[inline(always)]
+    pub fn finish_watertight_inline(&self, ray: &Ray, edges: (f32, f32, f32)) -> Option<PrimHit> {
+        if !signs_agree(edges) {
+            return None;
+        }
+        self.finish_accepted_inline(ray, edges)
+    }
+
     /// [`Self::finish_watertight`] once the edge functions agree in sign. Where the `f32` edge
     /// functions decide nothing (they all underflow to zero, for tiny triangles, or overflow,
     /// for vertices near the largest floats), the `f64` ones decide alone.
