@@ -18,25 +18,24 @@
 //! walk would need (the same padded steps at every plane).
 
 use crate::api::{each_lane, each_lane_occluded};
+use crate::bvh::Query;
 use crate::lanes::{
-    BlockRegs as Regs, PacketPrimitive, active_mask, block_width, clip_block, le_bits, load,
-    negative_bits, registers, select_lanes, test_block,
+    BlockRegs, PacketPrimitive, active_mask, block_width, clip_block, le_bits, load, negative_bits,
+    registers, select_lanes, test_block,
 };
-use crate::simd::F8;
+use crate::simd::{F8, PacketKernel};
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_kd::{KdTree, MAX_DEPTH};
 use rt_geom::aabb::PAD;
-use rt_geom::{Aabb, Hit};
-use wide::{CmpGt, CmpLe, CmpLt, f32x8};
-
-/// A block's registers on `wide`'s vectors (the kd-tree's packets run at the baseline).
-type BlockRegs = Regs<f32x8>;
+use rt_geom::{Aabb, Hit, Walk};
 
 /// The lanes of the block at `base` in `lanes`, traced from node `start` whose cell is `cell`.
 /// Each lane's interval starts as its ray clipped to the cell (the single-ray query clips to
 /// the root cell the same way); a lane whose closest hit so far lies before the cell skips it.
 #[allow(clippy::too_many_arguments)]
+#[inline(always)]
 pub(crate) fn trace_block<
+    V: F8,
     P: PacketPrimitive,
     const N: usize,
     const W: usize,
@@ -49,18 +48,18 @@ pub(crate) fn trace_block<
     lanes: u32,
     start: usize,
     cell: &Aabb,
-    stack: &mut Stack,
+    stack: &mut Stack<V>,
 ) {
     // Each lane's ray clipped to the cell, over `[tmin, tmax]` with `tmax` its closest hit so
     // far: a lane whose hit lies before the cell skips it (a cell after the first).
     let (t0, t1, entering) =
-        clip_block::<f32x8, N, W>(&cell.min.to_array(), &cell.max.to_array(), p, base);
+        clip_block::<V, N, W>(&cell.min.to_array(), &cell.max.to_array(), p, base);
     let mut live = lanes & entering;
     if live == 0 {
         return;
     }
     // Split by direction octant: lanes of one octant share the near child at every plane.
-    let negative = negative_bits::<f32x8, N, W>(p, base);
+    let negative = negative_bits::<V, N, W>(p, base);
     while live != 0 {
         let first = live.trailing_zeros();
         let mut group = live;
@@ -75,31 +74,33 @@ pub(crate) fn trace_block<
             select_lanes(group, &t0, f32::INFINITY),
             select_lanes(group, &t1, f32::NEG_INFINITY),
         );
-        walk::<P, N, W, ANY_HIT>(tree, p, best, base, start, (a, b), octant, stack);
+        walk::<V, P, N, W, ANY_HIT>(tree, p, best, base, start, (a, b), octant, stack);
     }
 }
 
 /// Pending far cells with each lane's interval: one per level at most, so the depth cap
 /// bounds it (the capacity reserved). Reused from block to block.
-pub(crate) type Stack = Vec<(u32, BlockRegs, BlockRegs)>;
+pub(crate) type Stack<V> = Vec<(u32, BlockRegs<V>, BlockRegs<V>)>;
 
 /// An empty [`Stack`] with room for the deepest tree (one per query, reused by every block).
-pub(crate) fn new_stack() -> Stack {
+#[inline(always)]
+pub(crate) fn new_stack<V: F8>() -> Stack<V> {
     Vec::with_capacity(MAX_DEPTH as usize + 1)
 }
 
 /// One octant group of a block (the other lanes' intervals are empty) from node `start`.
 /// The lanes' intervals stay in SIMD registers from step to step.
 #[allow(clippy::too_many_arguments)]
-fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
+#[inline(always)]
+fn walk<V: F8, P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
     tree: &KdTree<P>,
     p: &mut RayPacket<'_, N>,
     best: &mut [Option<Hit>; N],
     base: usize,
     start: usize,
-    (mut t0, mut t1): (BlockRegs, BlockRegs),
+    (mut t0, mut t1): (BlockRegs<V>, BlockRegs<V>),
     octant: u32,
-    stack: &mut Stack,
+    stack: &mut Stack<V>,
 ) {
     let (nodes, indices, prims) = (tree.nodes(), tree.indices(), tree.prims());
     // The lanes with a hit so far, kept up to date from the leaf tests; any-hit lanes that hit
@@ -124,14 +125,14 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
             } else {
                 (below, above)
             };
-            let mut next = [[f32x8::ZERO; 2]; 4];
+            let mut next = [[V::zero(); 2]; 4];
             let (mut any_near, mut any_far) = (0, 0);
             for h in 0..registers(W) {
-                let o = load::<f32x8, N, W>(&p.origin[axis], base + 8 * h);
-                let inv = load::<f32x8, N, W>(&p.inv_dir[axis], base + 8 * h);
+                let o = load::<V, N, W>(&p.origin[axis], base + 8 * h);
+                let inv = load::<V, N, W>(&p.inv_dir[axis], base + 8 * h);
                 let [n0, n1, f0, f1] = step8(split, o, inv, t0[h], t1[h]);
-                any_near |= n0.cmp_le(n1).move_mask();
-                any_far |= f0.cmp_le(f1).move_mask();
+                any_near |= n0.le(n1).bits();
+                any_far |= f0.le(f1).bits();
                 (next[0][h], next[1][h], next[2][h], next[3][h]) = (n0, n1, f0, f1);
             }
             let [n0, n1, f0, f1] = next;
@@ -147,12 +148,12 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
                 continue;
             }
         } else {
-            let lanes = le_bits::<f32x8, W>(&t0, &t1) & active(hit);
+            let lanes = le_bits::<V, W>(&t0, &t1) & active(hit);
             let leaf = node
                 .leaf_prims(indices)
                 .iter()
                 .map(|&id| (&prims[id as usize], id));
-            hit |= test_block::<f32x8, P, N, W, ANY_HIT>(leaf, p, best, base, lanes);
+            hit |= test_block::<V, P, N, W, ANY_HIT>(leaf, p, best, base, lanes);
         }
         // The next pending cell that some lane enters before its closest hit.
         loop {
@@ -161,18 +162,16 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
             };
             // Per lane: active, a non-empty interval, and no hit yet or the cell starting by
             // the closest hit.
-            let mut tmax = [f32x8::ZERO; 2];
+            let mut tmax = [V::zero(); 2];
             for (h, r) in tmax.iter_mut().enumerate().take(registers(W)) {
-                *r = load::<f32x8, N, W>(&p.tmax, base + 8 * h);
+                *r = load::<V, N, W>(&p.tmax, base + 8 * h);
             }
-            let keep =
-                le_bits::<f32x8, W>(&a, &b) & (!hit | le_bits::<f32x8, W>(&a, &tmax)) & active(hit);
+            let keep = le_bits::<V, W>(&a, &b) & (!hit | le_bits::<V, W>(&a, &tmax)) & active(hit);
             if keep != 0 {
                 // The lanes not kept start past their end: an empty interval.
                 let mut a = a;
                 for (h, r) in a.iter_mut().enumerate().take(registers(W)) {
-                    *r = <f32x8 as F8>::from_bits(keep >> (8 * h))
-                        .blend(*r, f32x8::splat(f32::INFINITY));
+                    *r = V::from_bits(keep >> (8 * h)).select(*r, V::splat(f32::INFINITY));
                 }
                 (i, t0, t1) = (n as usize, a, b);
                 break;
@@ -185,34 +184,36 @@ fn walk<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>
 /// intervals of the near and the far child: `[near0, near1, far0, far1]`, an empty interval
 /// as `(inf, -inf)` (and an empty input interval gives two empty ones). The near child (by the
 /// group's direction signs) is the single-ray walk's first child
-/// (`rt_accel_kd::traverse::below_first`). `wide`: AVX where the build has it, two SSE halves
-/// or scalar code elsewhere.
+/// (`rt_accel_kd::traverse::below_first`).
 ///
 /// Without branches: after a crossing before `t0` (second child only), `lo` is below `t0`, so
 /// the second child's start `max(lo, t0)` is `t0` as it must be; `hi.min(t1)` and
 /// `lo.max(t0)` are comparisons (a NaN crossing, from a ray lying in the plane, gives the
 /// interval's ends).
 #[inline(always)]
-fn step8(split: f32, o: f32x8, inv: f32x8, t0: f32x8, t1: f32x8) -> [f32x8; 4] {
-    let (inf, ninf) = (f32x8::splat(f32::INFINITY), f32x8::splat(f32::NEG_INFINITY));
-    let ts = (f32x8::splat(split) - o) * inv;
+fn step8<V: F8>(split: f32, o: V, inv: V, t0: V, t1: V) -> [V; 4] {
+    let (inf, ninf) = (V::splat(f32::INFINITY), V::splat(f32::NEG_INFINITY));
+    let ts = (V::splat(split) - o) * inv;
     // `padded_crossing` lane by lane: the smaller and larger of the two products (a NaN
     // crossing gives NaN either way, as `f32::min` of two NaNs does).
-    let (a, b) = (ts * f32x8::splat(1.0 - PAD), ts * f32x8::splat(1.0 + PAD));
-    let (lo, hi) = (a.cmp_lt(b).blend(a, b), a.cmp_gt(b).blend(a, b));
-    let first_only = lo.cmp_gt(t1);
-    let second_only = !first_only & hi.cmp_lt(t0);
-    let a0 = second_only.blend(inf, t0);
-    let a1 = (first_only | !hi.cmp_lt(t1)).blend(t1, hi);
-    let a1 = second_only.blend(ninf, a1);
-    let b0 = lo.cmp_gt(t0).blend(lo, t0);
-    let b0 = first_only.blend(inf, b0);
-    let b1 = first_only.blend(ninf, t1);
+    let (a, b) = (ts * V::splat(1.0 - PAD), ts * V::splat(1.0 + PAD));
+    let (lo, hi) = (a.lt(b).select(a, b), a.gt(b).select(a, b));
+    let first_only = lo.gt(t1);
+    let second_only = hi.lt(t0).and_not(first_only);
+    let a0 = second_only.select(inf, t0);
+    // `hi` where it ends the first child before `t1` (and the plane is crossed in range).
+    let a1 = hi.lt(t1).and_not(first_only).select(hi, t1);
+    let a1 = second_only.select(ninf, a1);
+    let b0 = lo.gt(t0).select(lo, t0);
+    let b0 = first_only.select(inf, b0);
+    let b1 = first_only.select(ninf, t1);
     [a0, a1, b0, b1]
 }
 
 /// Every block of lanes in `range` from `entry`.
+#[inline(always)]
 pub(crate) fn trace_from<
+    V: F8,
     P: PacketPrimitive,
     const N: usize,
     const W: usize,
@@ -223,26 +224,26 @@ pub(crate) fn trace_from<
     best: &mut [Option<Hit>; N],
     range: std::ops::Range<usize>,
     entry: (usize, &Aabb),
-    stack: &mut Stack,
+    stack: &mut Stack<V>,
 ) {
     for base in range.step_by(W) {
         let lanes = active_mask::<N, W>(p, base);
         if lanes != 0 {
             let (node, cell) = entry;
-            trace_block::<P, N, W, ANY_HIT>(tree, p, best, base, lanes, node, cell, stack);
+            trace_block::<V, P, N, W, ANY_HIT>(tree, p, best, base, lanes, node, cell, stack);
         }
     }
 }
 
-/// Runs `$query::<P, N, W, ANY_HIT>` with the block width of `N`.
+/// Runs `$query::<V, P, N, W, ANY_HIT>` with the block width of `N`.
 macro_rules! with_block_width {
-    ($n:expr, $query:ident :: <$p:ty, $any:literal> ($($arg:expr),*)) => {
+    ($n:expr, $query:ident :: <$v:ty, $p:ty, $any:tt> ($($arg:expr),*)) => {
         if $n % KD_BLOCK == 0 {
-            $query::<$p, N, KD_BLOCK, $any>($($arg),*)
+            $query::<$v, $p, N, KD_BLOCK, $any>($($arg),*)
         } else if block_width($n) == 8 {
-            $query::<$p, N, 8, $any>($($arg),*)
+            $query::<$v, $p, N, 8, $any>($($arg),*)
         } else {
-            $query::<$p, N, 4, $any>($($arg),*)
+            $query::<$v, $p, N, 4, $any>($($arg),*)
         }
     };
 }
@@ -265,11 +266,7 @@ impl<P: PacketPrimitive> PacketTraversal for KdTree<P> {
         }
         let mut best = [None; N];
         if !self.nodes().is_empty() {
-            let root = (0, &self.bounds());
-            with_block_width!(
-                N,
-                trace_from::<P, false>(self, packet, &mut best, 0..N, root, &mut new_stack())
-            );
+            crate::simd::run(self.isa(), Query::<_, N, false>(self, packet, &mut best));
         }
         best
     }
@@ -280,13 +277,24 @@ impl<P: PacketPrimitive> PacketTraversal for KdTree<P> {
         }
         let mut best = [None; N];
         if !self.nodes().is_empty() {
-            let root = (0, &self.bounds());
-            with_block_width!(
-                N,
-                trace_from::<P, true>(self, packet, &mut best, 0..N, root, &mut new_stack())
-            );
+            crate::simd::run(self.isa(), Query::<_, N, true>(self, packet, &mut best));
         }
         best.map(|h| h.is_some())
+    }
+}
+
+impl<P: PacketPrimitive, const N: usize, const ANY_HIT: bool> PacketKernel
+    for Query<'_, '_, KdTree<P>, N, ANY_HIT>
+{
+    type Output = ();
+    #[inline(always)]
+    fn run<V: F8>(self) {
+        let Query(tree, p, best) = self;
+        let (root, stack) = ((0, &tree.bounds()), &mut new_stack());
+        with_block_width!(
+            N,
+            trace_from::<V, P, ANY_HIT>(tree, p, best, 0..N, root, stack)
+        );
     }
 }
 
@@ -300,18 +308,18 @@ mod tests {
     use rt_testkit::scenes;
 
     /// Every conformance scene's rays in packets of every size through kd-trees built with
-    /// `params`, plain and with multi-level ray tracing (one test per build, so that they run
-    /// in parallel).
+    /// `params`, plain and with multi-level ray tracing, at every instruction set (one test
+    /// per build, so that they run in parallel).
     fn conformance_rays_in_packets(params: KdParams) {
-        for scene in scenes::conformance_triangle_scenes() {
-            let rays = conformance_rays(&scene.prims, 60, 7);
-            let kd = KdTree::build(&scene.prims, params).unwrap();
-            all_sizes(&kd, &rays, &scene.name);
-            all_sizes(
-                &MlrtaKdTree::new(kd),
-                &rays,
-                &format!("{} mlrta", scene.name),
-            );
+        // On every instruction set this CPU runs (each level's vectors, `crate::simd`).
+        for isa in rt_geom::Isa::available() {
+            for scene in scenes::conformance_triangle_scenes() {
+                let rays = conformance_rays(&scene.prims, 60, 7);
+                let kd = KdTree::build(&scene.prims, params).unwrap().with_isa(isa);
+                all_sizes(&kd, &rays, &format!("{} {isa}", scene.name));
+                let name = format!("{} mlrta {isa}", scene.name);
+                all_sizes(&MlrtaKdTree::new(kd), &rays, &name);
+            }
         }
     }
 

@@ -20,11 +20,13 @@
 
 use crate::api::{each_lane, each_lane_occluded};
 use crate::beam::Beam;
+use crate::bvh::Query;
 use crate::kd::{KD_BLOCK, Stack, new_stack, trace_from, with_block_width};
 use crate::lanes::{PacketPrimitive, block_width};
+use crate::simd::{F8, PacketKernel};
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_kd::KdTree;
-use rt_geom::{Aabb, Hit, Ray};
+use rt_geom::{Aabb, Hit, Ray, Walk};
 
 /// Beams of this many rays or more may be split into quarters where they are not coherent
 /// (see [`MLRTA_MAX_CELLS`]).
@@ -184,45 +186,52 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
     }
 
     /// The lanes of `range`, from the entry points of their beam, or quarter by quarter when
-    /// the beam is not coherent (see [`MLRTA_MAX_CELLS`]).
-    fn trace_range<const N: usize, const W: usize, const ANY_HIT: bool>(
+    /// the beam is not coherent (see [`MLRTA_MAX_CELLS`]). The quarters wait in a list, not
+    /// in recursive calls, so that the walk inlines into each level's copy of the query
+    /// ([`crate::simd`]).
+    #[inline(always)]
+    fn trace_range<V: F8, const N: usize, const W: usize, const ANY_HIT: bool>(
         &self,
         p: &mut RayPacket<'_, N>,
         best: &mut [Option<Hit>; N],
         range: std::ops::Range<usize>,
-        stack: &mut Stack,
+        stack: &mut Stack<V>,
     ) {
-        if range.len() < MLRTA_MIN_BEAM {
-            let root = (0, &self.tree.bounds());
-            if !self.tree.nodes().is_empty() {
-                trace_from::<P, N, W, ANY_HIT>(&self.tree, p, best, range, root, stack);
-            }
-            return;
-        }
-        let mut beam = Beam::new(p, range.clone());
-        let entries = self.entry_points(&beam);
-        let len = range.len();
-        let incoherent = entries.len() > MLRTA_MAX_CELLS
-            || entries
-                .first()
-                .is_some_and(|e| !self.tree.nodes()[e.node].is_leaf());
-        if incoherent && len >= MLRTA_MIN_SPLIT && len % (4 * W) == 0 {
-            for q in 0..4 {
-                let quarter = range.start + q * len / 4..range.start + (q + 1) * len / 4;
-                self.trace_range::<N, W, ANY_HIT>(p, best, quarter, stack);
-            }
-            return;
-        }
-        for (k, e) in entries.iter().enumerate() {
-            if k > 0 {
-                // Cells beyond every lane's closest hit so far are culled for the whole beam.
-                beam.limit_to_lanes(p, range.clone());
-                if !beam.may_enter(&e.cell.min.to_array(), &e.cell.max.to_array()) {
-                    continue;
+        let mut ranges = vec![range];
+        while let Some(range) = ranges.pop() {
+            if range.len() < MLRTA_MIN_BEAM {
+                let root = (0, &self.tree.bounds());
+                if !self.tree.nodes().is_empty() {
+                    trace_from::<V, P, N, W, ANY_HIT>(&self.tree, p, best, range, root, stack);
                 }
+                continue;
             }
-            let entry = (e.node, &e.cell);
-            trace_from::<P, N, W, ANY_HIT>(&self.tree, p, best, range.clone(), entry, stack);
+            let mut beam = Beam::new(p, range.clone());
+            let entries = self.entry_points(&beam);
+            let len = range.len();
+            let incoherent = entries.len() > MLRTA_MAX_CELLS
+                || entries
+                    .first()
+                    .is_some_and(|e| !self.tree.nodes()[e.node].is_leaf());
+            if incoherent && len >= MLRTA_MIN_SPLIT && len % (4 * W) == 0 {
+                // Last quarter first onto the list: the first is traced next.
+                for q in (0..4).rev() {
+                    ranges.push(range.start + q * len / 4..range.start + (q + 1) * len / 4);
+                }
+                continue;
+            }
+            for (k, e) in entries.iter().enumerate() {
+                if k > 0 {
+                    // Cells beyond every lane's closest hit so far are culled for the whole
+                    // beam.
+                    beam.limit_to_lanes(p, range.clone());
+                    if !beam.may_enter(&e.cell.min.to_array(), &e.cell.max.to_array()) {
+                        continue;
+                    }
+                }
+                let (entry, lanes) = ((e.node, &e.cell), range.clone());
+                trace_from::<V, P, N, W, ANY_HIT>(&self.tree, p, best, lanes, entry, stack);
+            }
         }
     }
 
@@ -239,14 +248,17 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
         packet: &mut RayPacket<'_, N>,
     ) -> [Option<Hit>; N] {
         let mut best = [None; N];
-        with_block_width!(N, per_block::<P, false>(self, packet, &mut best));
+        with_block_width!(
+            N,
+            per_block::<wide::f32x8, P, false>(self, packet, &mut best)
+        );
         best
     }
 }
 
 /// Every block of `p` from the entry points of its own beam.
 #[cfg(feature = "research")]
-fn per_block<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
+fn per_block<V: F8, P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
     m: &MlrtaKdTree<P>,
     p: &mut RayPacket<'_, N>,
     best: &mut [Option<Hit>; N],
@@ -262,7 +274,7 @@ fn per_block<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: 
         for e in m.entry_points(&beam) {
             let live = active_mask::<N, W>(p, base);
             if live != 0 {
-                trace_block::<P, N, W, ANY_HIT>(
+                trace_block::<V, P, N, W, ANY_HIT>(
                     &m.tree, p, best, base, live, e.node, &e.cell, stack,
                 );
             }
@@ -279,12 +291,24 @@ fn split_cell(cell: &Aabb, axis: usize, split: f32) -> (Aabb, Aabb) {
 }
 
 /// A helper with the `trace_range` signature of `with_block_width!`.
-fn mlrta<P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
+#[inline(always)]
+fn mlrta<V: F8, P: PacketPrimitive, const N: usize, const W: usize, const ANY_HIT: bool>(
     m: &MlrtaKdTree<P>,
     p: &mut RayPacket<'_, N>,
     best: &mut [Option<Hit>; N],
 ) {
-    m.trace_range::<N, W, ANY_HIT>(p, best, 0..N, &mut new_stack());
+    m.trace_range::<V, N, W, ANY_HIT>(p, best, 0..N, &mut new_stack());
+}
+
+impl<P: PacketPrimitive, const N: usize, const ANY_HIT: bool> PacketKernel
+    for Query<'_, '_, MlrtaKdTree<P>, N, ANY_HIT>
+{
+    type Output = ();
+    #[inline(always)]
+    fn run<V: F8>(self) {
+        let Query(m, p, best) = self;
+        with_block_width!(N, mlrta::<V, P, ANY_HIT>(m, p, best));
+    }
 }
 
 /// As the plain packet walk, lanes one by one for a tree whose planes lie in a frame.
@@ -298,7 +322,10 @@ impl<P: PacketPrimitive> PacketTraversal for MlrtaKdTree<P> {
             return each_lane(&self.tree, packet);
         }
         let mut best = [None; N];
-        with_block_width!(N, mlrta::<P, false>(self, packet, &mut best));
+        crate::simd::run(
+            self.tree.isa(),
+            Query::<_, N, false>(self, packet, &mut best),
+        );
         best
     }
 
@@ -307,7 +334,10 @@ impl<P: PacketPrimitive> PacketTraversal for MlrtaKdTree<P> {
             return each_lane_occluded(&self.tree, packet);
         }
         let mut best = [None; N];
-        with_block_width!(N, mlrta::<P, true>(self, packet, &mut best));
+        crate::simd::run(
+            self.tree.isa(),
+            Query::<_, N, true>(self, packet, &mut best),
+        );
         best.map(|h| h.is_some())
     }
 }

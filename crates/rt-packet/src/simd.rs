@@ -43,6 +43,8 @@ pub trait F8:
     fn bits(self) -> u32;
     /// `a` where the mask `self` is set, `b` elsewhere.
     fn select(self, a: Self, b: Self) -> Self;
+    /// `self & !o`: the mask `self` without the lanes of the mask `o`.
+    fn and_not(self, o: Self) -> Self;
     /// Lane-wise absolute value.
     fn abs(self) -> Self;
     /// The mask with lane `l` set where bit `l` of `bits` is.
@@ -98,6 +100,10 @@ impl F8 for wide::f32x8 {
     #[inline(always)]
     fn select(self, a: Self, b: Self) -> Self {
         self.blend(a, b)
+    }
+    #[inline(always)]
+    fn and_not(self, o: Self) -> Self {
+        self & !o
     }
     #[inline(always)]
     fn abs(self) -> Self {
@@ -232,6 +238,11 @@ mod avx {
             Self(unsafe { _mm256_blendv_ps(b.0, a.0, self.0) })
         }
         #[inline(always)]
+        fn and_not(self, o: Self) -> Self {
+            // SAFETY: as for the operators.
+            Self(unsafe { _mm256_andnot_ps(o.0, self.0) })
+        }
+        #[inline(always)]
         fn abs(self) -> Self {
             // SAFETY: as for the operators.
             Self(unsafe { _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0) })
@@ -290,6 +301,7 @@ mod tests {
                     words(x.le(y)),
                     words(x.eq(y)),
                     words(m & x.gt(V::zero())),
+                    words(m.and_not(x.gt(y))),
                     words(m.select(x, y)),
                     words(x.abs()),
                     words(V::from_bits(0b1011_0010)),
