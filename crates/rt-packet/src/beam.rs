@@ -12,6 +12,7 @@
 //! so a box that some lane enters is never culled.
 
 use crate::RayPacket;
+use crate::simd::F8;
 
 /// Relative widening of every range the beam computes.
 const MARGIN: f32 = 1e-5;
@@ -51,6 +52,15 @@ impl Beam {
     /// The beam of the active lanes in `lanes` of `p`. The main axis is the largest
     /// component of the lanes' summed directions, if all lanes share its sign.
     pub fn new<const N: usize>(p: &RayPacket<'_, N>, lanes: std::ops::Range<usize>) -> Self {
+        Self::new_on::<wide::f32x8, N>(p, lanes)
+    }
+
+    /// [`Self::new`] on the vectors `V` of the level the caller runs at.
+    #[inline(always)]
+    pub(crate) fn new_on<V: F8, const N: usize>(
+        p: &RayPacket<'_, N>,
+        lanes: std::ops::Range<usize>,
+    ) -> Self {
         let none = (f32::INFINITY, f32::NEG_INFINITY);
         let mut beam = Self {
             main: None,
@@ -75,13 +85,14 @@ impl Beam {
             .expect("three axes");
         let negative = p.dir[k][rep] < 0.0;
         beam.negative = negative;
-        // One pass over the lanes, 8 at a time (`wide`). |1 / d[k]|: slopes d / |d[k]| by a
+        // One pass over the lanes, 8 at a time. |1 / d[k]|: slopes d / |d[k]| by a
         // product (within an ulp of the quotient, far inside the beam's margin). Active lanes
         // hold no NaN (their direction along k is not zero); inactive ones take the numbers of
         // the lane `rep` (which change no range), and are those whose interval is empty
         // (`tmax` is `-inf` in inactive lanes; conservative for lanes made inactive otherwise).
-        use wide::{CmpLe, f32x8};
-        let numbers = |i: usize| {
+        // Functions, not closures: see `rt_geom::isa`.
+        #[inline(always)]
+        fn numbers<const N: usize>(p: &RayPacket<'_, N>, k: usize, i: usize) -> [f32; 10] {
             let (rcp, speed) = (p.inv_dir[k][i].abs(), p.dir[k][i].abs());
             [
                 p.origin[0][i],
@@ -95,43 +106,48 @@ impl Beam {
                 speed,
                 p.dir[k][i],
             ]
-        };
-        let rep_numbers = numbers(rep).map(f32x8::splat);
+        }
+        #[inline(always)]
+        fn fold<V: F8>(v: V, f: fn(f32, f32) -> f32, init: f32) -> f32 {
+            v.to_array().into_iter().fold(init, f)
+        }
+        let rep_numbers = numbers(p, k, rep).map(V::splat);
         let (mut lo8, mut hi8) = (rep_numbers, rep_numbers);
         let mut i = lanes.start;
         while i + 8 <= lanes.end {
-            let ld = |v: &[f32; N]| f32x8::new(v[i..i + 8].try_into().expect("8 lanes"));
-            let (tmin, tmax) = (ld(&p.tmin), ld(&p.tmax));
-            let on = tmin.cmp_le(tmax);
-            let rcp = ld(&p.inv_dir[k]).abs();
-            let dk = ld(&p.dir[k]);
+            let (tmin, tmax) = (V::load(&p.tmin[i..]), V::load(&p.tmax[i..]));
+            let on = tmin.le(tmax);
+            let rcp = V::load(&p.inv_dir[k][i..]).abs();
+            let dk = V::load(&p.dir[k][i..]);
             let speed = dk.abs();
             let v = [
-                ld(&p.origin[0]),
-                ld(&p.origin[1]),
-                ld(&p.origin[2]),
-                ld(&p.dir[0]) * rcp,
-                ld(&p.dir[1]) * rcp,
-                ld(&p.dir[2]) * rcp,
+                V::load(&p.origin[0][i..]),
+                V::load(&p.origin[1][i..]),
+                V::load(&p.origin[2][i..]),
+                V::load(&p.dir[0][i..]) * rcp,
+                V::load(&p.dir[1][i..]) * rcp,
+                V::load(&p.dir[2][i..]) * rcp,
                 tmin * speed,
                 tmax * speed,
                 speed,
                 dk,
             ];
             for j in 0..v.len() {
-                let v = on.blend(v[j], rep_numbers[j]);
+                let v = on.select(v[j], rep_numbers[j]);
                 lo8[j] = lo8[j].min(v);
                 hi8[j] = hi8[j].max(v);
             }
             i += 8;
         }
-        let fold =
-            |v: f32x8, f: fn(f32, f32) -> f32, init: f32| v.to_array().into_iter().fold(init, f);
-        let mut lo: [f32; 10] = lo8.map(|v| fold(v, f32::min, f32::INFINITY));
-        let mut hi: [f32; 10] = hi8.map(|v| fold(v, f32::max, f32::NEG_INFINITY));
+        let mut lo = [0.0f32; 10];
+        let mut hi = [0.0f32; 10];
+        for j in 0..10 {
+            lo[j] = fold(lo8[j], f32::min, f32::INFINITY);
+            hi[j] = fold(hi8[j], f32::max, f32::NEG_INFINITY);
+        }
         // The lanes past the last block of 8.
         for i in (i..lanes.end).filter(|&i| p.active[i]) {
-            let v = numbers(i);
+            let v = numbers(p, k, i);
             for j in 0..v.len() {
                 lo[j] = lo[j].min(v[j]);
                 hi[j] = hi[j].max(v[j]);
@@ -169,15 +185,24 @@ impl Beam {
         p: &RayPacket<'_, N>,
         range: std::ops::Range<usize>,
     ) {
-        use wide::f32x8;
+        self.limit_to_lanes_on::<wide::f32x8, N>(p, range)
+    }
+
+    /// [`Self::limit_to_lanes`] on the vectors `V` of the level the caller runs at.
+    #[inline(always)]
+    pub(crate) fn limit_to_lanes_on<V: F8, const N: usize>(
+        &mut self,
+        p: &RayPacket<'_, N>,
+        range: std::ops::Range<usize>,
+    ) {
         let ninf = f32::NEG_INFINITY;
-        let mut far = f32x8::splat(ninf);
+        let mut far = V::splat(ninf);
         let mut end = range.start;
-        for base in range.clone().step_by(8).take_while(|b| b + 8 <= range.end) {
-            far = far.max(f32x8::new(
-                p.tmax[base..base + 8].try_into().expect("8 lanes"),
-            ));
-            end = base + 8;
+        let mut base = range.start;
+        while base + 8 <= range.end {
+            far = far.max(V::load(&p.tmax[base..]));
+            base += 8;
+            end = base;
         }
         let far = far.to_array().into_iter().fold(ninf, f32::max);
         self.limit(p.tmax[end..range.end].iter().fold(far, |m, &t| m.max(t)));
@@ -204,6 +229,7 @@ impl Beam {
 
     /// False only when no lane of the beam can enter the box `[min, max]` (each lane's own
     /// padded slab test would fail).
+    #[inline(always)]
     pub fn may_enter(&self, min: &[f32; 3], max: &[f32; 3]) -> bool {
         if self.lanes == 0 {
             return false;

@@ -88,18 +88,18 @@ impl Culling {
 
     /// False only when no active lane of `p` can enter the box `node`.
     #[inline(always)]
-    fn may_enter<const N: usize>(&mut self, node: Bounds<'_>, p: &RayPacket<'_, N>) -> bool {
+    fn may_enter<V: F8, const N: usize>(&mut self, node: Bounds<'_>, p: &RayPacket<'_, N>) -> bool {
         if N < 64 {
             return true;
         }
         let beam = match &mut self.beam {
             Some(beam) => {
                 if self.stale {
-                    beam.limit_to_lanes(p, 0..N);
+                    beam.limit_to_lanes_on::<V, N>(p, 0..N);
                 }
                 beam
             }
-            none => none.insert(Beam::new(p, 0..N)),
+            none => none.insert(Beam::new_on::<V, N>(p, 0..N)),
         };
         self.stale = false;
         beam.may_enter(node.0, node.1)
@@ -148,7 +148,7 @@ pub(crate) fn narrow_range<V: F8, const N: usize, const W: usize>(
     let lo = match first_entry {
         Some(_) => first,
         None => {
-            if !culling.may_enter(node, p) {
+            if !culling.may_enter::<V, N>(node, p) {
                 return None;
             }
             scan::<V, N, W>(node, p, first + 1..=to, false)?

@@ -206,7 +206,7 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
                 }
                 continue;
             }
-            let mut beam = Beam::new(p, range.clone());
+            let mut beam = Beam::new_on::<V, N>(p, range.clone());
             let entries = self.entry_points(&beam);
             let len = range.len();
             let incoherent = entries.len() > MLRTA_MAX_CELLS
@@ -224,7 +224,7 @@ impl<P: PacketPrimitive> MlrtaKdTree<P> {
                 if k > 0 {
                     // Cells beyond every lane's closest hit so far are culled for the whole
                     // beam.
-                    beam.limit_to_lanes(p, range.clone());
+                    beam.limit_to_lanes_on::<V, N>(p, range.clone());
                     if !beam.may_enter(&e.cell.min.to_array(), &e.cell.max.to_array()) {
                         continue;
                     }

@@ -47,6 +47,10 @@ pub trait F8:
     fn and_not(self, o: Self) -> Self;
     /// Lane-wise absolute value.
     fn abs(self) -> Self;
+    /// Lane-wise minimum, the other lane where one is NaN (`wide::f32x8::min`).
+    fn min(self, o: Self) -> Self;
+    /// Lane-wise maximum, the other lane where one is NaN (`wide::f32x8::max`).
+    fn max(self, o: Self) -> Self;
     /// The mask with lane `l` set where bit `l` of `bits` is.
     fn from_bits(bits: u32) -> Self;
     /// Every lane zero.
@@ -108,6 +112,14 @@ impl F8 for wide::f32x8 {
     #[inline(always)]
     fn abs(self) -> Self {
         wide::f32x8::abs(self)
+    }
+    #[inline(always)]
+    fn min(self, o: Self) -> Self {
+        wide::f32x8::min(self, o)
+    }
+    #[inline(always)]
+    fn max(self, o: Self) -> Self {
+        wide::f32x8::max(self, o)
     }
     #[inline(always)]
     fn from_bits(bits: u32) -> Self {
@@ -248,6 +260,23 @@ mod avx {
             Self(unsafe { _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0) })
         }
         #[inline(always)]
+        fn min(self, o: Self) -> Self {
+            // SAFETY: as for the operators. `minps` gives its second operand where either is
+            // NaN: `o`'s NaN lanes take `self`, as `wide`'s `min` does.
+            unsafe {
+                let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(o.0, o.0);
+                Self(_mm256_blendv_ps(_mm256_min_ps(self.0, o.0), self.0, nan))
+            }
+        }
+        #[inline(always)]
+        fn max(self, o: Self) -> Self {
+            // SAFETY: as in `min`.
+            unsafe {
+                let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(o.0, o.0);
+                Self(_mm256_blendv_ps(_mm256_max_ps(self.0, o.0), self.0, nan))
+            }
+        }
+        #[inline(always)]
         fn from_bits(bits: u32) -> Self {
             // SAFETY: as for the operators (AVX2 integer operations: the level has AVX2).
             unsafe {
@@ -304,6 +333,10 @@ mod tests {
                     words(m.and_not(x.gt(y))),
                     words(m.select(x, y)),
                     words(x.abs()),
+                    words(x.min(y)),
+                    words(x.max(y)),
+                    words(y.min(x)),
+                    words(y.max(x)),
                     words(V::from_bits(0b1011_0010)),
                     words(V::splat(-0.5)),
                     [m.bits(), x.gt(y).bits(), 0, 0, 0, 0, 0, 0],
