@@ -5,6 +5,7 @@
 //! | [`packet`] | [`RayPacket`]: `N` rays in structure-of-arrays form with an active mask (its [`Lanes`], reused by the thread's next packet); [`tiles`] of an image |
 //! | [`api`] | [`PacketTraversal`] (`intersect_packet`, `occluded_packet`) and [`PacketAccel`], the same behind a trait object for groups of up to [`MAX_GROUP`] rays ([`LeavingGroups`]: rays that each skip the primitive they leave); [`WithSingleRays`], a packet path with its own single-ray structure |
 //! | [`lanes`] | the kernels over blocks of 8 lanes: the slab test, and [`PacketPrimitive`] (watertight triangle test of 8 lanes at once) |
+//! | [`simd`] | [`F8`](simd::F8): the eight-lane vectors those kernels run on, per instruction set (one AVX register where the CPU has AVX2, chosen at run time as rt-geom's [`Isa`](rt_geom::Isa)) |
 //! | [`beam`] | [`Beam`]: a packet bounded by interval arithmetic, for culling and entry points |
 //! | [`bvh`] | packets through rt's [`Bvh`](rt_accel_bvh::Bvh): first-active-ray descent, beam culling (Wald, Boulos & Shirley 2007) |
 //! | [`wide`] | packets through the wide BVHs ([`Bvh4`](rt_accel_bvh::Bvh4), [`Bvh8`](rt_accel_bvh::Bvh8)): the same descent over all children of a node |

@@ -6,8 +6,8 @@ use crate::build::{BuildNode, MAX_LOCAL, flatten, root_budget};
 use crate::params::MAX_DEPTH;
 use crate::{KdNode, KdParams};
 use rt_geom::{
-    Aabb, Accel, AccelStats, BuildError, FilteredAccel, Frame, LeafPrims, Primitive, Vec3,
-    check_primitives,
+    Aabb, Accel, AccelStats, BuildError, FilteredAccel, Frame, Hit, Isa, Keep, LeafPrims, Level,
+    Primitive, Ray, Vec3, Walk, check_primitives,
 };
 
 /// A splitting plane `normal . p = d` (unit normal), with the band `|normal . p - d| <=
@@ -36,6 +36,8 @@ pub struct BspTree<P> {
     pub(super) params: BspParams,
     /// The frame the planes are in (the world's, for scenes about the origin).
     pub(super) frame: Frame,
+    /// The instruction set the queries run the walk compiled for.
+    pub(super) isa: Isa,
 }
 
 impl<P: Primitive> BspTree<P> {
@@ -89,7 +91,15 @@ impl<P: Primitive> BspTree<P> {
             bounds,
             params,
             frame,
+            isa: Isa::selected(),
         })
+    }
+
+    /// The same tree, its queries run compiled for `isa` (or, where this CPU lacks it, for the
+    /// best level it has): for tests and measurements of each level.
+    pub fn with_isa(mut self, isa: Isa) -> Self {
+        self.isa = isa.or_best();
+        self
     }
 
     /// The flattened nodes; an inner node's `data()` indexes [`Self::planes`].
@@ -153,12 +163,31 @@ impl<P: Primitive> BspTree<P> {
     }
 }
 
+impl<P: Primitive> Walk for BspTree<P> {
+    fn isa(&self) -> Isa {
+        self.isa
+    }
+
+    /// The kd-tree's walk over the planes, its leaves' triangle windows at `level`.
+    #[inline(always)]
+    fn walk<const ANY_HIT: bool, L: Level, K: Keep>(
+        &self,
+        ray: &Ray,
+        level: L,
+        best: K,
+    ) -> Option<Hit> {
+        let leaves = (self.prims.as_slice(), &self.listed, level);
+        let t = self.params.traversal;
+        crate::traverse::query::<_, _, ANY_HIT, K, L>(self, leaves, &self.bounds, t, ray, || best)
+    }
+}
+
 impl<P: Primitive> FilteredAccel for BspTree<P> {
-    rt_geom::filtered_from_walk!();
+    rt_geom::filtered_from_walk!(per_isa);
 }
 
 impl<P: Primitive> Accel for BspTree<P> {
-    rt_geom::queries_from_walk!();
+    rt_geom::queries_from_walk!(per_isa);
 
     fn stats(&self) -> AccelStats {
         let s = AccelStats {
@@ -264,4 +293,19 @@ mod tests {
             ..BspParams::standard()
         },
     });
+
+    /// Each instruction set's walk answers as brute force (a level this CPU lacks runs its
+    /// best one).
+    mod isa_baseline {
+        use super::*;
+        rt_testkit::conformance_tests!(
+            triangles: |p: &[rt_geom::Triangle]| BspTree::build(p, BspParams::standard()).map(|t| t.with_isa(Isa::Baseline)),
+        );
+    }
+    mod isa_avx2 {
+        use super::*;
+        rt_testkit::conformance_tests!(
+            triangles: |p: &[rt_geom::Triangle]| BspTree::build(p, BspParams::standard()).map(|t| t.with_isa(Isa::Avx2)),
+        );
+    }
 }

@@ -6,7 +6,7 @@ use crate::KdNode;
 use crate::traverse::{self, SplitPlanes, Step, ordered_children};
 use rt_geom::aabb::{pad_down, pad_up};
 use rt_geom::glam::DVec3;
-use rt_geom::{BaseLevel, Frame, Hit, Keep, Primitive, Ray};
+use rt_geom::{Frame, Primitive, Ray};
 
 /// The ray in `f64`, where the crossing with an arbitrary plane is computed, its origin in
 /// the tree's frame (exact: two `f32` subtracted in `f64`).
@@ -73,19 +73,5 @@ impl<P: Primitive> SplitPlanes for BspTree<P> {
         let lo = pad_down((ts - delta) as f32);
         let hi = pad_up((ts + delta) as f32);
         (first, second, traverse::step_between(lo, hi, t0, t1))
-    }
-}
-
-impl<P: Primitive> BspTree<P> {
-    /// The walk, for the closest hit or any hit.
-    #[inline]
-    pub(super) fn traverse<const ANY_HIT: bool, K: Keep>(
-        &self,
-        ray: &Ray,
-        best: impl FnOnce() -> K,
-    ) -> Option<Hit> {
-        let leaves = (self.prims.as_slice(), &self.listed, BaseLevel);
-        let t = self.params.traversal;
-        traverse::query::<_, _, ANY_HIT, K, _>(self, leaves, &self.bounds, t, ray, best)
     }
 }
