@@ -3,7 +3,7 @@
 use crate::level::NO_CHILD;
 use crate::{GridParams, Level, build};
 use rt_geom::{
-    Aabb, Accel, BuildError, FilteredAccel, Frame, LeafPrims, Primitive, check_primitives,
+    Aabb, Accel, BuildError, FilteredAccel, Frame, Isa, LeafPrims, Primitive, check_primitives,
 };
 
 /// A grid over primitives `P`: uniform, two-level or adaptive (see [`GridKind`](crate::GridKind)).
@@ -24,6 +24,9 @@ pub struct Grid<P> {
     /// The frame the levels' boxes and planes are in (the world's, for scenes about the
     /// origin).
     pub(crate) frame: Frame,
+    /// The instruction set its leaf tests run compiled for (one dispatch per leaf: the walk
+    /// itself recurses, so it stays at the baseline).
+    pub(crate) isa: Isa,
 }
 
 impl<P: Primitive> Grid<P> {
@@ -68,7 +71,15 @@ impl<P: Primitive> Grid<P> {
             prims: prims.to_vec(),
             params,
             frame,
+            isa: Isa::selected(),
         })
+    }
+
+    /// The same grid, its leaf tests run compiled for `isa` (or, where this CPU lacks it,
+    /// for the best level it has): for tests and measurements of each level.
+    pub fn with_isa(mut self, isa: Isa) -> Self {
+        self.isa = isa.or_best();
+        self
     }
 
     /// The frame the levels' boxes and planes are in: world coordinates minus its anchor
@@ -168,6 +179,29 @@ mod tests {
             ..GridParams::adaptive()
         },
     });
+
+    /// Each instruction set's leaf tests answer as brute force (a level this CPU lacks runs
+    /// its best one), with and without mailboxes.
+    macro_rules! per_isa {
+        ($($name:ident: $isa:expr;)*) => {$(
+            mod $name {
+                use super::*;
+                rt_testkit::conformance_tests!(
+                    triangles: |p: &[rt_geom::Triangle]| Grid::build(p, GridParams::two_level()).map(|g| g.with_isa($isa)),
+                );
+                mod mailbox {
+                    use super::*;
+                    rt_testkit::conformance_tests!(
+                        triangles: |p: &[rt_geom::Triangle]| Grid::build(p, GridParams::adaptive().with_mailbox(true)).map(|g| g.with_isa($isa)),
+                    );
+                }
+            }
+        )*};
+    }
+    per_isa! {
+        isa_baseline: Isa::Baseline;
+        isa_avx2: Isa::Avx2;
+    }
 }
 
 #[cfg(test)]

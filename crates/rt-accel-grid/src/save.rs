@@ -159,6 +159,7 @@ impl Grid<Triangle> {
             prims: tris.to_vec(),
             params,
             frame,
+            isa: rt_geom::Isa::selected(),
         }
     }
 

@@ -53,8 +53,9 @@ impl<P: Primitive, K: Keep> Walk<'_, P, K> {
     fn test<const ANY_HIT: bool, const MAILBOXES: bool>(&mut self, (s, e): (usize, usize)) -> bool {
         let mailbox = &mut self.mailbox;
         let grid = self.grid;
+        let (ray, best) = (&mut self.ray, &mut self.best);
         grid.listed
-            .test::<ANY_HIT>((s, e - s), &grid.refs, &mut self.ray, &mut self.best, |p| {
+            .test_on::<ANY_HIT, K>(grid.isa, (s, e - s), &grid.refs, ray, best, |p| {
                 MAILBOXES && mailbox.seen(p)
             })
     }

@@ -3,7 +3,8 @@
 use crate::node::{MAX_NODES, octant};
 use crate::{ChildRef, MAX_DEPTH, OctLeaf, OctNode, OctreeParams, OctreeTraversal, build};
 use rt_geom::{
-    Aabb, Accel, BuildError, FilteredAccel, Frame, LeafPrims, Primitive, Vec3, check_primitives,
+    Aabb, Accel, BuildError, FilteredAccel, Frame, Isa, LeafPrims, Primitive, Vec3,
+    check_primitives,
 };
 
 /// An octree over primitives `P`.
@@ -22,6 +23,9 @@ pub struct Octree<P> {
     pub(crate) params: OctreeParams,
     /// The frame the cells are in (the world's, for scenes about the origin).
     pub(crate) frame: Frame,
+    /// The instruction set its leaf tests run compiled for (one dispatch per leaf: the walk
+    /// itself recurses, so it stays at the baseline).
+    pub(crate) isa: Isa,
 }
 
 impl<P: Primitive> Octree<P> {
@@ -57,6 +61,7 @@ impl<P: Primitive> Octree<P> {
             bounds,
             params,
             frame,
+            isa: Isa::selected(),
         })
     }
 
@@ -100,6 +105,13 @@ impl<P: Primitive> Octree<P> {
     /// The root cube, in [`Self::frame`].
     pub fn bounds(&self) -> Aabb {
         self.bounds
+    }
+
+    /// The same octree, its leaf tests run compiled for `isa` (or, where this CPU lacks it,
+    /// for the best level it has): for tests and measurements of each level.
+    pub fn with_isa(mut self, isa: Isa) -> Self {
+        self.isa = isa.or_best();
+        self
     }
 
     /// The frame the cells are in: world coordinates minus its anchor (the world's own for
@@ -199,6 +211,29 @@ mod tests {
             ..OctreeParams::standard()
         },
     });
+
+    /// Each instruction set's leaf tests answer as brute force (a level this CPU lacks runs
+    /// its best one), in both walks, with and without mailboxes.
+    macro_rules! per_isa {
+        ($($name:ident: $isa:expr;)*) => {$(
+            mod $name {
+                use super::*;
+                rt_testkit::conformance_tests!(
+                    triangles: |p: &[Triangle]| Octree::build(p, OctreeParams::standard()).map(|t| t.with_isa($isa)),
+                );
+                mod recursive_mailbox {
+                    use super::*;
+                    rt_testkit::conformance_tests!(
+                        triangles: |p: &[Triangle]| Octree::build(p, OctreeParams::standard().with_traversal(OctreeTraversal::Recursive).with_mailbox(true)).map(|t| t.with_isa($isa)),
+                    );
+                }
+            }
+        )*};
+    }
+    per_isa! {
+        isa_baseline: Isa::Baseline;
+        isa_avx2: Isa::Avx2;
+    }
 
     #[test]
     fn memory_is_bounded_on_pathological_input() {

@@ -127,6 +127,7 @@ impl Octree<Triangle> {
             bounds,
             params,
             frame,
+            isa: rt_geom::Isa::selected(),
         };
         tree.validate().map_err(corrupt)?;
         tree.check_coverage().map_err(corrupt)?;

@@ -78,10 +78,11 @@ impl<P: Primitive, K: Keep> Walk<'_, P, K> {
             let mailbox = &mut self.mailbox;
             let seen = |p| mailbox.seen(p);
             tree.leaf_prims
-                .test::<ANY_HIT>(places, &tree.indices, ray, best, seen)
+                .test_on::<ANY_HIT, K>(tree.isa, places, &tree.indices, ray, best, seen)
         } else {
+            let isa = tree.isa;
             tree.leaf_prims
-                .test::<ANY_HIT>(places, &tree.indices, ray, best, |_| false)
+                .test_on::<ANY_HIT, K>(isa, places, &tree.indices, ray, best, |_| false)
         }
     }
 

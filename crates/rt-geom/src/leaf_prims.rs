@@ -15,7 +15,7 @@
 //! the [`LANES`] floats of padding at the end) and are masked off. Eight-lane windows are
 //! taken only while more than four triangles remain, so they stay inside the same bounds.
 
-use crate::isa::{BaseLevel, Level};
+use crate::isa::{BaseLevel, Isa, Kernel, Level};
 use crate::triangle::{SimdLanes, lane_edges, proven_hit, signs_agree, watertight_rows_at};
 use crate::{Keep, Primitive, Ray, Triangle, Vec3};
 use wide::f32x4;
@@ -274,6 +274,54 @@ impl<P: Primitive> LeafPrims<P> {
         skip: impl FnMut(u32) -> bool,
     ) -> bool {
         self.test_at::<ANY_HIT, _>(BaseLevel, places, indices, ray, best, skip)
+    }
+
+    /// [`Self::test`] with the triangles' windows compiled for `isa` (or for the best level
+    /// below it this CPU runs), one dispatch per call ([`crate::isa::run`]): for walks that
+    /// cannot run per level themselves (recursive ones), at the cost of a call per leaf.
+    #[inline]
+    pub fn test_on<const ANY_HIT: bool, K: Keep>(
+        &self,
+        isa: Isa,
+        places: (usize, usize),
+        indices: &[u32],
+        ray: &mut Ray,
+        best: &mut K,
+        skip: impl FnMut(u32) -> bool,
+    ) -> bool {
+        if self.soa.is_none() || isa == Isa::Baseline {
+            return self.test_at::<ANY_HIT, _>(BaseLevel, places, indices, ray, best, skip);
+        }
+        /// One leaf test as [`crate::isa::Kernel`] work.
+        struct Leaf<'a, P, K, S, const ANY_HIT: bool> {
+            prims: &'a LeafPrims<P>,
+            places: (usize, usize),
+            indices: &'a [u32],
+            ray: &'a mut Ray,
+            best: &'a mut K,
+            skip: S,
+        }
+        impl<P: Primitive, K: Keep, S: FnMut(u32) -> bool, const ANY_HIT: bool> Kernel
+            for Leaf<'_, P, K, S, ANY_HIT>
+        {
+            type Output = bool;
+            #[inline(always)]
+            fn run<L: Level>(self, level: L) -> bool {
+                let (places, indices) = (self.places, self.indices);
+                let (ray, best, skip) = (self.ray, self.best, self.skip);
+                self.prims
+                    .test_at::<ANY_HIT, L>(level, places, indices, ray, best, skip)
+            }
+        }
+        let leaf = Leaf::<P, K, _, ANY_HIT> {
+            prims: self,
+            places,
+            indices,
+            ray,
+            best,
+            skip,
+        };
+        crate::isa::run(isa, leaf)
     }
 
     /// [`Self::test`] with the triangles' windows on `level`'s vectors ([`Level`]: inside a
