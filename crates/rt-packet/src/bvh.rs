@@ -16,7 +16,7 @@
 
 use crate::beam::Beam;
 use crate::lanes::{PacketPrimitive, enter_mask, test_block};
-use crate::simd::{F8, PacketKernel};
+use crate::simd::{F8, PacketKernel, Query};
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_bvh::{Bvh, MAX_DEPTH};
 use rt_geom::aabb::{pad_down, pad_up};
@@ -254,14 +254,6 @@ impl<P: PacketPrimitive> PacketTraversal for Bvh<P> {
         best.map(|h| h.is_some())
     }
 }
-
-/// A packet query of a structure `T` as work compiled per instruction set: the structure,
-/// the packet and the lanes' answers.
-pub(crate) struct Query<'a, 'r, T, const N: usize, const ANY_HIT: bool>(
-    pub(crate) &'a T,
-    pub(crate) &'a mut RayPacket<'r, N>,
-    pub(crate) &'a mut [Option<Hit>; N],
-);
 
 impl<P: PacketPrimitive, const N: usize, const ANY_HIT: bool> PacketKernel
     for Query<'_, '_, Bvh<P>, N, ANY_HIT>

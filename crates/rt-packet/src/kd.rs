@@ -18,12 +18,11 @@
 //! walk would need (the same padded steps at every plane).
 
 use crate::api::{each_lane, each_lane_occluded};
-use crate::bvh::Query;
 use crate::lanes::{
     BlockRegs, PacketPrimitive, active_mask, block_width, clip_block, le_bits, load, negative_bits,
     registers, select_lanes, test_block,
 };
-use crate::simd::{F8, PacketKernel};
+use crate::simd::{F8, PacketKernel, Query};
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_kd::{KdTree, MAX_DEPTH};
 use rt_geom::aabb::PAD;

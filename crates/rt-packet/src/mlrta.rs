@@ -20,10 +20,9 @@
 
 use crate::api::{each_lane, each_lane_occluded};
 use crate::beam::Beam;
-use crate::bvh::Query;
 use crate::kd::{KD_BLOCK, Stack, new_stack, trace_from, with_block_width};
 use crate::lanes::{PacketPrimitive, block_width};
-use crate::simd::{F8, PacketKernel};
+use crate::simd::{F8, PacketKernel, Query};
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_kd::KdTree;
 use rt_geom::{Aabb, Hit, Ray, Walk};

@@ -5,6 +5,8 @@
 //! level's vectors. Every operation is the same IEEE operation on either, so the
 //! answers are the same bit for bit.
 
+use crate::RayPacket;
+use rt_geom::Hit;
 use rt_geom::isa::{Isa, Kernel, Level};
 
 /// Eight `f32` lanes with the operations the packet kernels use. A comparison gives a mask:
@@ -138,6 +140,14 @@ pub(crate) trait PacketKernel {
     /// Does the work on the vectors `V`.
     fn run<V: F8>(self) -> Self::Output;
 }
+
+/// A packet query of a structure `T` as work compiled per instruction set: the structure,
+/// the packet and the lanes' answers.
+pub(crate) struct Query<'a, 'r, T, const N: usize, const ANY_HIT: bool>(
+    pub(crate) &'a T,
+    pub(crate) &'a mut RayPacket<'r, N>,
+    pub(crate) &'a mut [Option<Hit>; N],
+);
 
 /// `k.run::<V>()` compiled for `isa` (or the best level below it this CPU runs), `V` that
 /// level's vectors.

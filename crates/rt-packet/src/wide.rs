@@ -7,10 +7,9 @@
 //! wide BVH's single-ray answer.
 
 use crate::api::{each_lane, each_lane_occluded};
-use crate::bvh::Query;
 use crate::bvh::{Culling, lane_entry, narrow_range, test_leaf};
 use crate::lanes::{PacketPrimitive, pad};
-use crate::simd::{F8, PacketKernel};
+use crate::simd::{F8, PacketKernel, Query};
 use crate::{PacketTraversal, RayPacket};
 use rt_accel_bvh::{NodeLayout, WideBvh, WideNode};
 use rt_geom::Hit;
