@@ -130,6 +130,11 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
             .filter(|e| tris.len() <= e.bench_max_prims)
             .collect();
         let pb = run::bar((runnable.len() * 3 * pools.len()) as u64, scene.clone());
+        // Every structure is built (and its packets measured) first; the single rays are then
+        // timed round by round, each round every structure in turn, so that all of them
+        // meet the same moments of a shared machine (its load swings over seconds, and a
+        // ratio between two structures timed minutes apart carries those swings).
+        let mut singles = Vec::new();
         for entry in runnable {
             pb.set_message(format!("{} build", entry.name));
             let start = Instant::now();
@@ -141,27 +146,14 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
             let build_ms = start.elapsed().as_secs_f64() * 1e3;
             let stats = accel.stats();
             // One measurement of this structure on this scene (ratios are filled in later).
-            let record =
-                |rays: String, threads: usize, mrays_s: f64, hits: usize, ray_count: usize| {
-                    Record {
-                        accel: entry.name.to_string(),
-                        scene: scene.clone(),
-                        rays,
-                        threads,
-                        build_ms,
-                        mrays_s,
-                        bytes: stats.bytes,
-                        ratio_vs_obvhs: None,
-                        ratio_vs_embree: None,
-                        ratio_vs_embree_fast: None,
-                        ratio_vs_tinybvh: None,
-                        ray_count,
-                        hits,
-                        prims: tris.len(),
-                        sah_cost: stats.sah_cost,
-                        tests_per_ray: None,
-                    }
-                };
+            let record = Measured {
+                accel: entry.name,
+                scene,
+                build_ms,
+                bytes: stats.bytes,
+                sah_cost: stats.sah_cost,
+                prims: tris.len(),
+            };
             // Structures with a packet path: primary rays as image tiles, and the shadow and
             // diffuse rays of those tiles' pixels (`primary-WxH`, `shadow-WxH`, `diffuse-WxH`
             // records beside the single-ray ones; incoherent groups fall back to single rays).
@@ -197,7 +189,7 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
                                 reps,
                             );
                             let name = format!("{set}-{side}x{side}");
-                            records.push(record(name, *threads, rate, hits, rays.len()));
+                            records.push(record.record(name, *threads, rate, hits, rays.len()));
                         }
                     }
                 }
@@ -206,14 +198,23 @@ pub fn bench(opts: &BenchOptions) -> Result<Vec<Record>, String> {
                 pb.inc((RaySets::NAMES.len() * pools.len()) as u64);
                 continue;
             }
-            for set in RaySets::NAMES {
-                let rays = sets.by_name(set).expect("known set");
-                for (threads, pool) in &pools {
-                    pb.set_message(format!("{} {set} x{threads}", entry.name));
-                    let (rate, hits, count) =
-                        measure(accel.as_ref(), rays, set == "shadow", pool, reps);
-                    let mut r = record(set.to_string(), *threads, rate, hits, count);
-                    r.tests_per_ray = count_tests(accel.as_ref(), rays, set == "shadow");
+            singles.push((record, accel));
+        }
+        for set in RaySets::NAMES {
+            let rays = sets.by_name(set).expect("known set");
+            let occluded = set == "shadow";
+            for (threads, pool) in &pools {
+                pb.set_message(format!(
+                    "{set} x{threads}, {} structures in turn",
+                    singles.len()
+                ));
+                let accels: Vec<&dyn Accel> = singles.iter().map(|(_, a)| a.as_ref()).collect();
+                for ((record, accel), (rate, hits, count)) in singles
+                    .iter()
+                    .zip(measure_in_turn(&accels, rays, occluded, pool, reps))
+                {
+                    let mut r = record.record(set.to_string(), *threads, rate, hits, count);
+                    r.tests_per_ray = count_tests(accel.as_ref(), rays, occluded);
                     records.push(r);
                     pb.inc(1);
                 }
@@ -264,32 +265,98 @@ fn count_tests(accel: &dyn Accel, rays: &[Ray], occluded: bool) -> Option<(f64, 
     Some((c.nodes as f64 / n, c.prims as f64 / n))
 }
 
-/// Median Mrays/s over `reps` timed runs after one warm-up; sets too slow for the time budget
-/// are subsampled evenly. Returns `(mrays_s, hits, rays per run)`.
-fn measure(
-    accel: &dyn Accel,
+/// What a record says of a structure besides its speed.
+struct Measured<'a> {
+    accel: &'a str,
+    scene: &'a str,
+    build_ms: f64,
+    bytes: usize,
+    sah_cost: Option<f32>,
+    prims: usize,
+}
+
+impl Measured<'_> {
+    /// The record of one measurement (ratios are filled in later).
+    fn record(
+        &self,
+        rays: String,
+        threads: usize,
+        mrays_s: f64,
+        hits: usize,
+        ray_count: usize,
+    ) -> Record {
+        Record {
+            accel: self.accel.to_string(),
+            scene: self.scene.to_string(),
+            rays,
+            threads,
+            build_ms: self.build_ms,
+            mrays_s,
+            bytes: self.bytes,
+            ratio_vs_obvhs: None,
+            ratio_vs_embree: None,
+            ratio_vs_embree_fast: None,
+            ratio_vs_tinybvh: None,
+            ray_count,
+            hits,
+            prims: self.prims,
+            sah_cost: self.sah_cost,
+            tests_per_ray: None,
+        }
+    }
+}
+
+/// Median Mrays/s of each of `accels` over `reps.count` rounds, each round every structure
+/// timed in turn (the order rotated from round to round) after one warm-up each; sets too
+/// slow for a structure's time budget are subsampled evenly for it. Returns per structure
+/// `(mrays_s, hits, rays per run)`.
+fn measure_in_turn(
+    accels: &[&dyn Accel],
     rays: &[Ray],
     occluded: bool,
     pool: &rayon::ThreadPool,
     reps: Reps,
-) -> (f64, usize, usize) {
+) -> Vec<(f64, usize, usize)> {
     if rays.is_empty() {
-        return (0.0, 0, 0);
+        return vec![(0.0, 0, 0); accels.len()];
     }
     let probe = &rays[..rays.len().min(4096)];
-    let (_, t) = run::trace_count(accel, probe, occluded, pool);
-    let per_ray = t.as_secs_f64() / probe.len() as f64;
-    let fit = (REP_BUDGET.as_secs_f64() / per_ray.max(1e-12)) as usize;
-    let subset: Vec<Ray>;
-    let rays = if fit < rays.len() {
-        let stride = rays.len().div_ceil(fit.max(256));
-        subset = rays.iter().step_by(stride).copied().collect();
-        &subset[..]
-    } else {
-        rays
-    };
-    let (time, hits) = median_pass(reps, || run::trace_count(accel, rays, occluded, pool));
-    (run::mrays_per_s(rays.len(), time), hits, rays.len())
+    // Per structure: its rays (all, or an even subset), its warm-up's hits, passes per timing.
+    let plans: Vec<(Vec<Ray>, usize, u32)> = accels
+        .iter()
+        .map(|&accel| {
+            let (_, t) = run::trace_count(accel, probe, occluded, pool);
+            let per_ray = t.as_secs_f64() / probe.len() as f64;
+            let fit = (REP_BUDGET.as_secs_f64() / per_ray.max(1e-12)) as usize;
+            let stride = if fit < rays.len() {
+                rays.len().div_ceil(fit.max(256))
+            } else {
+                1
+            };
+            let subset: Vec<Ray> = rays.iter().step_by(stride).copied().collect();
+            let (hits, warm) = run::trace_count(accel, &subset, occluded, pool);
+            (subset, hits, passes_for(reps, warm))
+        })
+        .collect();
+    let mut times = vec![Vec::with_capacity(reps.count); accels.len()];
+    for round in 0..reps.count {
+        for k in 0..accels.len() {
+            let i = (k + round) % accels.len();
+            let (subset, _, passes) = &plans[i];
+            let t: Duration = (0..*passes)
+                .map(|_| run::trace_count(accels[i], subset, occluded, pool).1)
+                .sum();
+            times[i].push(t / *passes);
+        }
+    }
+    plans
+        .iter()
+        .zip(times)
+        .map(|((subset, hits, _), t)| {
+            let time = run::median(t);
+            (run::mrays_per_s(subset.len(), time), *hits, subset.len())
+        })
+        .collect()
 }
 
 /// How a figure is timed: the median of `count` repetitions, each at least `min` long (a small
@@ -318,13 +385,18 @@ impl Reps {
 /// `reps.min`; returns the median time of one pass and the warm-up's hit count.
 fn median_pass(reps: Reps, mut pass: impl FnMut() -> (usize, Duration)) -> (Duration, usize) {
     let (hits, warm) = pass();
-    let passes = (reps.min.as_secs_f64() / warm.as_secs_f64().max(1e-9))
-        .ceil()
-        .clamp(1.0, 10_000.0) as u32;
+    let passes = passes_for(reps, warm);
     let times = (0..reps.count)
         .map(|_| (0..passes).map(|_| pass().1).sum::<Duration>() / passes)
         .collect();
     (run::median(times), hits)
+}
+
+/// Passes per timed repetition for a pass that took `warm`: enough to fill `reps.min`.
+fn passes_for(reps: Reps, warm: Duration) -> u32 {
+    (reps.min.as_secs_f64() / warm.as_secs_f64().max(1e-9))
+        .ceil()
+        .clamp(1.0, 10_000.0) as u32
 }
 
 /// Median Mrays/s of rays traced as packets (one per group of ray indices, gathered into
