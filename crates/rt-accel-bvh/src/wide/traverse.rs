@@ -51,7 +51,9 @@ fn le_lanes<const N: usize, V: Level>(level: V, t0: &[f32; N], t1: &[f32; N]) ->
 /// Per inner node: one SIMD slab test of all lanes, a bit mask of the lanes hit, and then
 /// - no lane: the next entry is popped from the stack;
 /// - one lane (the common case deep in the tree): that child is visited next, no stack traffic;
-/// - several: all are pushed far to near and the nearest is popped (closest-hit queries);
+/// - two: the nearer (any-hit queries: a leaf) is visited next and the other pushed, as
+///   Embree's walk does;
+/// - more: all are pushed far to near and the nearest is popped (closest-hit queries);
 ///   any-hit queries push the inner children, then the leaves, and pop a leaf first.
 ///
 /// Popped entries whose entry distance lies beyond the closest hit found since are skipped.
@@ -143,6 +145,27 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
                     let item = (node.child(lane), node.count(lane), t[lane]);
                     if mask == 0 {
                         next = item;
+                        continue;
+                    }
+                    if mask & (mask - 1) == 0 {
+                        // Two children: one visited next straight from the node, the other
+                        // pushed (no trip through the stack for the next node's index).
+                        // Closest hit: the nearer next; any hit: a leaf first.
+                        let l = mask.trailing_zeros() as usize;
+                        let other = (node.child(l), node.count(l), t[l]);
+                        let item_first = if ANY_HIT {
+                            item.1 > 0 && other.1 == 0
+                        } else {
+                            item.2 <= other.2
+                        };
+                        let (first, then) = if item_first {
+                            (item, other)
+                        } else {
+                            (other, item)
+                        };
+                        stack[sp] = then;
+                        sp += 1;
+                        next = first;
                         continue;
                     }
                     if ANY_HIT {
