@@ -183,8 +183,9 @@ pub(crate) mod sealed {
         ) -> bool;
         /// [`Level::le_bits8`](super::Level::le_bits8).
         fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32;
-        /// [`hits_outside`](crate::triangle::hits_outside), compiled for the level.
-        fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32;
+        /// [`hits_outside`](crate::triangle::hits_outside), and the lanes
+        /// [`proven_hit`](crate::triangle::proven_hit) proves, compiled for the level.
+        fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> (u32, u32);
         /// The `f64` refinement of an accepted triangle of nonzero area (the caller drops
         /// zero-area ones), compiled for the level.
         fn finish(self, tri: &Triangle, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit>;
@@ -220,8 +221,8 @@ impl sealed::Sealed for BaseLevel {
     window8_on!(wide::f32x8);
 
     #[inline(always)]
-    fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
-        crate::triangle::hits_outside(t, tmin, tmax)
+    fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> (u32, u32) {
+        crate::triangle::hits_outside_and_proven(t, tmin, tmax)
     }
 
     #[inline(always)]
@@ -240,7 +241,7 @@ impl sealed::Sealed for Avx2Level {
     window8_on!(crate::triangle::Avx8);
 
     #[inline(always)]
-    fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
+    fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> (u32, u32) {
         // SAFETY: an `Avx2Level` is made only by `run`, after finding AVX2 and FMA.
         unsafe { crate::triangle::outside_avx2(t, tmin, tmax) }
     }
@@ -262,7 +263,7 @@ impl sealed::Sealed for Avx2Level {
     window8_on!(wide::f32x8);
 
     #[inline(always)]
-    fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
+    fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> (u32, u32) {
         BaseLevel.outside(t, tmin, tmax)
     }
 

@@ -16,7 +16,7 @@
 //! taken only while more than four triangles remain, so they stay inside the same bounds.
 
 use crate::isa::{BaseLevel, Isa, Kernel, Level};
-use crate::triangle::{SimdLanes, lane_edges, proven_hit, signs_agree, watertight_rows_at};
+use crate::triangle::{SimdLanes, lane_edges, signs_agree, watertight_rows_at, woop_hit};
 use crate::{Keep, Primitive, Ray, Triangle, Vec3};
 use wide::f32x4;
 
@@ -108,9 +108,10 @@ impl TriangleSoa {
     /// their window is tested) are not tested. Returns true when `best` did.
     ///
     /// With `ANY_HIT` (queries that stop at the first hit) and no filter, a triangle whose
-    /// hit [`proven_hit`] proves inside the ray's interval is handed over with Woop's `f32`
-    /// estimates of `t`, `u`, `v` instead of the refined ones: the same answer, without the
-    /// `f64` refinement.
+    /// hit [`proven_hit`](crate::triangle::proven_hit) proves inside the ray's interval
+    /// (proved for the window's lanes at once) is handed over with Woop's `f32` estimates of
+    /// `t`, `u`, `v` instead of the refined ones: the same answer, without the `f64`
+    /// refinement.
     ///
     /// The eight-lane windows run on `level`'s vectors ([`Level`]: one AVX register at the
     /// AVX2 level, inside a walk [`crate::isa::run`] runs there).
@@ -166,11 +167,16 @@ impl TriangleSoa {
         }
         crate::counters::prims(lanes.count_ones());
         // Row `j` straight from the leaf (the ray's axes pick which rows are read).
-        let (may_hit, sheared) = watertight_rows_at(
+        // Any-hit queries leaving a surface: the lanes whose hit `proven_hit` proves, all at
+        // once with the window's other bounds (one lane at a time, the proof's dependent
+        // chain cost sponza's shadow rays a seventh of their time).
+        let prove = ANY_HIT && !K::FILTERED && r.tmin > 0.0;
+        let (may_hit, proven, sheared) = watertight_rows_at(
             level,
             #[inline(always)]
             |j| L::load(&leaf[j * count + k..]),
             r,
+            prove,
         );
         let mut may_hit = may_hit & lanes;
         if may_hit != 0 && !self.degenerate.is_empty() {
@@ -187,14 +193,16 @@ impl TriangleSoa {
                 continue;
             }
             let edges = lane_edges(&sheared, l);
-            if ANY_HIT && !K::FILTERED && r.tmin > 0.0 {
+            if proven & (1 << l) != 0 {
+                // Woop's numbers for the lane, as `proven_hit` computes them.
                 let [_, _, kz] = r.watertight_axes();
                 let oz = r.origin().to_array()[kz];
-                let dz = |v: usize| leaf[(3 * v + kz) * count + k + l] - oz;
-                let [ax, ay, bx, by, cx, cy] = &sheared;
-                let x = [ax[l], bx[l], cx[l]];
-                let y = [ay[l], by[l], cy[l]];
-                if let Some(h) = proven_hit(x, y, [dz(0), dz(1), dz(2)], edges, r) {
+                let sz = r.watertight_shear().z;
+                let z = |v: usize| (leaf[(3 * v + kz) * count + k + l] - oz) * sz;
+                let e = [edges.0.abs(), edges.1.abs(), edges.2.abs()];
+                let num = e[0] * z(0) + e[1] * z(1) + e[2] * z(2);
+                let den = e[0] + e[1] + e[2];
+                if let Some(h) = woop_hit(num, den, edges, r) {
                     if best.keep::<ANY_HIT>(h, ids[k + l], &mut r.tmax) {
                         return true;
                     }

@@ -128,11 +128,12 @@ impl SimdLanes for Avx8 {
     }
 }
 
-/// [`super::hits_outside`] compiled for AVX2, out of line as it is.
+/// [`super::hits_outside`], with the lanes [`super::proven_hit`] proves, compiled for AVX2, out
+/// of line as it is.
 #[target_feature(enable = "avx2,fma")]
 #[inline(never)]
-pub(crate) fn outside_avx2<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
-    super::bounds::outside_lanes(t, tmin, tmax)
+pub(crate) fn outside_avx2<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> (u32, u32) {
+    super::bounds::outside_and_proven_lanes(t, tmin, tmax)
 }
 
 /// [`Triangle::finish_nondegenerate`] (the `f64` refinement of a triangle of nonzero area)

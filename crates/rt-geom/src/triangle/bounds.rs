@@ -41,6 +41,16 @@ pub fn hits_outside<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> 
     outside_lanes(t, tmin, tmax)
 }
 
+/// [`outside_and_proven_lanes`] out of line, at the baseline.
+#[inline(never)]
+pub(crate) fn hits_outside_and_proven<L: SimdLanes>(
+    t: &ShearedLanes<L>,
+    tmin: f32,
+    tmax: f32,
+) -> (u32, u32) {
+    outside_and_proven_lanes(t, tmin, tmax)
+}
+
 /// [`hits_outside`]'s body, inlined where a level's own out-of-line copy is compiled.
 #[inline(always)]
 pub(crate) fn outside_lanes<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
@@ -56,6 +66,47 @@ pub(crate) fn outside_lanes<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32, tmax: 
         out |= L::less_bits(bound, t.num - two * b.dt);
     }
     L::less_bits(b.de, b.e_min) & out
+}
+
+/// [`outside_lanes`], and beside it the lanes whose hit [`proven_hit`] proves inside
+/// `[tmin, tmax]` (`tmin > 0`): the same bounds, computed once for every lane. A lane is
+/// proven only where its inputs are all finite (the lanes' `max` drops NaN where `f32::max`
+/// of the one-lane form keeps the other operand); where they are, its bit is `proven_hit`'s
+/// answer for that lane's edge functions, as long as none of them is zero (the caller masks
+/// those).
+#[inline(always)]
+pub(crate) fn outside_and_proven_lanes<L: SimdLanes>(
+    t: &ShearedLanes<L>,
+    tmin: f32,
+    tmax: f32,
+) -> (u32, u32) {
+    let b = EstimateBounds::of(t);
+    let two = L::splat(2.0);
+    let mut out = 0;
+    if tmin > 0.0 {
+        let bound = L::splat(tmin) * (t.den - two * b.dd) * L::splat(1.0 - ROUNDING);
+        out |= L::less_bits(t.num + two * b.dt, bound);
+    }
+    if tmax > 0.0 && tmax < f32::INFINITY {
+        let bound = L::splat(tmax) * (t.den + two * b.dd) * L::splat(1.0 + ROUNDING);
+        out |= L::less_bits(bound, t.num - two * b.dt);
+    }
+    let sure_edges = L::less_bits(b.de, b.e_min);
+    let after_tmin = L::less_bits(
+        L::splat(tmin) * (t.den + two * b.dd) * L::splat(1.0 + ROUNDING),
+        t.num - two * b.dt,
+    );
+    let before_tmax = L::less_bits(
+        t.num + two * b.dt,
+        L::splat(tmax) * (t.den - two * b.dd) * L::splat(1.0 - ROUNDING),
+    );
+    let mut sum = t.num.abs() + t.den.abs();
+    for v in 0..3 {
+        sum = sum + t.x[v].abs() + t.y[v].abs() + t.dz[v].abs() + t.z[v].abs();
+    }
+    let finite = L::less_bits(sum, L::splat(f32::MAX));
+    let proven = sure_edges & L::less_bits(two * b.dd, t.den) & after_tmin & before_tmax & finite;
+    (sure_edges & out, proven)
 }
 
 /// How far the `f32` numbers of the depth estimate may lie from the exact ones, in
@@ -136,10 +187,22 @@ pub fn proven_hit(
     if !(b.de < b.e_min && 2.0 * b.dd < den && after_tmin && before_tmax) {
         return None;
     }
+    woop_hit(num, den, (u, v, w), ray)
+}
+
+/// The hit [`proven_hit`] reports once proven: Woop's `f32` estimates of `t` (`num / den`,
+/// clamped to the ray's interval), `u`, `v`; `None` where the barycentrics are not finite.
+#[inline(always)]
+pub(crate) fn woop_hit(
+    num: f32,
+    den: f32,
+    (u, v, w): (f32, f32, f32),
+    ray: &Ray,
+) -> Option<PrimHit> {
     let rcp = 1.0 / (u + v + w);
     let (bu, bv) = (v * rcp, w * rcp);
     (bu.is_finite() && bv.is_finite()).then(|| PrimHit {
-        t: (num / den).clamp(tmin, tmax),
+        t: (num / den).clamp(ray.tmin, ray.tmax),
         u: bu,
         v: bv,
     })
@@ -148,7 +211,9 @@ pub fn proven_hit(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::triangle::{Triangle, TriangleLanes, lane_edges, watertight_lanes};
+    use crate::triangle::{
+        Triangle, TriangleLanes, lane_edges, watertight_lanes, watertight_rows_at,
+    };
 
     use glam::Vec3;
 
@@ -222,6 +287,10 @@ mod tests {
                 wide::f32x8::from(std::array::from_fn(|l| tris[l].v[j / 3][j % 3]))
             });
             let (mut lanes, sheared) = watertight_lanes(&w8, &ray);
+            // The lanes' proof, all eight at once, as any-hit leaf tests ask it.
+            let (lanes_too, proven_lanes, _) =
+                watertight_rows_at(crate::isa::BaseLevel, |j| w8[j], &ray, true);
+            assert_eq!(lanes, lanes_too, "case {case}");
             let [_, _, kz] = ray.watertight_axes();
             let oz = ray.origin().to_array()[kz];
             while lanes != 0 {
@@ -237,6 +306,16 @@ mod tests {
                     edges,
                     &ray,
                 );
+                // The lane's bit says what `proven_hit` says, with the same hit.
+                let by_lanes = (proven_lanes & (1 << l) != 0)
+                    .then(|| {
+                        let e = [edges.0.abs(), edges.1.abs(), edges.2.abs()];
+                        let z = dz.map(|d| d * ray.watertight_shear().z);
+                        let num = e[0] * z[0] + e[1] * z[1] + e[2] * z[2];
+                        woop_hit(num, e[0] + e[1] + e[2], edges, &ray)
+                    })
+                    .flatten();
+                assert_eq!(by_lanes, got, "case {case} lane {l}: {ray:?}");
                 let refined = tris[l].finish_watertight(&ray, edges);
                 if let Some(h) = got {
                     proven += 1;

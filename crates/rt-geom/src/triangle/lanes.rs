@@ -42,16 +42,21 @@ pub fn watertight_lanes<L: SimdLanes>(tris: &TriangleLanes<L>, ray: &Ray) -> (u3
 /// instead of first storing all nine in an array that the axes index.
 #[inline(always)]
 pub fn watertight_rows<L: SimdLanes>(row: impl Fn(usize) -> L, ray: &Ray) -> (u32, [L::Array; 6]) {
-    watertight_rows_at(BaseLevel, row, ray)
+    let (may_hit, _, lanes) = watertight_rows_at(BaseLevel, row, ray, false);
+    (may_hit, lanes)
 }
 
-/// [`watertight_rows`] at `level`, whose copy of the out-of-line bounds it calls.
+/// [`watertight_rows`] at `level`, whose copy of the out-of-line bounds it calls. With
+/// `prove` (any-hit queries with `tmin > 0`), also the lanes among those that may hit whose
+/// edge functions agree in sign, none zero, and whose hit [`proven_hit`](super::proven_hit)
+/// proves inside the ray's interval (the middle value; 0 without `prove`).
 #[inline(always)]
 pub(crate) fn watertight_rows_at<L: SimdLanes, V: Level>(
     level: V,
     row: impl Fn(usize) -> L,
     ray: &Ray,
-) -> (u32, [L::Array; 6]) {
+    prove: bool,
+) -> (u32, u32, [L::Array; 6]) {
     // The lanes hold one coordinate per row, so the ray's axes pick rows (loads at a
     // run-time offset) and the shear takes two products per vertex, not the six of the dot
     // products with the shear rows that the scalar kernel computes: the same numbers, since
@@ -81,6 +86,7 @@ pub(crate) fn watertight_rows_at<L: SimdLanes, V: Level>(
     let w = bx * ay - by * ax;
     let (neg, pos, on_edge) = L::sign_bits(u, v, w);
     let mut may_hit = (!(neg & pos) | on_edge) & ((1 << L::WIDTH) - 1);
+    let mut proven = 0;
     // Rays that leave a surface (shadow rays, bounces, `tmin > 0`) pierce the triangle they
     // start on at `t` near 0, and once a closest hit is found (`tmax` finite) the triangles
     // the ray meets beyond it need no `f64` refinement either: both rejected here in SIMD
@@ -106,7 +112,8 @@ pub(crate) fn watertight_rows_at<L: SimdLanes, V: Level>(
         } else {
             0
         };
-        if (before | after) & may_hit != 0 {
+        let prove = prove && cut_before;
+        if prove || (before | after) & may_hit != 0 {
             let sheared = ShearedLanes {
                 x: [ax, bx, cx],
                 y: [ay, by, cy],
@@ -116,7 +123,11 @@ pub(crate) fn watertight_rows_at<L: SimdLanes, V: Level>(
                 num,
                 den,
             };
-            may_hit &= !level.outside(&sheared, tmin, tmax);
+            let (outside, sure) = level.outside(&sheared, tmin, tmax);
+            may_hit &= !outside;
+            if prove {
+                proven = sure & may_hit & !(neg & pos) & !on_edge;
+            }
         }
     }
     // Spelled out: `.map(L::to_lanes)` compiled to a call that copies every lane.
@@ -128,7 +139,7 @@ pub(crate) fn watertight_rows_at<L: SimdLanes, V: Level>(
         cx.to_lanes(),
         cy.to_lanes(),
     ];
-    (may_hit, lanes)
+    (may_hit, proven, lanes)
 }
 
 /// The leaf test of [`crate::test_primitives`] for triangles: the ids that `skip` lets

@@ -19,6 +19,7 @@ mod simd;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use avx::{Avx8, finish_avx2, outside_avx2};
 pub use bounds::{hits_before_tmin, hits_outside, proven_hit};
+pub(crate) use bounds::{hits_outside_and_proven, woop_hit};
 pub(crate) use lanes::test_triangles;
 pub(crate) use lanes::watertight_rows_at;
 pub use lanes::{lane_edges, watertight_lanes, watertight_rows};
