@@ -38,7 +38,7 @@ pub fn hits_before_tmin<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32) -> u32 {
 /// every lane culled. Out of line, as [`hits_before_tmin`].
 #[inline(never)]
 pub fn hits_outside<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
-    outside_lanes(t, tmin, tmax)
+    outside_and_proven_lanes(t, tmin, tmax).0
 }
 
 /// [`outside_and_proven_lanes`] out of line, at the baseline.
@@ -51,25 +51,9 @@ pub(crate) fn hits_outside_and_proven<L: SimdLanes>(
     outside_and_proven_lanes(t, tmin, tmax)
 }
 
-/// [`hits_outside`]'s body, inlined where a level's own out-of-line copy is compiled.
-#[inline(always)]
-pub(crate) fn outside_lanes<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> u32 {
-    let b = EstimateBounds::of(t);
-    let two = L::splat(2.0);
-    let mut out = 0;
-    if tmin > 0.0 {
-        let bound = L::splat(tmin) * (t.den - two * b.dd) * L::splat(1.0 - ROUNDING);
-        out |= L::less_bits(t.num + two * b.dt, bound);
-    }
-    if tmax > 0.0 && tmax < f32::INFINITY {
-        let bound = L::splat(tmax) * (t.den + two * b.dd) * L::splat(1.0 + ROUNDING);
-        out |= L::less_bits(bound, t.num - two * b.dt);
-    }
-    L::less_bits(b.de, b.e_min) & out
-}
-
-/// [`outside_lanes`], and beside it the lanes whose hit [`proven_hit`] proves inside
-/// `[tmin, tmax]` (`tmin > 0`): the same bounds, computed once for every lane. A lane is
+/// [`hits_outside`]'s lanes (the body of its out-of-line copies per level), and beside them
+/// the lanes whose hit [`proven_hit`] proves inside `[tmin, tmax]` (`tmin > 0`): the same
+/// bounds, computed once for every lane. A lane is
 /// proven only where its inputs are all finite (the lanes' `max` drops NaN where `f32::max`
 /// of the one-lane form keeps the other operand); where they are, its bit is `proven_hit`'s
 /// answer for that lane's edge functions, as long as none of them is zero (the caller masks
