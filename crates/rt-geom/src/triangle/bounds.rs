@@ -25,7 +25,8 @@ use crate::{PrimHit, Ray};
 /// NaN or infinite inputs fail the comparisons: such lanes are never culled. Out of line:
 /// [`watertight_lanes`](super::watertight_lanes) asks only for rays with `tmin > 0` and lanes whose `f32` estimate
 /// lies before `tmin`: inlined, or asked for every lane that passed the sign test, it cost
-/// more than it saved.
+/// more than it saved. (Unfiltered any-hit leaf tests ask for every window with a candidate,
+/// since the same pass proves their hits: [`proven_hit`] for all the lanes at once.)
 #[inline(never)]
 pub fn hits_before_tmin<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32) -> u32 {
     hits_outside(t, tmin, f32::INFINITY)
@@ -53,11 +54,10 @@ pub(crate) fn hits_outside_and_proven<L: SimdLanes>(
 
 /// [`hits_outside`]'s lanes (the body of its out-of-line copies per level), and beside them
 /// the lanes whose hit [`proven_hit`] proves inside `[tmin, tmax]` (`tmin > 0`): the same
-/// bounds, computed once for every lane. A lane is
-/// proven only where its inputs are all finite (the lanes' `max` drops NaN where `f32::max`
-/// of the one-lane form keeps the other operand); where they are, its bit is `proven_hit`'s
-/// answer for that lane's edge functions, as long as none of them is zero (the caller masks
-/// those).
+/// bounds, computed once for every lane. A lane is proven only where its inputs are all
+/// finite (the lanes' `max` drops NaN where `f32::max` of the one-lane form keeps the other
+/// operand); where they are, its bit is `proven_hit`'s answer for that lane's edge
+/// functions, as long as none of them is zero (the caller masks those).
 #[inline(always)]
 pub(crate) fn outside_and_proven_lanes<L: SimdLanes>(
     t: &ShearedLanes<L>,
