@@ -166,11 +166,11 @@ impl TriangleSoa {
             }
         }
         crate::counters::prims(lanes.count_ones());
-        // Row `j` straight from the leaf (the ray's axes pick which rows are read).
         // Any-hit queries leaving a surface: the lanes whose hit `proven_hit` proves, all at
-        // once with the window's other bounds (one lane at a time, the proof's dependent
-        // chain cost sponza's shadow rays a seventh of their time).
+        // once with the window's other bounds, rather than one lane at a time (a long chain
+        // of dependent operations on the way to the query's end).
         let prove = ANY_HIT && !K::FILTERED && r.tmin > 0.0;
+        // Row `j` straight from the leaf (the ray's axes pick which rows are read).
         let (may_hit, proven, sheared) = watertight_rows_at(
             level,
             #[inline(always)]
