@@ -86,12 +86,7 @@ impl TriangleSoa {
     /// Triangle `k` of the leaf `(first, count)`.
     #[inline]
     pub fn get(&self, first: usize, count: usize, k: usize) -> Triangle {
-        let c = |j: usize| self.data[9 * first + j * count + k];
-        Triangle::new(
-            Vec3::new(c(0), c(1), c(2)),
-            Vec3::new(c(3), c(4), c(5)),
-            Vec3::new(c(6), c(7), c(8)),
-        )
+        triangle_at(&self.data[9 * first..], count, k)
     }
 
     /// Bytes of the triangle data.
@@ -179,8 +174,9 @@ impl TriangleSoa {
             prove,
         );
         let mut may_hit = may_hit & lanes;
-        if may_hit != 0 && !self.degenerate.is_empty() {
-            // `finish_watertight` returns `None` for them: not asked.
+        if !self.degenerate.is_empty() {
+            // `finish_watertight` returns `None` for them: not asked. (Masked whether or not
+            // a lane may hit: a branch on the scene, not on the ray.)
             may_hit &= !self.degenerate_bits(first + k);
         }
         while may_hit != 0 {
@@ -212,7 +208,7 @@ impl TriangleSoa {
             if !signs_agree(edges) {
                 continue;
             }
-            if let Some(h) = level.finish(&self.get(first, count, k + l), r, edges) {
+            if let Some(h) = level.finish(&triangle_at(leaf, count, k + l), r, edges) {
                 if best.keep::<ANY_HIT>(h, ids[k + l], &mut r.tmax) {
                     return true;
                 }
@@ -236,6 +232,22 @@ impl TriangleSoa {
     ) -> bool {
         self.test_range::<ANY_HIT, V>(level, (first, count), ids, r, |_| false, best)
     }
+}
+
+/// Triangle `k` of a leaf of `count` triangles whose rows start at `leaf[0]` (inlined into the
+/// leaf tests, which compile per level: one bounds check for the nine loads).
+#[inline(always)]
+fn triangle_at(leaf: &[f32], count: usize, k: usize) -> Triangle {
+    assert!(k < count, "triangle {k} of a leaf of {count}");
+    let mut c = [0.0; 9];
+    for (c, row) in c.iter_mut().zip(leaf[..9 * count].chunks_exact(count)) {
+        *c = row[k];
+    }
+    Triangle::new(
+        Vec3::new(c[0], c[1], c[2]),
+        Vec3::new(c[3], c[4], c[5]),
+        Vec3::new(c[6], c[7], c[8]),
+    )
 }
 
 /// The primitives of a structure whose leaves list them by id (ranges of an index array):
