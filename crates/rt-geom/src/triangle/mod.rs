@@ -245,8 +245,7 @@ impl Triangle {
     ///   point of the ray closest to the triangle's boundary.
     #[inline(always)]
     pub fn refine(&self, ray: &Ray, (u, v, w): (f32, f32, f32)) -> Option<PrimHit> {
-        // A select, not a branch (the sign of the sum follows the triangle's facing).
-        let orient = 1.0 - 2.0 * f64::from(u8::from(u + v + w < 0.0));
+        let orient = if u + v + w < 0.0 { -1.0 } else { 1.0 };
         let edges = self.edges_in_f64(ray, orient);
         let t = match edges.depth() {
             Some(t) => t as f32,
@@ -282,23 +281,20 @@ impl Triangle {
         Some(PrimHit { t, u, v })
     }
 
-    /// The edge functions `(U, V, W)` times `orient`, in `f64` from the `f32` inputs, and the
-    /// vertices' depths along the ray: in the ray's shear scaled by its largest direction
-    /// component `dz` (sheared `x = p[kx] dz - d[kx] p[kz]`, with vertex minus origin exact
-    /// and each product exact, one rounding; `z = p[kz]`), which multiplies every edge function
-    /// by `dz^2 > 0` and every depth by `dz`: the same signs and ratios as the shear divided
-    /// by `dz`, without its three divisions, and one rounding fewer per coordinate.
+    /// The edge functions `(U, V, W)` times `orient`, in `f64` from the `f32` inputs in the
+    /// ray's exact shear (vertex minus origin is exact, each product rounded once), and the
+    /// vertices' depths along the ray.
     #[inline(always)]
     fn edges_in_f64(&self, ray: &Ray, orient: f64) -> EdgesF64 {
         // Coordinates as arrays indexed by the ray's axes (one load each; a `DVec3` indexed
         // at run time branches on the index).
         let [kx, ky, kz] = ray.watertight_axes();
         let da = ray.dir().as_dvec3().to_array();
-        let (dx, dy, dz) = (da[kx], da[ky], da[kz]);
+        let (sx, sy, sz) = (da[kx] / da[kz], da[ky] / da[kz], 1.0 / da[kz]);
         let o = ray.origin().as_dvec3();
         let shear = |p: Vec3| {
             let p = (p.as_dvec3() - o).to_array();
-            (p[kx] * dz - dx * p[kz], p[ky] * dz - dy * p[kz], p[kz])
+            (p[kx] - sx * p[kz], p[ky] - sy * p[kz], p[kz] * sz)
         };
         let (ax, ay, az) = shear(self.v[0]);
         let (bx, by, bz) = shear(self.v[1]);
@@ -310,7 +306,6 @@ impl Triangle {
                 (bx * ay - by * ax) * orient,
             ],
             z: [az, bz, cz],
-            dz,
         }
     }
 
@@ -374,13 +369,10 @@ impl Triangle {
     }
 }
 
-/// Edge functions and vertex depths of a triangle in a ray's shear scaled by `dz` (the ray's
-/// largest direction component), in `f64`.
+/// Edge functions and vertex depths of a triangle in a ray's shear, in `f64`.
 struct EdgesF64 {
     e: [f64; 3],
-    /// Depths times `dz`.
     z: [f64; 3],
-    dz: f64,
 }
 
 impl EdgesF64 {
@@ -391,7 +383,7 @@ impl EdgesF64 {
         let [e0, e1, e2] = self.e;
         let sum = e0 + e1 + e2;
         (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0 && sum > 0.0)
-            .then(|| (e0 * self.z[0] + e1 * self.z[1] + e2 * self.z[2]) / (sum * self.dz))
+            .then(|| (e0 * self.z[0] + e1 * self.z[1] + e2 * self.z[2]) / sum)
     }
 
     /// The barycentrics `(V, W) / (U + V + W)` of the edge functions clamped to `>= 0` (the
