@@ -235,7 +235,7 @@ impl TriangleSoa {
 }
 
 /// Triangle `k` of a leaf of `count` triangles whose rows start at `leaf[0]` (inlined into the
-/// leaf tests, which compile per level: one bounds check for the nine loads).
+/// leaf tests, which compile per level; the nine loads checked at once).
 #[inline(always)]
 fn triangle_at(leaf: &[f32], count: usize, k: usize) -> Triangle {
     assert!(k < count, "triangle {k} of a leaf of {count}");
