@@ -81,9 +81,10 @@ enum Command {
         /// are not comparable with a plain run's).
         #[arg(long)]
         count: bool,
-        /// Measure a `-C target-cpu=native` build rather than the plain release build a
-        /// dependent crate gets.
-        #[arg(long)]
+        /// Measure a `-C target-cpu=native` build (rt's release profile) beside the plain
+        /// release build a dependent crate gets: three runs of each, in alternation, one table
+        /// of both.
+        #[arg(long, conflicts_with_all = ["json", "count", "sweep", "report"])]
         native: bool,
         /// The scaling sweep instead: build time and time per ray against N (1k to 1M
         /// triangles; --quick: to 100k) on spheres, soups and a teapot in a stadium, with log-log slopes. Uses the
@@ -198,6 +199,7 @@ fn main() -> ExitCode {
     let rerun = match (&cli.command, count, measuring) {
         (Command::View(args), _, _) => native::rerun_view(args.counting),
         (_, true, _) => native::rerun_counting(),
+        (Command::Bench { native: true, .. }, false, _) => native::bench_plain_and_native(),
         (_, false, Some(native)) => native::rerun_for_measuring(native),
         (_, false, None) => None,
     };

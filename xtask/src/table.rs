@@ -1,10 +1,10 @@
 //! One benchmark record, one table row: the columns `bench` prints and `bench --report` writes
 //! in `index.md`, formatted in one place.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// One measurement: a structure on a scene with a ray set and a thread count.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Record {
     pub accel: String,
     pub scene: String,
@@ -128,7 +128,13 @@ pub fn text(records: &[Record]) -> String {
         std::iter::once(headers(cols).iter().map(|h| h.to_string()).collect())
             .chain(records.iter().map(|r| cells(r, cols)))
             .collect();
-    let widths: Vec<usize> = (0..rows[0].len())
+    aligned(&rows, NAME_COLUMNS)
+}
+
+/// `rows` (a title row first) as aligned text: the first `names` columns left-aligned, the
+/// others (numbers) right-aligned.
+pub fn aligned(rows: &[Vec<String>], names: usize) -> String {
+    let widths: Vec<usize> = (0..rows.first().map_or(0, Vec::len))
         .map(|c| rows.iter().map(|r| r[c].len()).max().unwrap_or(0))
         .collect();
     let mut out = String::new();
@@ -138,7 +144,7 @@ pub fn text(records: &[Record]) -> String {
             .zip(&widths)
             .enumerate()
             .map(|(c, (cell, &w))| {
-                if c < NAME_COLUMNS {
+                if c < names {
                     format!("{cell:<w$}")
                 } else {
                     format!("{cell:>w$}")
