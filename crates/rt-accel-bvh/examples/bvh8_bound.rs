@@ -169,8 +169,8 @@ fn race<const ANY_HIT: bool>(bvh: &TriBvh8, rays: &[Ray]) -> Result<(), String> 
         });
     }
     let nodes = rt_geom::counters::take().nodes as usize;
-    // And by the walk alone, which knows the answer from the start (the whole walk meets its
-    // hit on the way: the boxes it tests before that beyond it are the difference).
+    // And by the walk alone, which knows the answer from the start: the whole walk finds its
+    // hit on the way, and the boxes beyond it that it tests before then are the difference.
     let walk_alone = Pass::<ANY_HIT, false> {
         bvh,
         rays,
