@@ -82,8 +82,8 @@ enum Command {
         #[arg(long)]
         count: bool,
         /// Measure a `-C target-cpu=native` build (rt's release profile) beside the plain
-        /// release build a dependent crate gets: three runs of each, in alternation, one table
-        /// of both.
+        /// release build a dependent crate gets: runs of each in alternation, one table of
+        /// both.
         #[arg(long, conflicts_with_all = ["json", "count", "sweep", "report"])]
         native: bool,
         /// The scaling sweep instead: build time and time per ray against N (1k to 1M

@@ -25,7 +25,7 @@ struct Build {
 }
 
 /// Cargo's default release settings, which a dependent crate's `cargo build --release` uses
-/// (rt's own profile asks for thin LTO and 4 codegen units).
+/// (rt's own release profile, in the workspace manifest, differs).
 const DEFAULT_RELEASE: &[(&str, &str)] = &[
     ("CARGO_PROFILE_RELEASE_LTO", "false"),
     ("CARGO_PROFILE_RELEASE_CODEGEN_UNITS", "16"),
@@ -71,9 +71,9 @@ pub fn rerun_for_measuring(native: bool) -> Option<ExitCode> {
 const NATIVE_RUNS: usize = 3;
 
 /// `bench --native`: the plain build and the one for this CPU run the same bench in
-/// alternation, three times each (the machine's speed swings over minutes; builds
-/// timed in alternation meet the same swings), and one table gives each row's median Mrays/s
-/// in both, the native build's lead, and each build's ratio to Embree default (tinybvh's, which
+/// alternation, `NATIVE_RUNS` runs each (the machine's speed swings over minutes; builds timed
+/// in alternation meet the same swings), and one table gives each row's median Mrays/s in
+/// both, the native build's lead, and each build's ratio to Embree default (tinybvh's, which
 /// only AVX2 builds carry, from the native runs). Unless this is a measuring build already
 /// (`None`: it measures itself).
 pub fn bench_plain_and_native() -> Option<ExitCode> {
