@@ -12,16 +12,21 @@
 //! `v0.y`, ... `v2.z`. A leaf's bytes are as contiguous as an array of triangles (the same
 //! cache lines), and the four-lane window of triangles `k .. k + 4` reads coordinate `j` at
 //! `9 * first + j * count + k`; lanes past the leaf read its next row (or the next leaf, or
-//! the [`LANES`] floats of padding at the end) and are masked off. Eight-lane windows are
-//! taken only while more than four triangles remain, so they stay inside the same bounds.
+//! the padding at the end) and are masked off. At the AVX2 level every window is
+//! eight lanes wide (one register, as cheap as four); at the baseline, eight-lane windows are
+//! taken while more than four triangles remain and four-lane ones after.
 
 use crate::isa::{BaseLevel, Isa, Kernel, Level};
 use crate::triangle::{SimdLanes, lane_edges, signs_agree, watertight_rows_at, woop_hit};
 use crate::{Keep, Primitive, Ray, Triangle, Vec3};
 use wide::f32x4;
 
-/// Triangles tested together in the narrow window (and the floats of padding at the end).
+/// Triangles tested together in the narrow window.
 pub const LANES: usize = 4;
+
+/// Floats of padding after the last leaf: an eight-lane window over a leaf's last row stays
+/// inside the data.
+pub const PADDING: usize = 8;
 
 /// Leaf-ordered triangles, each leaf as structure of arrays (see the module documentation).
 #[derive(Clone, Debug, Default)]
@@ -39,7 +44,7 @@ impl TriangleSoa {
     /// Lays out the leaf-ordered `tris`; `leaves` are the `(first, count)` ranges that cover
     /// them (each triangle in exactly one).
     pub fn new(tris: &[Triangle], leaves: impl IntoIterator<Item = (u32, u32)>) -> Self {
-        let mut data = vec![0.0; 9 * tris.len() + LANES];
+        let mut data = vec![0.0; 9 * tris.len() + PADDING];
         for (first, count) in leaves {
             let (first, count) = (first as usize, count as usize);
             for (k, t) in tris[first..first + count].iter().enumerate() {
@@ -89,14 +94,20 @@ impl TriangleSoa {
         triangle_at(&self.data[9 * first..], count, k)
     }
 
+    /// The layout's floats, leaf after leaf (see the module documentation), with the
+    /// padding at the end: leaf `(first, count)` is `rows()[9 * first..9 * (first + count)]`.
+    pub fn rows(&self) -> &[f32] {
+        &self.data
+    }
+
     /// Bytes of the triangle data.
     pub fn bytes(&self) -> usize {
         self.data.len() * 4 + self.degenerate.len() * 8
     }
 
     /// Tests triangles `first .. first + count` against the ray, in order: the edge functions
-    /// and their sign test for eight triangles at once while more than four remain, then
-    /// four (SIMD lanes, one bit mask), then the scalar kernel's own
+    /// and their sign test for eight triangles at once (at the baseline level: while more
+    /// than four remain, then four; SIMD lanes, one bit mask), then the scalar kernel's own
     /// [`Triangle::finish_watertight`] for the lanes that may hit, each hit offered to
     /// `best` ([`Keep::keep`], ids from `ids[first..]`), which records it and says whether the
     /// search is over. Triangles whose id `skip` names (mailboxes: asked in order, before
@@ -124,7 +135,10 @@ impl TriangleSoa {
         let ids = &ids[first..first + count];
         let mut k = 0;
         while k < count {
-            let over = if count - k > LANES {
+            // At the AVX2 level (a constant in each level's copy) eight lanes cost what four
+            // do, and one window covers a leaf of up to eight: no branch on the leaf's size.
+            let eight = V::ISA == Isa::Avx2 || count - k > LANES;
+            let over = if eight {
                 level.window8::<ANY_HIT>(self, leaf, k, ids, r, &mut skip, best)
             } else {
                 self.test_window::<f32x4, V, _, ANY_HIT>(level, leaf, k, ids, r, &mut skip, best)
@@ -132,14 +146,14 @@ impl TriangleSoa {
             if over {
                 return true;
             }
-            k += if count - k > LANES { 8 } else { LANES };
+            k += if eight { 8 } else { LANES };
         }
         false
     }
 
     /// Triangles `k .. k + L::WIDTH` of leaf `(first, count)` (those in the leaf), as
-    /// [`Self::test_range`] tests them. Windows of eight stay inside the leaf's rows and the
-    /// padding (they are taken only while more than four triangles remain).
+    /// [`Self::test_range`] tests them. Any window stays inside the leaf's rows, the next
+    /// leaf's and the padding.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn test_window<L: SimdLanes, V: Level, K: Keep, const ANY_HIT: bool>(
@@ -152,7 +166,7 @@ impl TriangleSoa {
         skip: &mut impl FnMut(u32) -> bool,
         best: &mut K,
     ) -> bool {
-        let leaf = &self.data[9 * first..9 * (first + count) + LANES];
+        let leaf = &self.data[9 * first..9 * (first + count) + PADDING];
         // Lanes past the leaf belong to the next one.
         let mut lanes = (1u32 << (count - k).min(L::WIDTH)) - 1;
         for (l, &id) in ids[k..].iter().take(L::WIDTH).enumerate() {

@@ -123,90 +123,96 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
     mut leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
 ) {
     let mut sp = 0usize;
+    // The root, then each child taken straight from its node's test (which entered it within
+    // the interval) or popped (checked against the closest hit found since it was pushed).
     let mut next = (0u32, 0u32, r.tmin);
     loop {
-        let (child, count, entry) = next;
-        if entry <= r.tmax {
-            if count > 0 {
-                if leaf(child, count, r, best) {
-                    return;
+        let (child, count, _) = next;
+        if count > 0 {
+            if leaf(child, count, r, best) {
+                return;
+            }
+        } else {
+            let node = &nodes[child as usize];
+            if rt_geom::counters::ENABLED {
+                let used = (0..N).filter(|&l| node.child(l) != u32::MAX).count();
+                rt_geom::counters::nodes(used as u32);
+            }
+            let (entered, t) = node.entries(level, slab, r.tmin, r.tmax);
+            let mut mask = entered & node.used_mask();
+            if mask != 0 {
+                let lane = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let item = (node.child(lane), node.count(lane), t[lane]);
+                if mask == 0 {
+                    next = item;
+                    continue;
                 }
-            } else {
-                let node = &nodes[child as usize];
-                if rt_geom::counters::ENABLED {
-                    let used = (0..N).filter(|&l| node.child(l) != u32::MAX).count();
-                    rt_geom::counters::nodes(used as u32);
-                }
-                let (entered, t) = node.entries(level, slab, r.tmin, r.tmax);
-                let mut mask = entered & node.used_mask();
-                if mask != 0 {
-                    let lane = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    let item = (node.child(lane), node.count(lane), t[lane]);
-                    if mask == 0 {
-                        next = item;
-                        continue;
-                    }
-                    if mask & (mask - 1) == 0 {
-                        // Two children: one visited next straight from the node, the other
-                        // pushed (no trip through the stack for the next node's index).
-                        // Closest hit: the nearer next; any hit: a leaf first.
-                        let l = mask.trailing_zeros() as usize;
-                        let other = (node.child(l), node.count(l), t[l]);
-                        let item_first = if ANY_HIT {
-                            item.1 > 0 && other.1 == 0
-                        } else {
-                            item.2 <= other.2
-                        };
-                        let (first, then) = if item_first {
-                            (item, other)
-                        } else {
-                            (other, item)
-                        };
-                        stack[sp] = then;
-                        sp += 1;
-                        next = first;
-                        continue;
-                    }
-                    if ANY_HIT {
-                        // Any hit ends the query: leaves go on top of the stack (tested
-                        // first), inner children under them, each group in lane order.
-                        mask |= 1 << lane;
-                        let leaves = node.leaf_mask();
-                        for mut group in [mask & !leaves, mask & leaves] {
-                            while group != 0 {
-                                let l = group.trailing_zeros() as usize;
-                                group &= group - 1;
-                                stack[sp] = (node.child(l), node.count(l), t[l]);
-                                sp += 1;
-                            }
-                        }
+                if mask & (mask - 1) == 0 {
+                    // Two children: one visited next straight from the node, the other
+                    // pushed (no trip through the stack for the next node's index).
+                    // Closest hit: the nearer next; any hit: a leaf first.
+                    let l = mask.trailing_zeros() as usize;
+                    let other = (node.child(l), node.count(l), t[l]);
+                    let item_first = if ANY_HIT {
+                        item.1 > 0 && other.1 == 0
                     } else {
-                        stack[sp] = item;
-                        sp += 1;
-                        let base = sp - 1;
-                        while mask != 0 {
-                            let lane = mask.trailing_zeros() as usize;
-                            mask &= mask - 1;
-                            let te = t[lane];
-                            let item = (node.child(lane), node.count(lane), te);
-                            let mut k = sp;
-                            while k > base && stack[k - 1].2 < te {
-                                stack[k] = stack[k - 1];
-                                k -= 1;
-                            }
-                            stack[k] = item;
+                        item.2 <= other.2
+                    };
+                    let (first, then) = if item_first {
+                        (item, other)
+                    } else {
+                        (other, item)
+                    };
+                    stack[sp] = then;
+                    sp += 1;
+                    next = first;
+                    continue;
+                }
+                if ANY_HIT {
+                    // Any hit ends the query: leaves go on top of the stack (tested
+                    // first), inner children under them, each group in lane order.
+                    mask |= 1 << lane;
+                    let leaves = node.leaf_mask();
+                    for mut group in [mask & !leaves, mask & leaves] {
+                        while group != 0 {
+                            let l = group.trailing_zeros() as usize;
+                            group &= group - 1;
+                            stack[sp] = (node.child(l), node.count(l), t[l]);
                             sp += 1;
                         }
+                    }
+                } else {
+                    stack[sp] = item;
+                    sp += 1;
+                    let base = sp - 1;
+                    while mask != 0 {
+                        let lane = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        let te = t[lane];
+                        let item = (node.child(lane), node.count(lane), te);
+                        let mut k = sp;
+                        while k > base && stack[k - 1].2 < te {
+                            stack[k] = stack[k - 1];
+                            k -= 1;
+                        }
+                        stack[k] = item;
+                        sp += 1;
                     }
                 }
             }
         }
-        if sp == 0 {
-            return;
+        // Pop the next pending subtree; it may have been passed by the closest hit.
+        loop {
+            if sp == 0 {
+                return;
+            }
+            sp -= 1;
+            next = stack[sp];
+            if next.2 <= r.tmax {
+                break;
+            }
         }
-        sp -= 1;
-        next = stack[sp];
     }
 }
 
