@@ -151,7 +151,9 @@ fn measure(entry: &AccelEntry, p: &Placement, repeat: usize, pool: &rayon::Threa
         Ok(accel) => {
             let mut out = vec![HitRecord::MISS; p.rays.len()];
             let mut times: Vec<f64> = (0..repeat.max(1))
-                .map(|_| trace_into(accel.as_ref(), &p.rays, false, pool, &mut out).as_secs_f64())
+                .map(|_| {
+                    trace_into(accel.as_ref(), &p.rays, false, 1, pool, &mut out).as_secs_f64()
+                })
                 .collect();
             times.sort_by(f64::total_cmp);
             run.trace_seconds = times[times.len() / 2];

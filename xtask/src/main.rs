@@ -141,6 +141,11 @@ enum Command {
         /// Measure a `-C target-cpu=native` build rather than the plain release build.
         #[arg(long)]
         native: bool,
+        /// Also time each ray queried twice in a row and report the second query's rate
+        /// (`warm_mrays_s`: its nodes and leaves cached, its branches just seen), beside the
+        /// cold one (single rays only).
+        #[arg(long, conflicts_with = "packet")]
+        warm: bool,
         #[arg(long)]
         out: Option<PathBuf>,
     },
@@ -394,6 +399,7 @@ fn run(command: Command) -> Result<ExitCode, String> {
             width,
             out,
             native: _,
+            warm,
         } => {
             let s = trace::trace(&trace::TraceOptions {
                 mesh,
@@ -404,6 +410,7 @@ fn run(command: Command) -> Result<ExitCode, String> {
                 repeat,
                 packet: packet.map(|(w, h)| (w as usize, h as usize)),
                 width,
+                warm,
                 out,
             })?;
             println!("{}", s.line());

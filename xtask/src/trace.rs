@@ -20,6 +20,8 @@ pub struct TraceOptions {
     /// Trace `(w, h)` tiles of a row-major image `width` pixels wide as packets.
     pub packet: Option<(usize, usize)>,
     pub width: Option<usize>,
+    /// Also time each ray queried twice in a row ([`TraceSummary::warm_mrays_s`]).
+    pub warm: bool,
     pub out: Option<PathBuf>,
 }
 
@@ -35,12 +37,19 @@ pub struct TraceSummary {
     /// Median over the repetitions.
     pub trace_ms: f64,
     pub mrays_s: f64,
+    /// With [`TraceOptions::warm`]: the rate of a ray's second query in a row (its nodes and
+    /// leaves cached, its branches just seen), from the medians of the passes that query each
+    /// ray twice and of those that query it once.
+    pub warm_mrays_s: Option<f64>,
 }
 
 impl TraceSummary {
     pub fn line(&self) -> String {
+        let warm = self
+            .warm_mrays_s
+            .map_or(String::new(), |w| format!(" warm_mrays_s={w:.3}"));
         format!(
-            "rays={} hits={} build_ms={:.3} trace_ms={:.3} mrays_s={:.3}",
+            "rays={} hits={} build_ms={:.3} trace_ms={:.3} mrays_s={:.3}{warm}",
             self.rays, self.hits, self.build_ms, self.trace_ms, self.mrays_s
         )
     }
@@ -82,17 +91,26 @@ pub fn trace(opts: &TraceOptions) -> Result<TraceSummary, String> {
     ));
     let start = Instant::now();
     let mut out = vec![HitRecord::MISS; rays.len()];
+    let mut twice = Vec::new();
     let (build_ms, times): (f64, Vec<_>) = match opts.packet {
         None => {
             let accel =
                 (entry.build)(&tris).map_err(|e| format!("{}: {e}", opts.mesh.display()))?;
             let build_ms = start.elapsed().as_secs_f64() * 1e3;
             pb.finish_and_clear();
-            let times = (0..opts.repeat)
-                .map(|_| run::trace_into(accel.as_ref(), &rays, opts.occluded, &pool, &mut out))
-                .collect();
+            let trace = |runs, out: &mut [HitRecord]| {
+                run::trace_into(accel.as_ref(), &rays, opts.occluded, runs, &pool, out)
+            };
+            let mut times = Vec::new();
+            for _ in 0..opts.repeat {
+                times.push(trace(1, &mut out));
+                if opts.warm {
+                    twice.push(trace(2, &mut out));
+                }
+            }
             (build_ms, times)
         }
+        Some(_) if opts.warm => return Err("--warm times single rays, not --packet".into()),
         Some((w, h)) => {
             let packets = packet_tiles(entry, (w, h), opts.width, rays.len())?;
             let build = entry.packets.expect("checked by packet_tiles");
@@ -115,6 +133,11 @@ pub fn trace(opts: &TraceOptions) -> Result<TraceSummary, String> {
         }
     };
     let trace_time = run::median(times);
+    // The second query of each pair: twice's time less once's.
+    let warm_mrays_s = (!twice.is_empty()).then(|| {
+        let second = run::median(twice).saturating_sub(trace_time);
+        run::mrays_per_s(rays.len(), second)
+    });
     if let Some(path) = &opts.out {
         rayfile::write_hits(path, &out)?;
     }
@@ -125,6 +148,7 @@ pub fn trace(opts: &TraceOptions) -> Result<TraceSummary, String> {
         build_ms,
         trace_ms: trace_time.as_secs_f64() * 1e3,
         mrays_s: run::mrays_per_s(rays.len(), trace_time),
+        warm_mrays_s,
     })
 }
 

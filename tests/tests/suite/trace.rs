@@ -24,6 +24,7 @@ fn trace_writes_hits_and_rejects_absurd_parameters() {
         repeat: 1,
         packet: None,
         width: None,
+        warm: false,
         // A folder that does not exist yet is created.
         out: Some(dir.join("new/folder/h.hits")),
     };
@@ -31,6 +32,17 @@ fn trace_writes_hits_and_rejects_absurd_parameters() {
     assert_eq!((s.rays, s.hits), (2, 1));
     let hits = xtask::rayfile::parse_hits(&std::fs::read(dir.join("new/folder/h.hits")).unwrap());
     assert_eq!(hits.unwrap()[0].prim, 0);
+    assert_eq!(s.warm_mrays_s, None);
+    // Each ray twice in a row: the same answers, and the second query's rate.
+    let warm = trace(&TraceOptions {
+        warm: true,
+        repeat: 3,
+        ..opts.clone()
+    })
+    .unwrap();
+    assert_eq!((warm.rays, warm.hits), (2, 1));
+    assert!(warm.warm_mrays_s.is_some_and(|w| w > 0.0), "{warm:?}");
+    assert!(warm.line().contains("warm_mrays_s="), "{}", warm.line());
     for (what, o, expect) in [
         (
             "10^5 threads",
@@ -55,6 +67,16 @@ fn trace_writes_hits_and_rejects_absurd_parameters() {
                 ..opts.clone()
             },
             "repeat",
+        ),
+        (
+            "warm packets",
+            TraceOptions {
+                warm: true,
+                packet: Some((1, 1)),
+                width: Some(2),
+                ..opts.clone()
+            },
+            "--warm",
         ),
         (
             "missing mesh",
