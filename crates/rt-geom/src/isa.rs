@@ -184,10 +184,12 @@ pub(crate) mod sealed {
         /// [`Level::le_bits8`](super::Level::le_bits8).
         fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32;
         /// [`hits_outside`](crate::triangle::hits_outside), and the lanes
-        /// [`proven_hit`](crate::triangle::proven_hit) proves, compiled for the level.
+        /// [`proven_hit`](crate::triangle::proven_hit) proves, compiled for the level (out of
+        /// line at the baseline, inlined into the AVX2 level's copy).
         fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> (u32, u32);
         /// The `f64` refinement of an accepted triangle of nonzero area (the caller drops
-        /// zero-area ones), compiled for the level.
+        /// zero-area ones), compiled for the level (out of line at the baseline, inlined into
+        /// the AVX2 level's copy).
         fn finish(self, tri: &Triangle, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit>;
     }
 }
@@ -240,16 +242,17 @@ impl sealed::Sealed for Avx2Level {
 
     window8_on!(crate::triangle::Avx8);
 
+    // The bounds and the refinement inlined into the level's copy of the leaf test (compiled
+    // for AVX2 with it): a call per candidate lane cost more than the code it keeps out of
+    // the loop.
     #[inline(always)]
     fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> (u32, u32) {
-        // SAFETY: an `Avx2Level` is made only by `run`, after finding AVX2 and FMA.
-        unsafe { crate::triangle::outside_avx2(t, tmin, tmax) }
+        crate::triangle::outside_and_proven_lanes(t, tmin, tmax)
     }
 
     #[inline(always)]
     fn finish(self, tri: &Triangle, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
-        // SAFETY: as in `outside`.
-        unsafe { crate::triangle::finish_avx2(tri, ray, e) }
+        tri.finish_nondegenerate_inline(ray, e)
     }
 }
 

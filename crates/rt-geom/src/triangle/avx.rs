@@ -8,9 +8,7 @@
 //! what `wide::f32x8`'s SSE form computes, lane by lane, so the answers are the same bit for
 //! bit. Measured reason: the plain build's queries ran 8-16% slower on `wide`'s SSE pairs.
 
-use super::Triangle;
-use super::simd::{ShearedLanes, SimdLanes};
-use crate::{PrimHit, Ray};
+use super::simd::SimdLanes;
 use std::arch::x86_64::*;
 
 /// Eight `f32` lanes in one AVX register.
@@ -126,20 +124,4 @@ impl SimdLanes for Avx8 {
         // SAFETY: as in `add`.
         bits(unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(a.0, b.0) })
     }
-}
-
-/// [`super::hits_outside`], with the lanes [`super::proven_hit`] proves, compiled for AVX2, out
-/// of line as it is.
-#[target_feature(enable = "avx2,fma")]
-#[inline(never)]
-pub(crate) fn outside_avx2<L: SimdLanes>(t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> (u32, u32) {
-    super::bounds::outside_and_proven_lanes(t, tmin, tmax)
-}
-
-/// [`Triangle::finish_nondegenerate`] (the `f64` refinement of a triangle of nonzero area)
-/// compiled for AVX2, out of line as it is.
-#[target_feature(enable = "avx2,fma")]
-#[inline(never)]
-pub(crate) fn finish_avx2(tri: &Triangle, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
-    tri.finish_nondegenerate_inline(ray, e)
 }

@@ -52,7 +52,7 @@ pub(crate) fn hits_outside_and_proven<L: SimdLanes>(
     outside_and_proven_lanes(t, tmin, tmax)
 }
 
-/// [`hits_outside`]'s lanes (the body of its out-of-line copies per level), and beside them
+/// [`hits_outside`]'s lanes (its body, inlined at the AVX2 level), and beside them
 /// the lanes whose hit [`proven_hit`] proves inside `[tmin, tmax]` (`tmin > 0`): the same
 /// bounds, computed once for every lane. A lane is proven only where its inputs are all
 /// finite (the lanes' `max` drops NaN where `f32::max` of the one-lane form keeps the other

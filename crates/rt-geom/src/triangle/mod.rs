@@ -17,8 +17,10 @@ mod lanes;
 mod simd;
 
 #[cfg(target_arch = "x86_64")]
-pub(crate) use avx::{Avx8, finish_avx2, outside_avx2};
+pub(crate) use avx::Avx8;
 pub use bounds::{hits_before_tmin, hits_outside, proven_hit};
+#[cfg(target_arch = "x86_64")]
+pub(crate) use bounds::outside_and_proven_lanes;
 pub(crate) use bounds::{hits_outside_and_proven, woop_hit};
 pub(crate) use lanes::test_triangles;
 pub(crate) use lanes::watertight_rows_at;
@@ -211,8 +213,7 @@ impl Triangle {
         self.finish_nondegenerate_inline(ray, e)
     }
 
-    /// [`Self::finish_nondegenerate`]'s body, inlined where a level's own out-of-line copy is
-    /// compiled.
+    /// [`Self::finish_nondegenerate`]'s body, inlined into the AVX2 level's leaf test.
     #[inline(always)]
     pub(crate) fn finish_nondegenerate_inline(
         &self,
