@@ -95,8 +95,7 @@ pub(crate) fn watertight_rows_at<L: SimdLanes, V: Level>(
     let (cut_before, cut_after) = (tmin > 0.0, tmax > 0.0 && tmax < f32::INFINITY);
     if may_hit != 0 && (cut_before || cut_after) {
         // Woop's depth estimate `T / D` first (a few operations): only lanes it puts before
-        // `tmin` or after `tmax` are worth the rigorous bounds; real hits skip
-        // them.
+        // `tmin` or after `tmax` are worth the rigorous bounds; real hits skip them.
         let sz = L::splat(s.z);
         let z = [dz[0] * sz, dz[1] * sz, dz[2] * sz];
         let e = [u.abs(), v.abs(), w.abs()];
