@@ -192,8 +192,8 @@ impl Triangle {
         self.finish_accepted_inline(ray, e)
     }
 
-    /// [`Self::finish_accepted`]'s body, inlined where a level's own out-of-line copy is
-    /// compiled.
+    /// [`Self::finish_accepted`]'s body, inlined into kernels compiled per level (through
+    /// [`Self::finish_watertight_inline`]).
     #[inline(always)]
     pub(crate) fn finish_accepted_inline(
         &self,
