@@ -25,8 +25,8 @@
 //!
 //! With `--against KEY=VALUE`, instead: the whole query against the same structure with one
 //! change (another instruction set, `isa=baseline`, or a build parameter such as
-//! `leaf_block=8`), the two timed in turn on alternate chunks of rays, which resolves
-//! differences of about 1% on a machine whose speed swings by 20% between runs.
+//! `leaf_block=8`), the two timed in turn on alternate chunks of rays, so that the machine's
+//! swings in speed over seconds fall on both alike.
 //!
 //! `cargo run --release -p rt-accel-bvh --features measure --example bvh8_bound -- MESH.obj RAYS.rays [--occluded] [--against KEY=VALUE]`
 //! (`cargo xtask rays` writes the ray files).

@@ -18,9 +18,9 @@ mod simd;
 
 #[cfg(target_arch = "x86_64")]
 pub(crate) use avx::Avx8;
-pub use bounds::{hits_before_tmin, hits_outside, proven_hit};
 #[cfg(target_arch = "x86_64")]
 pub(crate) use bounds::outside_and_proven_lanes;
+pub use bounds::{hits_before_tmin, hits_outside, proven_hit};
 pub(crate) use bounds::{hits_outside_and_proven, woop_hit};
 pub(crate) use lanes::test_triangles;
 pub(crate) use lanes::watertight_rows_at;
