@@ -324,7 +324,6 @@ fn in_exact_domain<P: rt_geom::Primitive>(
     }
     match hit {
         None => true,
-        Some(h) if h.t == 0.0 => true,
         Some(h) => {
             let e = prims[h.prim as usize].bounds().extent().to_array();
             let narrowest = e
@@ -344,9 +343,12 @@ fn in_exact_domain<P: rt_geom::Primitive>(
             // The hit's offset from the origin along each axis the ray moves on is a normal
             // `f32`: where `t * d` underflows, the kernel sees the ray on a vertex or edge
             // that the exact box test finds the ray already past.
+            // A hit at `t = 0` (a ray starting on a surface) has no offset; it is exact only
+            // when its origin lies near the primitive, as any other hit.
             let offsets_normal = (0..3)
                 .all(|a| d[a] == 0.0 || (d[a] * h.t as f64).abs() >= f32::MIN_POSITIVE as f64);
-            h.t.abs() >= f32::MIN_POSITIVE && offsets_normal && reach <= FAR_HIT * narrowest as f64
+            let t_normal = h.t == 0.0 || (h.t.abs() >= f32::MIN_POSITIVE && offsets_normal);
+            t_normal && reach <= FAR_HIT * narrowest as f64
         }
     }
 }

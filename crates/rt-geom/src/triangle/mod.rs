@@ -243,14 +243,16 @@ impl Triangle {
     /// - when they do not (the `f32` test accepted a ray that passes a rounding error outside
     ///   an edge or vertex, typically grazing the plane, where the plane equation would put the
     ///   hit far along the ray, outside the triangle's box), `t` is the ray parameter of the
-    ///   point of the ray closest to the triangle's boundary.
+    ///   point of the ray closest to the triangle's boundary, held to the ray's interval over
+    ///   the triangle's box (no hit where the ray passes the box by more than the box
+    ///   tests' padding).
     #[inline(always)]
     pub fn refine(&self, ray: &Ray, (u, v, w): (f32, f32, f32)) -> Option<PrimHit> {
         let orient = if u + v + w < 0.0 { -1.0 } else { 1.0 };
         let edges = self.edges_in_f64(ray, orient);
         let t = match edges.depth() {
             Some(t) => t as f32,
-            None => self.closest_on_boundary(ray.origin().as_dvec3(), ray.dir().as_dvec3())? as f32,
+            None => self.grazing_depth(ray)?,
         };
         if !ray.in_range(t) {
             return None;
@@ -308,6 +310,31 @@ impl Triangle {
             ],
             z: [az, bz, cz],
         }
+    }
+
+    /// The depth of a grazing hit (the `f32` test accepts it, the `f64` edge functions do
+    /// not agree): the parameter of the point of the ray closest to the triangle's boundary,
+    /// moved into the ray's interval over the triangle's box (or, for a ray that passes the
+    /// box, between its exit and its entry) and kept only where [`Aabb::holds_hit`] holds it,
+    /// so that every structure whose padded boxes or cells hold the triangle finds it there.
+    fn grazing_depth(&self, ray: &Ray) -> Option<f32> {
+        let (o, d) = (ray.origin().as_dvec3(), ray.dir().as_dvec3());
+        let s = self.closest_on_boundary(o, d)?;
+        let b = self.bounds();
+        let (lo, hi, o, d) = (
+            b.min.as_dvec3().to_array(),
+            b.max.as_dvec3().to_array(),
+            o.to_array(),
+            d.to_array(),
+        );
+        let (mut enter, mut exit) = (f64::NEG_INFINITY, f64::INFINITY);
+        for a in (0..3).filter(|&a| d[a] != 0.0) {
+            let (t0, t1) = ((lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]);
+            enter = enter.max(t0.min(t1));
+            exit = exit.min(t0.max(t1));
+        }
+        let t = s.max(enter.min(exit)).min(enter.max(exit)) as f32;
+        b.holds_hit(ray, t).then_some(t)
     }
 
     /// The parameter `s` of the point of the line `o + s d` closest to the triangle's edges.
