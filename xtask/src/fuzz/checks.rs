@@ -343,10 +343,10 @@ fn in_exact_domain<P: rt_geom::Primitive>(
             // The hit's offset from the origin along each axis the ray moves on is a normal
             // `f32`: where `t * d` underflows, the kernel sees the ray on a vertex or edge
             // that the exact box test finds the ray already past.
-            // A hit at `t = 0` (a ray starting on a surface) has no offset; it is exact only
-            // when its origin lies near the primitive, as any other hit.
             let offsets_normal = (0..3)
                 .all(|a| d[a] == 0.0 || (d[a] * h.t as f64).abs() >= f32::MIN_POSITIVE as f64);
+            // A hit at `t = 0` (a ray starting on a surface) has no offset; it is exact only
+            // where its origin lies near the primitive (`reach`), as any other hit.
             let t_normal = h.t == 0.0 || (h.t.abs() >= f32::MIN_POSITIVE && offsets_normal);
             t_normal && reach <= FAR_HIT * narrowest as f64
         }
