@@ -287,6 +287,26 @@ impl Aabb {
         })
     }
 
+    /// The parameters at which `ray`'s line enters and leaves the box's slabs, in `f64` from
+    /// the `f32` inputs (each one rounded once), the axes the ray does not move along left
+    /// out and the ray's interval ignored: entry after exit where the line passes the box.
+    pub(crate) fn slab_interval_f64(&self, ray: &Ray) -> (f64, f64) {
+        let (o, d) = (ray.origin().to_array(), ray.dir().to_array());
+        let (mut enter, mut exit) = (f64::NEG_INFINITY, f64::INFINITY);
+        for a in (0..3).filter(|&a| d[a] != 0.0) {
+            let (lo, hi, o, d) = (
+                self.min[a] as f64,
+                self.max[a] as f64,
+                o[a] as f64,
+                d[a] as f64,
+            );
+            let (t0, t1) = ((lo - o) / d, (hi - o) / d);
+            enter = enter.max(t0.min(t1));
+            exit = exit.min(t0.max(t1));
+        }
+        (enter, exit)
+    }
+
     /// Index of the axis with the largest extent (0 = x).
     #[inline]
     pub fn largest_axis(&self) -> usize {
@@ -466,22 +486,11 @@ mod tests {
     /// test (NaN planes ignored).
     fn exact(b: &Aabb, r: &Ray) -> Option<(f64, f64)> {
         let (o, d) = (r.origin(), r.dir());
-        let (mut t0, mut t1) = (r.tmin as f64, r.tmax as f64);
-        for a in 0..3 {
-            let (lo, hi) = (b.min[a] as f64, b.max[a] as f64);
-            if d[a] == 0.0 {
-                if (o[a] as f64) < lo || (o[a] as f64) > hi {
-                    return None;
-                }
-                continue;
-            }
-            let (ta, tb) = (
-                (lo - o[a] as f64) / d[a] as f64,
-                (hi - o[a] as f64) / d[a] as f64,
-            );
-            t0 = t0.max(ta.min(tb));
-            t1 = t1.min(ta.max(tb));
+        if (0..3).any(|a| d[a] == 0.0 && (o[a] < b.min[a] || o[a] > b.max[a])) {
+            return None;
         }
+        let (enter, exit) = b.slab_interval_f64(r);
+        let (t0, t1) = (enter.max(r.tmin as f64), exit.min(r.tmax as f64));
         (t0 <= t1).then_some((t0, t1))
     }
 

@@ -321,18 +321,7 @@ impl Triangle {
         let (o, d) = (ray.origin().as_dvec3(), ray.dir().as_dvec3());
         let s = self.closest_on_boundary(o, d)?;
         let b = self.bounds();
-        let (lo, hi, o, d) = (
-            b.min.as_dvec3().to_array(),
-            b.max.as_dvec3().to_array(),
-            o.to_array(),
-            d.to_array(),
-        );
-        let (mut enter, mut exit) = (f64::NEG_INFINITY, f64::INFINITY);
-        for a in (0..3).filter(|&a| d[a] != 0.0) {
-            let (t0, t1) = ((lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]);
-            enter = enter.max(t0.min(t1));
-            exit = exit.min(t0.max(t1));
-        }
+        let (enter, exit) = b.slab_interval_f64(ray);
         let t = s.max(enter.min(exit)).min(enter.max(exit)) as f32;
         b.holds_hit(ray, t).then_some(t)
     }
