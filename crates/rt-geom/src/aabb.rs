@@ -57,6 +57,14 @@ pub fn f32_at_or_above(v: f64) -> f32 {
 /// `tmin >= 0` they only lose against `tmin` (entries) or mean a box behind the ray (exits).
 /// Rays with `tmin < 0` keep the plain reciprocal and pad the interval afterwards
 /// (`pad_after`), as `clip_ray` does.
+///
+/// Levels with fused multiply-add take each plane distance in one operation instead,
+/// `plane * inv + offset` ([`Self::fused_distances`], Embree's form): the offset `-origin *
+/// inv` is rounded outward once per ray (down for near planes, up for far ones), so it only
+/// moves entries earlier and exits later, and the one rounding of the fused operation stays
+/// within the padding budgeted for four. An axis whose reciprocal or offset is not finite (a
+/// zero direction component) constrains nothing in that form: conservative, where the
+/// difference form culls boxes beside the ray.
 #[derive(Clone, Copy, Debug)]
 pub struct SlabRay {
     /// The ray origin.
@@ -69,6 +77,12 @@ pub struct SlabRay {
     pub neg: [bool; 3],
     /// The interval is padded after the planes (rays with `tmin < 0`).
     pub pad_after: bool,
+    /// Per axis, the reciprocal of the fused form for near planes and for far planes (the
+    /// padded ones; 0 where the axis constrains nothing).
+    pub fused_inv: [[f32; 3]; 2],
+    /// Per axis, `-origin * inv` of the fused form rounded down (near planes) and up (far
+    /// planes); `-inf` and `+inf` where the axis constrains nothing.
+    pub fused_offset: [[f32; 3]; 2],
 }
 
 impl SlabRay {
@@ -95,13 +109,47 @@ impl SlabRay {
     pub fn with_inv_dir(ray: &Ray, inv: [f32; 3]) -> Self {
         let pad_after = !(ray.tmin >= 0.0);
         let (near, far) = Self::fold_factors(ray.tmin);
+        let origin = ray.origin().to_array();
+        let inv_near = inv.map(|i| i * near);
+        let inv_far = inv.map(|i| i * far);
+        let mut fused_inv = [[0.0; 3]; 2];
+        let mut fused_offset = [[f32::NEG_INFINITY; 3], [f32::INFINITY; 3]];
+        for a in 0..3 {
+            // The products of two `f32` are exact in `f64`: one directed rounding each.
+            let o = -(origin[a] as f64);
+            let near = f32_at_or_below(o * inv_near[a] as f64);
+            let far = f32_at_or_above(o * inv_far[a] as f64);
+            if [inv_near[a], inv_far[a], near, far]
+                .iter()
+                .all(|x| x.is_finite())
+            {
+                fused_inv[0][a] = inv_near[a];
+                fused_inv[1][a] = inv_far[a];
+                fused_offset[0][a] = near;
+                fused_offset[1][a] = far;
+            }
+        }
         Self {
-            origin: ray.origin().to_array(),
-            inv_near: inv.map(|i| i * near),
-            inv_far: inv.map(|i| i * far),
+            origin,
+            inv_near,
+            inv_far,
             neg: inv.map(f32::is_sign_negative),
             pad_after,
+            fused_inv,
+            fused_offset,
         }
+    }
+
+    /// The distances of the near plane `near` and the far plane `far` of axis `a` in the
+    /// fused form (one multiply-add each; see the type's documentation). Where the CPU has
+    /// no fused multiply-add, `f32::mul_add` is a library call: only levels with
+    /// [`Level::FMA`](crate::Level::FMA) use it in their walks.
+    #[inline(always)]
+    pub fn fused_distances(&self, a: usize, near: f32, far: f32) -> (f32, f32) {
+        (
+            near.mul_add(self.fused_inv[0][a], self.fused_offset[0][a]),
+            far.mul_add(self.fused_inv[1][a], self.fused_offset[1][a]),
+        )
     }
 
     /// The reciprocals for planes met as a box's min and as its max plane, per axis (the
@@ -125,6 +173,34 @@ impl SlabRay {
     /// [`Aabb::clip_ray`] up to its last ulps, without branches on the data.
     #[inline(always)]
     pub fn entry(&self, min: &[f32; 3], max: &[f32; 3], tmin: f32, tmax: f32) -> Option<f32> {
+        self.entry_with(min, max, tmin, tmax, |a, near, far| {
+            (
+                (near - self.origin[a]) * self.inv_near[a],
+                (far - self.origin[a]) * self.inv_far[a],
+            )
+        })
+    }
+
+    /// [`Self::entry`] with the plane distances of the fused form
+    /// ([`Self::fused_distances`]), as the walks of levels with fused multiply-add compute
+    /// them.
+    #[inline(always)]
+    pub fn entry_fused(&self, min: &[f32; 3], max: &[f32; 3], tmin: f32, tmax: f32) -> Option<f32> {
+        self.entry_with(min, max, tmin, tmax, |a, near, far| {
+            self.fused_distances(a, near, far)
+        })
+    }
+
+    /// [`Self::entry`] with the distances of axis `a`'s near and far plane from `planes`.
+    #[inline(always)]
+    fn entry_with(
+        &self,
+        min: &[f32; 3],
+        max: &[f32; 3],
+        tmin: f32,
+        tmax: f32,
+        planes: impl Fn(usize, f32, f32) -> (f32, f32),
+    ) -> Option<f32> {
         let (mut t0, mut t1) = (tmin, tmax);
         for a in 0..3 {
             let (near, far) = if self.neg[a] {
@@ -132,8 +208,7 @@ impl SlabRay {
             } else {
                 (min[a], max[a])
             };
-            let tn = (near - self.origin[a]) * self.inv_near[a];
-            let tf = (far - self.origin[a]) * self.inv_far[a];
+            let (tn, tf) = planes(a, near, far);
             // NaN (origin on the plane, zero direction) leaves the interval unchanged.
             t0 = if tn > t0 { tn } else { t0 };
             t1 = if tf < t1 { tf } else { t1 };
@@ -494,6 +569,49 @@ mod tests {
         (t0 <= t1).then_some((t0, t1))
     }
 
+    /// `entry` is the ray's entry into `b` within its interval, or earlier (never before
+    /// `tmin`), wherever the exact interval is not empty.
+    fn assert_conservative(b: &Aabb, r: &Ray, entry: Option<f32>) {
+        if let Some((t0, _)) = exact(b, r) {
+            let t = entry.unwrap_or_else(|| panic!("missed {b:?} {r:?}"));
+            assert!(
+                t as f64 <= t0 && t >= r.tmin,
+                "late entry {t} > {t0}: {b:?} {r:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn fused_slab_test_is_conservative_far_from_the_origin() {
+        // Origins up to 2^24 from the world's origin (where the offset `-origin * inv` is
+        // large and its rounding moves every plane's distance), boxes and rays near them,
+        // many grazing: the fused form must still enter every box the exact interval enters.
+        let mut rnd = crate::test_uniform(24681357);
+        let mut hits = 0;
+        for i in 0..100_000 {
+            let far = Vec3::new(rnd(), rnd(), rnd()) * [1e3, 1e5, 1.6e7][i % 3];
+            let c = far + Vec3::new(rnd(), rnd(), rnd()) * 20.0 - 10.0;
+            let e = Vec3::new(rnd(), rnd(), rnd()) * [3.0, 0.01, 1.0][(i / 3) % 3];
+            let b = Aabb::new(c - e, c + e);
+            let mut o = far + Vec3::new(rnd(), rnd(), rnd()) * 30.0 - 15.0;
+            if i % 5 == 0 {
+                o[i % 3] = b.max[i % 3];
+            }
+            let target = b.min + (b.max - b.min) * Vec3::new(rnd(), rnd(), rnd()) * 1.2;
+            let tmin = [0.0, 0.5 * rnd(), -rnd()][i % 3];
+            let r = Ray::segment(o, target - o, tmin, f32::INFINITY);
+            if !r.is_valid() {
+                continue;
+            }
+            let slab = SlabRay::new(&r);
+            let (min, max) = (b.min.to_array(), b.max.to_array());
+            assert_conservative(&b, &r, slab.entry_fused(&min, &max, r.tmin, r.tmax));
+            assert_conservative(&b, &r, slab.entry(&min, &max, r.tmin, r.tmax));
+            hits += exact(&b, &r).is_some() as usize;
+        }
+        assert!(hits > 20_000, "{hits} hits");
+    }
+
     #[test]
     fn slab_ray_is_conservative_and_agrees_with_clip_ray() {
         // Random boxes and rays, many of them grazing: origins on box planes, axis-parallel
@@ -518,14 +636,13 @@ mod tests {
             if !r.is_valid() {
                 continue;
             }
-            let got = SlabRay::new(&r).entry(&b.min.to_array(), &b.max.to_array(), r.tmin, r.tmax);
-            if let Some((t0, _)) = exact(&b, &r) {
+            let slab = SlabRay::new(&r);
+            let (min, max) = (b.min.to_array(), b.max.to_array());
+            let got = slab.entry(&min, &max, r.tmin, r.tmax);
+            assert_conservative(&b, &r, got);
+            assert_conservative(&b, &r, slab.entry_fused(&min, &max, r.tmin, r.tmax));
+            if exact(&b, &r).is_some() {
                 hits += 1;
-                let t = got.unwrap_or_else(|| panic!("missed {b:?} {r:?}"));
-                assert!(
-                    t as f64 <= t0 && t >= r.tmin,
-                    "late entry {t} > {t0}: {b:?} {r:?}"
-                );
             }
             // clip_ray pads `tmax` too: its entries beyond `tmax` are culled by every caller.
             let clip = b.clip_ray(&r).map(|(t0, _)| t0).filter(|&t| t <= r.tmax);

@@ -135,6 +135,9 @@ pub trait Level: Copy + Send + Sync + std::fmt::Debug + sealed::Sealed {
     /// The instruction set of this level, for kernels outside rt-geom that pick their own
     /// vectors by it (a compile-time constant in each level's copy).
     const ISA: Isa;
+    /// Whether the level multiplies and adds with one rounding (`f32::mul_add` is one
+    /// instruction here, where the baseline would call a library routine).
+    const FMA: bool;
 
     /// Bit `l` set where `a[l] <= b[l]` (false for NaN): one compare of the level's eight-lane
     /// vectors (the wide walk's hit mask).
@@ -155,9 +158,11 @@ pub struct Avx2Level(());
 
 impl Level for BaseLevel {
     const ISA: Isa = Isa::Baseline;
+    const FMA: bool = false;
 }
 impl Level for Avx2Level {
     const ISA: Isa = Isa::Avx2;
+    const FMA: bool = true;
 }
 
 /// The hooks behind [`Level`]: not nameable outside rt-geom.

@@ -223,10 +223,11 @@ thread_local! {
 
 /// The lanes whose boxes `min..max` (per axis, per lane) the ray enters within `[tmin, tmax]`
 /// (bit `lane`) and the entry distance per lane (meaningful for those; written as plain lane
-/// loops: one SIMD operation each after vectorisation). The mask comes from the interval
-/// compare itself (a lane's entry no later than its exit): no NaN written for the misses and
-/// tested again. Conservative like [`SlabRay::entry`]: the entry returned is never later
-/// than the true one and never before `tmin`.
+/// loops: one SIMD operation each after vectorisation), in [`SlabRay`]'s fused form at
+/// levels with fused multiply-add. The mask comes from the interval compare itself (a lane's
+/// entry no later than its exit): no NaN written for the misses and tested again.
+/// Conservative like [`SlabRay::entry`]: the entry returned is never later than the true one
+/// and never before `tmin`.
 #[inline(always)]
 pub(crate) fn lane_entries<const N: usize, V: Level>(
     level: V,
@@ -246,8 +247,11 @@ pub(crate) fn lane_entries<const N: usize, V: Level>(
         };
         let (o, inv_near, inv_far) = (ray.origin[a], ray.inv_near[a], ray.inv_far[a]);
         for l in 0..N {
-            let tn = (near[l] - o) * inv_near;
-            let tf = (far[l] - o) * inv_far;
+            let (tn, tf) = if V::FMA {
+                ray.fused_distances(a, near[l], far[l])
+            } else {
+                ((near[l] - o) * inv_near, (far[l] - o) * inv_far)
+            };
             // NaN (origin on the plane, zero direction) leaves the interval unchanged.
             t0[l] = if tn > t0[l] { tn } else { t0[l] };
             t1[l] = if tf < t1[l] { tf } else { t1[l] };
