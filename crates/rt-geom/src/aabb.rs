@@ -44,6 +44,11 @@ pub fn f32_at_or_above(v: f64) -> f32 {
     if (f as f64) < v { f.next_up() } else { f }
 }
 
+/// The fused form's offsets are moved outward by this much of their magnitude (and by the
+/// smallest normal float): at least two units in the last place, so that the offset's own
+/// rounding and that of the move leave it beyond the exact `-origin * inv`.
+const OFFSET_SLACK: f32 = 1.0 / (1u32 << 22) as f32;
+
 /// The per-ray constants of the slab test, computed once per ray for traversals that test
 /// many boxes ([`SlabRay::entry`], and the lane loops of wide BVH nodes).
 ///
@@ -60,9 +65,9 @@ pub fn f32_at_or_above(v: f64) -> f32 {
 ///
 /// Levels with fused multiply-add take each plane distance in one operation instead,
 /// `plane * inv + offset` ([`Self::fused_distances`], Embree's form): the offset `-origin *
-/// inv` is rounded outward once per ray (down for near planes, up for far ones), so it only
-/// moves entries earlier and exits later, and the one rounding of the fused operation stays
-/// within the padding budgeted for four. An axis whose reciprocal or offset is not finite (a
+/// inv` is moved outward once per ray (down for near planes, up for far ones) past its
+/// rounding error, so it only moves entries earlier and exits later, and the one rounding of
+/// the fused operation stays within the padding budgeted for four. An axis whose reciprocal or offset is not finite (a
 /// zero direction component) constrains nothing in that form: conservative, where the
 /// difference form culls boxes beside the ray.
 #[derive(Clone, Copy, Debug)]
@@ -113,21 +118,18 @@ impl SlabRay {
         let inv_near = inv.map(|i| i * near);
         let inv_far = inv.map(|i| i * far);
         let mut fused_inv = [[0.0; 3]; 2];
-        let mut fused_offset = [[f32::NEG_INFINITY; 3], [f32::INFINITY; 3]];
+        let mut fused_offset = [[0.0; 3]; 2];
         for a in 0..3 {
-            // The products of two `f32` are exact in `f64`: one directed rounding each.
-            let o = -(origin[a] as f64);
-            let near = f32_at_or_below(o * inv_near[a] as f64);
-            let far = f32_at_or_above(o * inv_far[a] as f64);
-            if [inv_near[a], inv_far[a], near, far]
-                .iter()
-                .all(|x| x.is_finite())
-            {
-                fused_inv[0][a] = inv_near[a];
-                fused_inv[1][a] = inv_far[a];
-                fused_offset[0][a] = near;
-                fused_offset[1][a] = far;
-            }
+            let (lo, hi) = (-(origin[a] * inv_near[a]), -(origin[a] * inv_far[a]));
+            let lo = lo - (lo.abs() * OFFSET_SLACK + f32::MIN_POSITIVE);
+            let hi = hi + (hi.abs() * OFFSET_SLACK + f32::MIN_POSITIVE);
+            // Selects, not branches: every ray takes the same path through this setup.
+            let ok =
+                inv_near[a].is_finite() & inv_far[a].is_finite() & lo.is_finite() & hi.is_finite();
+            fused_inv[0][a] = if ok { inv_near[a] } else { 0.0 };
+            fused_inv[1][a] = if ok { inv_far[a] } else { 0.0 };
+            fused_offset[0][a] = if ok { lo } else { f32::NEG_INFINITY };
+            fused_offset[1][a] = if ok { hi } else { f32::INFINITY };
         }
         Self {
             origin,
@@ -604,6 +606,11 @@ mod tests {
                 continue;
             }
             let slab = SlabRay::new(&r);
+            for a in 0..3 {
+                let exact = |inv: f32| -(o[a] as f64) * inv as f64;
+                let [near, far] = slab.fused_offset.map(|off| off[a] as f64);
+                assert!(near <= exact(slab.inv_near[a]) && far >= exact(slab.inv_far[a]));
+            }
             let (min, max) = (b.min.to_array(), b.max.to_array());
             assert_conservative(&b, &r, slab.entry_fused(&min, &max, r.tmin, r.tmax));
             assert_conservative(&b, &r, slab.entry(&min, &max, r.tmin, r.tmax));
