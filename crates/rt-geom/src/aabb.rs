@@ -67,9 +67,9 @@ const OFFSET_SLACK: f32 = 1.0 / (1u32 << 22) as f32;
 /// `plane * inv + offset` ([`Self::fused_distances`], Embree's form): the offset `-origin *
 /// inv` is moved outward once per ray (down for near planes, up for far ones) past its
 /// rounding error, so it only moves entries earlier and exits later, and the one rounding of
-/// the fused operation stays within the padding budgeted for four. An axis whose reciprocal or offset is not finite (a
-/// zero direction component) constrains nothing in that form: conservative, where the
-/// difference form culls boxes beside the ray.
+/// the fused operation stays within the padding budgeted for four. An axis whose reciprocal
+/// or offset is not finite (a zero direction component) constrains nothing in that form:
+/// conservative, where the difference form culls boxes beside the ray.
 #[derive(Clone, Copy, Debug)]
 pub struct SlabRay {
     /// The ray origin.
@@ -85,8 +85,8 @@ pub struct SlabRay {
     /// Per axis, the reciprocal of the fused form for near planes and for far planes (the
     /// padded ones; 0 where the axis constrains nothing).
     pub fused_inv: [[f32; 3]; 2],
-    /// Per axis, `-origin * inv` of the fused form rounded down (near planes) and up (far
-    /// planes); `-inf` and `+inf` where the axis constrains nothing.
+    /// Per axis, `-origin * inv` of the fused form moved down (near planes) and up (far
+    /// planes) past its rounding; `-inf` and `+inf` where the axis constrains nothing.
     pub fused_offset: [[f32; 3]; 2],
 }
 
