@@ -287,6 +287,25 @@ mod tests {
         isa_avx2: Isa::Avx2;
     }
 
+    /// A tree deeper than the stack the walk keeps in its frame takes an allocated one:
+    /// the same answers as the frame's stack gives.
+    #[test]
+    fn deep_trees_walk_with_an_allocated_stack() {
+        let tris = rt_testkit::scenes::random_soup(3000, 5);
+        let bvh = TriBvh8::build(&tris, BvhParams::balanced().for_soa_leaves()).unwrap();
+        let mut deep = bvh.clone();
+        // The stack is sized by the depth: 7 * 41 + 8 entries, more than the frame holds.
+        deep.tree.depth = 40;
+        let mut hits = 0;
+        for ray in rt_testkit::rays::rays_through_unit_cube(4000) {
+            let hit = bvh.intersect(&ray);
+            assert_eq!(deep.intersect(&ray), hit);
+            assert_eq!(deep.occluded(&ray), bvh.occluded(&ray));
+            hits += hit.is_some() as usize;
+        }
+        assert!(hits > 1000, "{hits} hits: the rays must meet the soup");
+    }
+
     mod tri8_big_leaves {
         use super::*;
         rt_testkit::conformance_tests!(

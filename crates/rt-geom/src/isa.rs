@@ -61,16 +61,13 @@ impl Isa {
         self <= Isa::best()
     }
 
-    /// The highest level this CPU runs (detected once).
+    /// The highest level this CPU runs (detected once; inlined into each query's dispatch).
+    #[inline]
     pub fn best() -> Isa {
-        static BEST: AtomicU8 = AtomicU8::new(u8::MAX);
         match BEST.load(Ordering::Relaxed) {
-            u8::MAX => {
-                let best = detect();
-                BEST.store(best as u8, Ordering::Relaxed);
-                best
-            }
-            b => Isa::ALL[b as usize],
+            0 => Isa::Baseline,
+            1 => Isa::Avx2,
+            _ => detect_once(),
         }
     }
 
@@ -114,6 +111,18 @@ impl std::fmt::Display for Isa {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
     }
+}
+
+/// [`Isa::best`] as a number once detected; `u8::MAX` before.
+static BEST: AtomicU8 = AtomicU8::new(u8::MAX);
+
+/// Detects the CPU's best level and records it for [`Isa::best`].
+#[cold]
+#[inline(never)]
+fn detect_once() -> Isa {
+    let best = detect();
+    BEST.store(best as u8, Ordering::Relaxed);
+    best
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -295,13 +304,20 @@ pub trait Kernel {
 #[inline]
 pub fn run<K: Kernel>(isa: Isa, k: K) -> K::Output {
     match isa.or_best() {
-        Isa::Baseline => k.run(BaseLevel),
+        Isa::Baseline => run_base(k),
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `or_best` returned AVX2, so this CPU has every feature the function enables.
         Isa::Avx2 => unsafe { x86::run_v3(k) },
         #[cfg(not(target_arch = "x86_64"))]
         _ => k.run(BaseLevel),
     }
+}
+
+/// `k.run(BaseLevel)` out of line: the caller of [`run`] then holds only the dispatch, not a
+/// whole baseline copy of the work with its stack frame set up on every call.
+#[inline(never)]
+fn run_base<K: Kernel>(k: K) -> K::Output {
+    k.run(BaseLevel)
 }
 
 /// A structure's whole query, written once and compiled per instruction set by [`query`].

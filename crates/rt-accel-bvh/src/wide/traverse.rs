@@ -5,6 +5,7 @@
 use super::NodeLayout;
 use rt_geom::aabb::{SlabRay, pad_interval};
 use rt_geom::{Aabb, Hit, Keep, Level, Primitive, Ray};
+use std::mem::MaybeUninit;
 
 /// Tests the leaf-ordered primitives `first..first + count` (closest hit, or any hit),
 /// offering each hit to `best` with the caller's id.
@@ -89,35 +90,31 @@ pub(crate) fn traverse_nodes<
         return None;
     }
     let slab = SlabRay::new(ray);
-    // The thread's stack is taken out for the walk and put back after, rather than the walk
-    // run in a closure handed to the thread-local: that closure would be a function of its
-    // own, compiled for the baseline instruction set inside the AVX2 walk.
-    let mut stack = STACK.take();
-    // At most N - 1 pending siblings per level.
+    // At most N - 1 pending siblings per level. The stack lies in the walk's own frame,
+    // uninitialised: zeroing it, or taking a reused one from a thread-local, cost more per
+    // query than a walk through a small tree's few nodes. Trees deeper than any rt builds
+    // from real scenes get one allocated.
     let need = (N - 1) * (depth + 1) + N;
-    if stack.len() < need {
-        stack.resize(need, (0, 0, 0.0));
-    }
-    walk_stack::<Node, N, ANY_HIT, V, K>(
-        level,
-        nodes,
-        &slab,
-        &mut stack[..need],
-        &mut r,
-        &mut best,
-        leaf,
-    );
-    STACK.set(stack);
+    let mut local = [MaybeUninit::<Entry>::uninit(); LOCAL_STACK];
+    let mut deep = Vec::new();
+    let stack = if need <= LOCAL_STACK {
+        &mut local[..need]
+    } else {
+        deep.resize(need, MaybeUninit::uninit());
+        &mut deep[..]
+    };
+    walk_stack::<Node, N, ANY_HIT, V, K>(level, nodes, &slab, stack, &mut r, &mut best, leaf);
     best.best()
 }
 
-/// The stack loop of [`traverse_nodes`] from the root, over `stack` (large enough).
+/// The stack loop of [`traverse_nodes`] from the root, over `stack` (large enough; its
+/// entries are read only after the walk has written them).
 #[inline(always)]
 fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level, K: Keep>(
     level: V,
     nodes: &[Node],
     slab: &SlabRay,
-    stack: &mut [(u32, u32, f32)],
+    stack: &mut [MaybeUninit<Entry>],
     r: &mut Ray,
     best: &mut K,
     mut leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
@@ -164,7 +161,7 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
                     } else {
                         (other, item)
                     };
-                    stack[sp] = then;
+                    stack[sp].write(then);
                     sp += 1;
                     next = first;
                     continue;
@@ -178,12 +175,12 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
                         while group != 0 {
                             let l = group.trailing_zeros() as usize;
                             group &= group - 1;
-                            stack[sp] = (node.child(l), node.count(l), t[l]);
+                            stack[sp].write((node.child(l), node.count(l), t[l]));
                             sp += 1;
                         }
                     }
                 } else {
-                    stack[sp] = item;
+                    stack[sp].write(item);
                     sp += 1;
                     let base = sp - 1;
                     while mask != 0 {
@@ -192,11 +189,13 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
                         let te = t[lane];
                         let item = (node.child(lane), node.count(lane), te);
                         let mut k = sp;
-                        while k > base && stack[k - 1].2 < te {
+                        // SAFETY: `k - 1 < sp`, and every entry below `sp` is written (the
+                        // walk's invariant: see the pop below).
+                        while k > base && unsafe { stack[k - 1].assume_init() }.2 < te {
                             stack[k] = stack[k - 1];
                             k -= 1;
                         }
-                        stack[k] = item;
+                        stack[k].write(item);
                         sp += 1;
                     }
                 }
@@ -208,7 +207,11 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
                 return;
             }
             sp -= 1;
-            next = stack[sp];
+            // SAFETY: every entry below `sp` is written: `sp` starts at 0, each push writes
+            // `stack[sp]` before `sp` grows past it, and the ordered insertion moves written
+            // entries up by one (the top one into `stack[sp]`) and writes the new entry into
+            // the slot left, before `sp` grows.
+            next = unsafe { stack[sp].assume_init() };
             if next.2 <= r.tmax {
                 break;
             }
@@ -216,10 +219,11 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
     }
 }
 
-thread_local! {
-    /// Traversal stacks are reused per thread: no allocation and no zeroing per ray.
-    static STACK: std::cell::Cell<Vec<(u32, u32, f32)>> = const { std::cell::Cell::new(Vec::new()) };
-}
+/// A pending subtree: child, count, entry distance.
+type Entry = (u32, u32, f32);
+
+/// Stack entries kept in the walk's frame: enough for 8-wide trees 24 levels deep.
+const LOCAL_STACK: usize = 7 * 25 + 8;
 
 /// The lanes whose boxes `min..max` (per axis, per lane) the ray enters within `[tmin, tmax]`
 /// (bit `lane`) and the entry distance per lane (meaningful for those; written as plain lane
