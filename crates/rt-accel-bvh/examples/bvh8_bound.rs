@@ -392,8 +392,9 @@ fn against<const ANY_HIT: bool>(a: &TriBvh8, b: &TriBvh8, rays: &[Ray]) -> Vec<f
 }
 
 /// `bvh` with one change for `--against`: `isa=baseline|avx2`, or one of the build's
-/// parameters (`leaf_block=N`, `max_leaf=N`, `traversal_cost=X`, `reinsertion=X`), each as a
-/// change to [`rt_accel_bvh::BvhParams::fastest_trace`].
+/// parameters (`leaf_block=N`, `max_leaf=N`, `traversal_cost=X`, `reinsertion=X`, `bins=N`,
+/// `spatial=ALPHA`, `budget=X`, `collapse=greedy|sah|ABOVE`), each as a change to
+/// [`rt_accel_bvh::BvhParams::fastest_trace`].
 fn variant(bvh: &TriBvh8, tris: &[rt_geom::Triangle], change: &str) -> Result<TriBvh8, String> {
     let (key, value) = change
         .split_once('=')
@@ -406,9 +407,26 @@ fn variant(bvh: &TriBvh8, tris: &[rt_geom::Triangle], change: &str) -> Result<Tr
         "max_leaf" => params.max_leaf_size = value.parse().map_err(|e| bad(&e))?,
         "traversal_cost" => params.traversal_cost = value.parse().map_err(|e| bad(&e))?,
         "reinsertion" => params.reinsertion = value.parse().map_err(|e| bad(&e))?,
+        "bins" => {
+            params.builder = rt_accel_bvh::BvhBuilder::BinnedSah {
+                bins: value.parse().map_err(|e| bad(&e))?,
+            }
+        }
+        "spatial" => params.spatial_alpha = Some(value.parse().map_err(|e| bad(&e))?),
+        "budget" => params.spatial_budget = value.parse().map_err(|e| bad(&e))?,
+        "collapse" => {
+            params.collapse = match value {
+                "greedy" => rt_accel_bvh::WideCollapse::LargestArea,
+                "sah" => rt_accel_bvh::WideCollapse::Sah,
+                v => rt_accel_bvh::WideCollapse::LargestAreaThenSah {
+                    above: v.parse().map_err(|e| bad(&e))?,
+                },
+            }
+        }
         _ => {
             return Err(bad(
-                &"unknown key (isa, leaf_block, max_leaf, traversal_cost, reinsertion)",
+                &"unknown key (isa, leaf_block, max_leaf, traversal_cost, reinsertion, bins, \
+                   spatial, budget, collapse)",
             ));
         }
     }

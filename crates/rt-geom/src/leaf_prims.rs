@@ -7,12 +7,16 @@
 //! bytes in a row instead of gathering primitives through the ids.
 //!
 //! [`TriangleSoa`] layout: one `f32` array holding, leaf after leaf, each leaf's triangles as
-//! structure of arrays. A leaf `(first, count)` (triangles `first .. first + count` in leaf
-//! order) occupies `9 * count` floats from `9 * first`: the `count` values of `v0.x`, then of
-//! `v0.y`, ... `v2.z`. A leaf's bytes are as contiguous as an array of triangles (the same
-//! cache lines), and the four-lane window of triangles `k .. k + 4` reads coordinate `j` at
-//! `9 * first + j * count + k`; lanes past the leaf read its next row (or the next leaf, or
-//! the padding at the end) and are masked off. At the AVX2 level every window is
+//! structure of arrays in blocks of up to eight. A leaf `(first, count)` (triangles `first ..
+//! first + count` in leaf order) occupies `9 * count` floats from `9 * first`; its block `b`
+//! (triangles `8 b .. 8 b + m` of the leaf, `m = min(8, count - 8 b)`) the `9 * m` floats from
+//! `9 * (first + 8 b)`: the `m` values of `v0.x`, then of `v0.y`, ... `v2.z`. A leaf's bytes
+//! are as contiguous as an array of triangles (the same cache lines), and the window of
+//! triangles `k .. k + 8` (or `k + 4`), `i = k - 8 b` lanes into its block, reads coordinate
+//! `j` at `9 * (first + 8 b) + j * m + i`; lanes past the block read its next row (or the next
+//! block, or the padding at the end) and are masked off. Every window lies in one fixed-size
+//! span of the array, taken with one bounds check, in which the rows' offsets are provably in
+//! range (a block is at most eight wide): no check per row. At the AVX2 level every window is
 //! eight lanes wide (one register, as cheap as four); at the baseline, eight-lane windows are
 //! taken while more than four triangles remain and four-lane ones after.
 
@@ -24,9 +28,14 @@ use wide::f32x4;
 /// Triangles tested together in the narrow window.
 pub const LANES: usize = 4;
 
-/// Floats of padding after the last leaf: an eight-lane window over a leaf's last row stays
-/// inside the data.
-pub const PADDING: usize = 8;
+/// The span of floats a window reads, from its block's first float: the last row's start
+/// (eight rows of up to eight floats), the window's offset in its block (below eight) and a
+/// row's eight lanes, `64 + 7 + 8`, rounded up.
+const WINDOW: usize = 80;
+
+/// Floats of padding after the last leaf: the window of a leaf's last block stays inside
+/// the data.
+pub const PADDING: usize = WINDOW;
 
 /// Leaf-ordered triangles, each leaf as structure of arrays (see the module documentation).
 #[derive(Clone, Debug, Default)]
@@ -47,9 +56,10 @@ impl TriangleSoa {
         let mut data = vec![0.0; 9 * tris.len() + PADDING];
         for (first, count) in leaves {
             let (first, count) = (first as usize, count as usize);
-            for (k, t) in tris[first..first + count].iter().enumerate() {
+            for k in 0..count {
+                let (base, m, i) = block_of(first, count, k);
                 for j in 0..9 {
-                    data[9 * first + j * count + k] = t.v[j / 3][j % 3];
+                    data[base + j * m + i] = tris[first + k].v[j / 3][j % 3];
                 }
             }
         }
@@ -91,7 +101,17 @@ impl TriangleSoa {
     /// Triangle `k` of the leaf `(first, count)`.
     #[inline]
     pub fn get(&self, first: usize, count: usize, k: usize) -> Triangle {
-        triangle_at(&self.data[9 * first..], count, k)
+        assert!(k < count, "triangle {k} of a leaf of {count}");
+        let (base, m, i) = block_of(first, count, k);
+        triangle_at(self.window(base), m, i)
+    }
+
+    /// The span of floats from `base` that a window starting there reads.
+    #[inline(always)]
+    fn window(&self, base: usize) -> &[f32; WINDOW] {
+        self.data[base..]
+            .first_chunk()
+            .expect("every window lies inside the data and its padding")
     }
 
     /// The layout's floats, leaf after leaf (see the module documentation), with the
@@ -166,9 +186,11 @@ impl TriangleSoa {
         skip: &mut impl FnMut(u32) -> bool,
         best: &mut K,
     ) -> bool {
-        let leaf = &self.data[9 * first..9 * (first + count) + PADDING];
-        // Lanes past the leaf belong to the next one.
-        let mut lanes = (1u32 << (count - k).min(L::WIDTH)) - 1;
+        // The window's block: `m` triangles wide, the window `off` lanes into it. Lanes past
+        // the block belong to the next block, or leaf.
+        let (base, m, off) = block_of(first, count, k);
+        let win = self.window(base);
+        let mut lanes = (1u32 << (m - off).min(L::WIDTH)) - 1;
         for (l, &id) in ids[k..].iter().take(L::WIDTH).enumerate() {
             if skip(id) {
                 lanes &= !(1 << l);
@@ -179,11 +201,11 @@ impl TriangleSoa {
         // once with the window's other bounds, rather than one lane at a time (a long chain
         // of dependent operations on the way to the query's end).
         let prove = ANY_HIT && !K::FILTERED && r.tmin > 0.0;
-        // Row `j` straight from the leaf (the ray's axes pick which rows are read).
+        // Row `j` straight from the block (the ray's axes pick which rows are read).
         let (may_hit, proven, sheared) = watertight_rows_at(
             level,
             #[inline(always)]
-            |j| L::load(&leaf[j * count + k..]),
+            |j| L::load(&win[j * m + off..]),
             r,
             prove,
         );
@@ -194,7 +216,8 @@ impl TriangleSoa {
             may_hit &= !self.degenerate_bits(first + k);
         }
         while may_hit != 0 {
-            let l = may_hit.trailing_zeros() as usize;
+            // Below eight (the lanes' bits): the window's reads stay in its span.
+            let l = may_hit.trailing_zeros() as usize & 7;
             may_hit &= may_hit - 1;
             // Skipped primitives (masks, the one a ray leaves) are dropped here, among the
             // few lanes whose edge signs may hit: all eight lanes are computed together
@@ -208,7 +231,7 @@ impl TriangleSoa {
                 let [_, _, kz] = r.watertight_axes();
                 let oz = r.origin().to_array()[kz];
                 let sz = r.watertight_shear().z;
-                let z = |v: usize| (leaf[(3 * v + kz) * count + k + l] - oz) * sz;
+                let z = |v: usize| (win[(3 * v + kz) * m + off + l] - oz) * sz;
                 let e = [edges.0.abs(), edges.1.abs(), edges.2.abs()];
                 let num = e[0] * z(0) + e[1] * z(1) + e[2] * z(2);
                 let den = e[0] + e[1] + e[2];
@@ -222,7 +245,7 @@ impl TriangleSoa {
             if !signs_agree(edges) {
                 continue;
             }
-            if let Some(h) = level.finish(&triangle_at(leaf, count, k + l), r, edges) {
+            if let Some(h) = level.finish(&triangle_at(win, m, off + l), r, edges) {
                 if best.keep::<ANY_HIT>(h, ids[k + l], &mut r.tmax) {
                     return true;
                 }
@@ -248,15 +271,21 @@ impl TriangleSoa {
     }
 }
 
-/// Triangle `k` of a leaf of `count` triangles whose rows start at `leaf[0]` (inlined into the
-/// leaf tests, which compile per level; the nine loads checked at once).
+/// Where triangle `k` of leaf `(first, count)` lies: the first float of its block, the
+/// block's width `m` (1 to 8) and the triangle's lane `i` in it (below eight; coordinate `j`
+/// at `base + j * m + i`).
 #[inline(always)]
-fn triangle_at(leaf: &[f32], count: usize, k: usize) -> Triangle {
-    assert!(k < count, "triangle {k} of a leaf of {count}");
-    let mut c = [0.0; 9];
-    for (c, row) in c.iter_mut().zip(leaf[..9 * count].chunks_exact(count)) {
-        *c = row[k];
-    }
+fn block_of(first: usize, count: usize, k: usize) -> (usize, usize, usize) {
+    let block = k & !7;
+    ((first + block) * 9, (count - block).min(8), k & 7)
+}
+
+/// Triangle `i` of the block of width `m` (at most eight) whose rows start at `win[0]`
+/// (inlined into the leaf tests, which compile per level; in range by the span's size).
+#[inline(always)]
+fn triangle_at(win: &[f32; WINDOW], m: usize, i: usize) -> Triangle {
+    let (m, i) = (m.min(8), i & 7);
+    let c: [f32; 9] = std::array::from_fn(|j| win[j * m + i]);
     Triangle::new(
         Vec3::new(c[0], c[1], c[2]),
         Vec3::new(c[3], c[4], c[5]),

@@ -487,23 +487,22 @@ fn refine_lanes<const N: usize>(
                 }
             },
         );
-        let [dx, dy, dz] = d.map(f64x4::new);
-        let [ox, oy, oz] = o.map(f64x4::new);
-        let (sx, sy, sz) = (dx / dz, dy / dz, f64x4::ONE / dz);
+        let d = d.map(f64x4::new);
+        let o = o.map(f64x4::new);
+        // The shear scaled by the major component, as the scalar refinement takes it.
         // A function, not a closure: see `rt_geom::isa`.
         #[inline(always)]
-        fn shear(vert: [[f64; 4]; 3], o: [f64x4; 3], s: [f64x4; 3]) -> [f64x4; 3] {
+        fn shear(vert: [[f64; 4]; 3], o: [f64x4; 3], d: [f64x4; 3]) -> [f64x4; 3] {
             let (px, py, pz) = (
                 f64x4::new(vert[0]) - o[0],
                 f64x4::new(vert[1]) - o[1],
                 f64x4::new(vert[2]) - o[2],
             );
-            [px - s[0] * pz, py - s[1] * pz, pz * s[2]]
+            [px * d[2] - d[0] * pz, py * d[2] - d[1] * pz, pz]
         }
-        let (o, s) = ([ox, oy, oz], [sx, sy, sz]);
-        let [ax, ay, az] = shear(v[0], o, s);
-        let [bx, by, bz] = shear(v[1], o, s);
-        let [cx, cy, cz] = shear(v[2], o, s);
+        let [ax, ay, az] = shear(v[0], o, d);
+        let [bx, by, bz] = shear(v[1], o, d);
+        let [cx, cy, cz] = shear(v[2], o, d);
         let orient = f64x4::new(orient);
         let e0 = (cx * by - cy * bx) * orient;
         let e1 = (ax * cy - ay * cx) * orient;
@@ -512,7 +511,7 @@ fn refine_lanes<const N: usize>(
         let zero = f64x4::ZERO;
         let inside = e0.cmp_ge(zero) & e1.cmp_ge(zero) & e2.cmp_ge(zero) & sum.cmp_gt(zero);
         let inside = inside.move_mask();
-        let t = ((e0 * az + e1 * bz + e2 * cz) / sum).to_array();
+        let t = ((e0 * az + e1 * bz + e2 * cz) / (sum * d[2])).to_array();
         for (k, &l) in pick[..n].iter().enumerate() {
             let (u, v, w) = (eu[l], ev[l], ew[l]);
             if u + v + w == 0.0 {

@@ -235,8 +235,9 @@ impl Triangle {
     /// `t` is the depth of the point of the triangle that the ray meets, computed so that the
     /// point lies *in the triangle* (to `f64` rounding), which is what lets every structure
     /// find the hit in the cells and boxes that hold the triangle:
-    /// - the edge functions are recomputed in `f64` in the ray's exact shear (the inputs are
-    ///   `f32`: vertex minus origin is exact, each product rounded once); when all three agree
+    /// - the edge functions are recomputed in `f64` in the ray's shear, scaled by the
+    ///   direction's major component (the inputs are `f32`: vertex minus origin is exact, the
+    ///   shear's products are exact, their differences rounded once); when all three agree
     ///   the ray pierces the triangle, and `t = (U za + V zb + W zc) / (U + V + W)` with
     ///   `z = (p - o)[kz] / d[kz]` (the depth interpolation of Woop et al., exact here where in
     ///   `f32` it loses most digits on thin slivers);
@@ -284,20 +285,24 @@ impl Triangle {
         Some(PrimHit { t, u, v })
     }
 
-    /// The edge functions `(U, V, W)` times `orient`, in `f64` from the `f32` inputs in the
-    /// ray's exact shear (vertex minus origin is exact, each product rounded once), and the
-    /// vertices' depths along the ray.
+    /// The edge functions `(U, V, W)` times `orient`, in `f64` from the `f32` inputs, and
+    /// the vertices' offsets along the ray's major axis. The shear is taken scaled by that
+    /// axis's direction component `d[kz]`: `p[kx] d[kz] - d[kx] p[kz]` rather than `p[kx] -
+    /// (d[kx] / d[kz]) p[kz]` (vertex minus origin is exact, each product of two `f32` values
+    /// is exact in `f64`, one rounding for their difference). The edge functions come out
+    /// scaled by `d[kz]^2 > 0` (same signs, same barycentrics), and the depth takes the one
+    /// division by `d[kz]` left ([`EdgesF64::depth`]) instead of three for the shear.
     #[inline(always)]
     fn edges_in_f64(&self, ray: &Ray, orient: f64) -> EdgesF64 {
         // Coordinates as arrays indexed by the ray's axes (one load each; a `DVec3` indexed
         // at run time branches on the index).
         let [kx, ky, kz] = ray.watertight_axes();
-        let da = ray.dir().as_dvec3().to_array();
-        let (sx, sy, sz) = (da[kx] / da[kz], da[ky] / da[kz], 1.0 / da[kz]);
+        let d = ray.dir().as_dvec3().to_array();
+        let (dx, dy, dz) = (d[kx], d[ky], d[kz]);
         let o = ray.origin().as_dvec3();
         let shear = |p: Vec3| {
             let p = (p.as_dvec3() - o).to_array();
-            (p[kx] - sx * p[kz], p[ky] - sy * p[kz], p[kz] * sz)
+            (p[kx] * dz - dx * p[kz], p[ky] * dz - dy * p[kz], p[kz])
         };
         let (ax, ay, az) = shear(self.v[0]);
         let (bx, by, bz) = shear(self.v[1]);
@@ -309,6 +314,7 @@ impl Triangle {
                 (bx * ay - by * ax) * orient,
             ],
             z: [az, bz, cz],
+            dz,
         }
     }
 
@@ -386,21 +392,25 @@ impl Triangle {
     }
 }
 
-/// Edge functions and vertex depths of a triangle in a ray's shear, in `f64`.
+/// Edge functions of a triangle in a ray's shear (scaled by `dz^2`), the vertices' offsets
+/// from the origin along the ray's major axis and the direction's component `dz` there, in
+/// `f64`.
 struct EdgesF64 {
     e: [f64; 3],
     z: [f64; 3],
+    dz: f64,
 }
 
 impl EdgesF64 {
-    /// The depth `(U za + V zb + W zc) / (U + V + W)` of the point the ray meets, when the
-    /// edge functions say it pierces the triangle (all `>= 0`, sum `> 0`): a convex
-    /// combination of the vertices' depths, so the point lies in the triangle's box.
+    /// The depth `(U za + V zb + W zc) / ((U + V + W) dz)` of the point the ray meets, when
+    /// the edge functions say it pierces the triangle (all `>= 0`, sum `> 0`): along the
+    /// major axis, a convex combination of the vertices' offsets, so the point lies in the
+    /// triangle's box.
     fn depth(&self) -> Option<f64> {
         let [e0, e1, e2] = self.e;
         let sum = e0 + e1 + e2;
         (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0 && sum > 0.0)
-            .then(|| (e0 * self.z[0] + e1 * self.z[1] + e2 * self.z[2]) / sum)
+            .then(|| (e0 * self.z[0] + e1 * self.z[1] + e2 * self.z[2]) / (sum * self.dz))
     }
 
     /// The barycentrics `(V, W) / (U + V + W)` of the edge functions clamped to `>= 0` (the
