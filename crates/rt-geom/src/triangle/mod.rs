@@ -237,7 +237,7 @@ impl Triangle {
     /// find the hit in the cells and boxes that hold the triangle:
     /// - the edge functions are recomputed in `f64` in the ray's shear, scaled by the
     ///   direction's major component (the inputs are `f32`: vertex minus origin is exact, the
-    ///   shear's products are exact, their differences rounded once); when all three agree
+    ///   shear's products and differences rounded once each); when all three agree
     ///   the ray pierces the triangle, and `t = (U za + V zb + W zc) / (U + V + W)` with
     ///   `z = (p - o)[kz] / d[kz]` (the depth interpolation of Woop et al., exact here where in
     ///   `f32` it loses most digits on thin slivers);
@@ -288,10 +288,11 @@ impl Triangle {
     /// The edge functions `(U, V, W)` times `orient`, in `f64` from the `f32` inputs, and
     /// the vertices' offsets along the ray's major axis. The shear is taken scaled by that
     /// axis's direction component `d[kz]`: `p[kx] d[kz] - d[kx] p[kz]` rather than `p[kx] -
-    /// (d[kx] / d[kz]) p[kz]` (vertex minus origin is exact, each product of two `f32` values
-    /// is exact in `f64`, one rounding for their difference). The edge functions come out
-    /// scaled by `d[kz]^2 > 0` (same signs, same barycentrics), and the depth takes the one
-    /// division by `d[kz]` left ([`EdgesF64::depth`]) instead of three for the shear.
+    /// (d[kx] / d[kz]) p[kz]`. Vertex minus origin is exact; each product is rounded at most
+    /// once (exact where `p` has at most 29 significant bits), the difference once, where
+    /// the quotient form rounds three times and divides. The edge functions come out scaled
+    /// by `d[kz]^2 > 0` (same signs, same barycentrics), and the depth takes the one division
+    /// by `d[kz]` left ([`EdgesF64::depth`]) instead of three for the shear.
     #[inline(always)]
     fn edges_in_f64(&self, ray: &Ray, orient: f64) -> EdgesF64 {
         // Coordinates as arrays indexed by the ray's axes (one load each; a `DVec3` indexed
