@@ -22,7 +22,7 @@
 //! AVX register at the AVX2 level. Only [`run`] makes an AVX2 level value, after
 //! checking the CPU, so the AVX instructions never run where they are missing.
 
-use crate::triangle::{ShearedLanes, SimdLanes, Triangle};
+use crate::triangle::{AxisVertices, ShearedLanes, SimdLanes, Triangle};
 use crate::{Hit, Keep, PrimHit, Ray, TriangleSoa};
 use std::sync::atomic::{AtomicU8, Ordering};
 
@@ -176,7 +176,7 @@ impl Level for Avx2Level {
 
 /// The hooks behind [`Level`]: not nameable outside rt-geom.
 pub(crate) mod sealed {
-    use crate::triangle::{ShearedLanes, SimdLanes, Triangle};
+    use crate::triangle::{AxisVertices, ShearedLanes, SimdLanes};
     use crate::{Keep, PrimHit, Ray, TriangleSoa};
 
     /// What a level gives the leaf tests (see [`Level`](super::Level)). Every hook takes the
@@ -202,9 +202,9 @@ pub(crate) mod sealed {
         /// line at the baseline, inlined into the AVX2 level's copy).
         fn outside<L: SimdLanes>(self, t: &ShearedLanes<L>, tmin: f32, tmax: f32) -> (u32, u32);
         /// The `f64` refinement of an accepted triangle of nonzero area (the caller drops
-        /// zero-area ones), compiled for the level (out of line at the baseline, inlined into
-        /// the AVX2 level's copy).
-        fn finish(self, tri: &Triangle, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit>;
+        /// zero-area ones), given by its vertices along the ray's axes, compiled for the level
+        /// (out of line at the baseline, inlined into the AVX2 level's copy).
+        fn finish(self, p: &AxisVertices, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit>;
     }
 }
 
@@ -242,8 +242,8 @@ impl sealed::Sealed for BaseLevel {
     }
 
     #[inline(always)]
-    fn finish(self, tri: &Triangle, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
-        tri.finish_nondegenerate(ray, e)
+    fn finish(self, p: &AxisVertices, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
+        Triangle::finish_nondegenerate(p, ray, e)
     }
 }
 
@@ -265,8 +265,8 @@ impl sealed::Sealed for Avx2Level {
     }
 
     #[inline(always)]
-    fn finish(self, tri: &Triangle, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
-        tri.finish_nondegenerate_inline(ray, e)
+    fn finish(self, p: &AxisVertices, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
+        Triangle::finish_nondegenerate_inline(p, ray, e)
     }
 }
 
@@ -285,8 +285,8 @@ impl sealed::Sealed for Avx2Level {
     }
 
     #[inline(always)]
-    fn finish(self, tri: &Triangle, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
-        BaseLevel.finish(tri, ray, e)
+    fn finish(self, p: &AxisVertices, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
+        BaseLevel.finish(p, ray, e)
     }
 }
 

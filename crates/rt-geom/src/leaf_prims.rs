@@ -21,7 +21,9 @@
 //! taken while more than four triangles remain and four-lane ones after.
 
 use crate::isa::{BaseLevel, Isa, Kernel, Level};
-use crate::triangle::{SimdLanes, lane_edges, signs_agree, watertight_rows_at, woop_hit};
+use crate::triangle::{
+    AxisVertices, SimdLanes, lane_edges, signs_agree, watertight_rows_at, woop_hit,
+};
 use crate::{Keep, Primitive, Ray, Triangle, Vec3};
 use wide::f32x4;
 
@@ -245,7 +247,14 @@ impl TriangleSoa {
             if !signs_agree(edges) {
                 continue;
             }
-            if let Some(h) = level.finish(&triangle_at(win, m, off + l), r, edges) {
+            // The vertices along the ray's axes, straight from the rows (in the span: a
+            // block is at most eight wide, the axes below three).
+            let p: AxisVertices = {
+                let (m, i) = (m.min(8), (off + l) & 7);
+                let axes = r.watertight_axes().map(|a| a.min(2));
+                std::array::from_fn(|v| axes.map(|a| win[(3 * v + a) * m + i]))
+            };
+            if let Some(h) = level.finish(&p, r, edges) {
                 if best.keep::<ANY_HIT>(h, ids[k + l], &mut r.tmax) {
                     return true;
                 }

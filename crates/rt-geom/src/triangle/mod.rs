@@ -203,28 +203,43 @@ impl Triangle {
         if self.is_degenerate() {
             return None;
         }
-        self.finish_nondegenerate_inline(ray, (u, v, w))
+        Self::finish_nondegenerate_inline(&self.along_axes(ray), ray, (u, v, w))
     }
 
     /// [`Self::finish_accepted`] of a triangle known to have nonzero area (leaf tests that
-    /// drop the zero-area ones beforehand), out of line.
+    /// drop the zero-area ones beforehand), given by its vertices along the ray's axes
+    /// ([`AxisVertices`]), out of line.
     #[inline(never)]
-    pub(crate) fn finish_nondegenerate(&self, ray: &Ray, e: (f32, f32, f32)) -> Option<PrimHit> {
-        self.finish_nondegenerate_inline(ray, e)
+    pub(crate) fn finish_nondegenerate(
+        p: &AxisVertices,
+        ray: &Ray,
+        e: (f32, f32, f32),
+    ) -> Option<PrimHit> {
+        Self::finish_nondegenerate_inline(p, ray, e)
     }
 
     /// [`Self::finish_nondegenerate`]'s body, inlined into the AVX2 level's leaf test.
     #[inline(always)]
     pub(crate) fn finish_nondegenerate_inline(
-        &self,
+        p: &AxisVertices,
         ray: &Ray,
         (u, v, w): (f32, f32, f32),
     ) -> Option<PrimHit> {
         let sum = u + v + w;
         if sum == 0.0 || !sum.is_finite() {
-            return self.refine_in_f64(ray);
+            return refine_in_f64(p, ray);
         }
-        self.refine(ray, (u, v, w))
+        refine_along_axes(p, ray, (u, v, w))
+    }
+
+    /// The vertices along `ray`'s watertight axes (see [`AxisVertices`]).
+    #[inline(always)]
+    pub(crate) fn along_axes(&self, ray: &Ray) -> AxisVertices {
+        let [kx, ky, kz] = ray.watertight_axes();
+        self.v.map(|q| {
+            let q = q.to_array();
+            [q[kx], q[ky], q[kz]]
+        })
     }
 
     /// Distance of a hit that the edge tests accepted, in `f64` from the `f32` inputs, with
@@ -248,75 +263,8 @@ impl Triangle {
     ///   the triangle's box (no hit where the ray passes the box by more than the box
     ///   tests' padding).
     #[inline(always)]
-    pub fn refine(&self, ray: &Ray, (u, v, w): (f32, f32, f32)) -> Option<PrimHit> {
-        let orient = if u + v + w < 0.0 { -1.0 } else { 1.0 };
-        let edges = self.edges_in_f64(ray, orient);
-        let t = match edges.depth() {
-            Some(t) => t as f32,
-            None => self.grazing_depth(ray)?,
-        };
-        if !ray.in_range(t) {
-            return None;
-        }
-        let rcp = 1.0 / (u + v + w);
-        let (bu, bv) = (v * rcp, w * rcp);
-        // An `f32` sum that underflows to a subnormal makes `rcp` infinite: such hits take
-        // the `f64` barycentrics.
-        let (u, v) = if bu.is_finite() && bv.is_finite() {
-            (bu, bv)
-        } else {
-            edges.barycentrics()
-        };
-        Some(PrimHit { t, u, v })
-    }
-
-    /// The watertight test decided by the `f64` edge functions alone (no `f32` test to
-    /// follow to the boundary): a hit when they agree in sign, with their barycentrics.
-    fn refine_in_f64(&self, ray: &Ray) -> Option<PrimHit> {
-        let mut edges = self.edges_in_f64(ray, 1.0);
-        if edges.e.iter().sum::<f64>() < 0.0 {
-            edges.e = edges.e.map(|e| -e);
-        }
-        let t = edges.depth()? as f32;
-        if !ray.in_range(t) {
-            return None;
-        }
-        let (u, v) = edges.barycentrics();
-        Some(PrimHit { t, u, v })
-    }
-
-    /// The edge functions `(U, V, W)` times `orient`, in `f64` from the `f32` inputs, and
-    /// the vertices' offsets along the ray's major axis. The shear is taken scaled by that
-    /// axis's direction component `d[kz]`: `p[kx] d[kz] - d[kx] p[kz]` rather than `p[kx] -
-    /// (d[kx] / d[kz]) p[kz]`. Vertex minus origin is exact; each product is rounded at most
-    /// once (exact where `p` has at most 29 significant bits), the difference once, where
-    /// the quotient form rounds three times and divides. The edge functions come out scaled
-    /// by `d[kz]^2 > 0` (same signs, same barycentrics), and the depth takes the one division
-    /// by `d[kz]` left ([`EdgesF64::depth`]) instead of three for the shear.
-    #[inline(always)]
-    fn edges_in_f64(&self, ray: &Ray, orient: f64) -> EdgesF64 {
-        // Coordinates as arrays indexed by the ray's axes (one load each; a `DVec3` indexed
-        // at run time branches on the index).
-        let [kx, ky, kz] = ray.watertight_axes();
-        let d = ray.dir().as_dvec3().to_array();
-        let (dx, dy, dz) = (d[kx], d[ky], d[kz]);
-        let o = ray.origin().as_dvec3();
-        let shear = |p: Vec3| {
-            let p = (p.as_dvec3() - o).to_array();
-            (p[kx] * dz - dx * p[kz], p[ky] * dz - dy * p[kz], p[kz])
-        };
-        let (ax, ay, az) = shear(self.v[0]);
-        let (bx, by, bz) = shear(self.v[1]);
-        let (cx, cy, cz) = shear(self.v[2]);
-        EdgesF64 {
-            e: [
-                (cx * by - cy * bx) * orient,
-                (ax * cy - ay * cx) * orient,
-                (bx * ay - by * ax) * orient,
-            ],
-            z: [az, bz, cz],
-            dz,
-        }
+    pub fn refine(&self, ray: &Ray, edges: (f32, f32, f32)) -> Option<PrimHit> {
+        refine_along_axes(&self.along_axes(ray), ray, edges)
     }
 
     /// The depth of a grazing hit (the `f32` test accepts it, the `f64` edge functions do
@@ -425,6 +373,96 @@ impl EdgesF64 {
         } else {
             (0.0, 0.0)
         }
+    }
+}
+
+/// A triangle's vertices along a ray's watertight axes `[kx, ky, kz]`
+/// ([`Ray::watertight_axes`]): vertex `j` as `[v[kx], v[ky], v[kz]]`. The `f64` refinement
+/// reads them in this order; a leaf test takes them straight from the rows its axes picked.
+pub(crate) type AxisVertices = [[f32; 3]; 3];
+
+/// The triangle whose vertices along `ray`'s axes are `p` (the inverse of
+/// [`Triangle::along_axes`]).
+fn from_axes(p: &AxisVertices, ray: &Ray) -> Triangle {
+    let [kx, ky, kz] = ray.watertight_axes();
+    Triangle {
+        v: p.map(|q| {
+            let mut c = [0.0; 3];
+            (c[kx], c[ky], c[kz]) = (q[0], q[1], q[2]);
+            Vec3::from_array(c)
+        }),
+    }
+}
+
+/// [`Triangle::refine`] of the triangle whose vertices along the ray's axes are `p`.
+#[inline(always)]
+fn refine_along_axes(p: &AxisVertices, ray: &Ray, (u, v, w): (f32, f32, f32)) -> Option<PrimHit> {
+    let orient = if u + v + w < 0.0 { -1.0 } else { 1.0 };
+    let edges = edges_in_f64(p, ray, orient);
+    let t = match edges.depth() {
+        Some(t) => t as f32,
+        None => from_axes(p, ray).grazing_depth(ray)?,
+    };
+    if !ray.in_range(t) {
+        return None;
+    }
+    let rcp = 1.0 / (u + v + w);
+    let (bu, bv) = (v * rcp, w * rcp);
+    // An `f32` sum that underflows to a subnormal makes `rcp` infinite: such hits take the
+    // `f64` barycentrics.
+    let (u, v) = if bu.is_finite() && bv.is_finite() {
+        (bu, bv)
+    } else {
+        edges.barycentrics()
+    };
+    Some(PrimHit { t, u, v })
+}
+
+/// The watertight test decided by the `f64` edge functions alone (no `f32` test to follow
+/// to the boundary): a hit when they agree in sign, with their barycentrics.
+fn refine_in_f64(p: &AxisVertices, ray: &Ray) -> Option<PrimHit> {
+    let mut edges = edges_in_f64(p, ray, 1.0);
+    if edges.e.iter().sum::<f64>() < 0.0 {
+        edges.e = edges.e.map(|e| -e);
+    }
+    let t = edges.depth()? as f32;
+    if !ray.in_range(t) {
+        return None;
+    }
+    let (u, v) = edges.barycentrics();
+    Some(PrimHit { t, u, v })
+}
+
+/// The edge functions `(U, V, W)` times `orient`, in `f64` from the `f32` inputs (the
+/// vertices `p` along the ray's axes), and the vertices' offsets along the ray's major axis.
+/// The shear is taken scaled by that axis's direction component `d[kz]`: `p[kx] d[kz] -
+/// d[kx] p[kz]` rather than `p[kx] - (d[kx] / d[kz]) p[kz]`. Vertex minus origin is exact;
+/// each product is rounded at most once (exact where `p` has at most 29 significant bits),
+/// the difference once, where the quotient form rounds three times and divides. The edge
+/// functions come out scaled by `d[kz]^2 > 0` (same signs, same barycentrics), and the depth
+/// takes the one division by `d[kz]` left ([`EdgesF64::depth`]) instead of three for the
+/// shear.
+#[inline(always)]
+fn edges_in_f64(p: &AxisVertices, ray: &Ray, orient: f64) -> EdgesF64 {
+    let [kx, ky, kz] = ray.watertight_axes();
+    let (d, o) = (ray.dir().to_array(), ray.origin().to_array());
+    let (dx, dy, dz) = (d[kx] as f64, d[ky] as f64, d[kz] as f64);
+    let (ox, oy, oz) = (o[kx] as f64, o[ky] as f64, o[kz] as f64);
+    let shear = |q: [f32; 3]| {
+        let (x, y, z) = (q[0] as f64 - ox, q[1] as f64 - oy, q[2] as f64 - oz);
+        (x * dz - dx * z, y * dz - dy * z, z)
+    };
+    let (ax, ay, az) = shear(p[0]);
+    let (bx, by, bz) = shear(p[1]);
+    let (cx, cy, cz) = shear(p[2]);
+    EdgesF64 {
+        e: [
+            (cx * by - cy * bx) * orient,
+            (ax * cy - ay * cx) * orient,
+            (bx * ay - by * ax) * orient,
+        ],
+        z: [az, bz, cz],
+        dz,
     }
 }
 
