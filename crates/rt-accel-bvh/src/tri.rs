@@ -287,15 +287,14 @@ mod tests {
         isa_avx2: Isa::Avx2;
     }
 
-    /// A tree deeper than the stack the walk keeps in its frame takes an allocated one:
-    /// the same answers as the frame's stack gives.
+    /// The walk's stack is sized for the deepest tree the build and loading allow
+    /// (`MAX_DEPTH + 1` levels): a tree recorded that deep walks with the same answers.
     #[test]
-    fn deep_trees_walk_with_an_allocated_stack() {
+    fn trees_at_the_depth_cap_walk_with_the_frame_stack() {
         let tris = rt_testkit::scenes::random_soup(3000, 5);
         let bvh = TriBvh8::build(&tris, BvhParams::balanced().for_soa_leaves()).unwrap();
         let mut deep = bvh.clone();
-        // The stack is sized by the depth: 7 * 41 + 8 entries, more than the frame holds.
-        deep.tree.depth = 40;
+        deep.tree.depth = crate::params::MAX_DEPTH + 1;
         let mut hits = 0;
         for ray in rt_testkit::rays::rays_through_unit_cube(4000) {
             let hit = bvh.intersect(&ray);

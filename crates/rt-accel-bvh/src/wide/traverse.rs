@@ -3,6 +3,7 @@
 //! leaf order.
 
 use super::NodeLayout;
+use crate::params::MAX_DEPTH;
 use rt_geom::aabb::{SlabRay, pad_interval};
 use rt_geom::{Aabb, Hit, Keep, Level, Primitive, Ray};
 use std::mem::MaybeUninit;
@@ -90,35 +91,33 @@ pub(crate) fn traverse_nodes<
         return None;
     }
     let slab = SlabRay::new(ray);
-    // At most N - 1 pending siblings per level. The stack lies in the walk's own frame,
-    // uninitialised: zeroing it, or taking a reused one from a thread-local, cost more per
-    // query than a walk through a small tree's few nodes. Trees deeper than any rt builds
-    // from real scenes get one allocated.
+    // At most N - 1 pending siblings per level, and every tree is at most `MAX_DEPTH + 1`
+    // levels deep (the build, the reinsertion and loading all hold it there): `STACK`
+    // entries always suffice. The stack lies in the walk's own frame, uninitialised: zeroing
+    // it, or taking a reused one from a thread-local, cost more per query than a walk through
+    // a small tree's few nodes.
     let need = (N - 1) * (depth + 1) + N;
-    let mut local = [MaybeUninit::<Entry>::uninit(); LOCAL_STACK];
-    let mut deep = Vec::new();
-    let stack = if need <= LOCAL_STACK {
-        &mut local[..need]
-    } else {
-        deep.resize(need, MaybeUninit::uninit());
-        &mut deep[..]
-    };
-    walk_stack::<Node, N, ANY_HIT, V, K>(level, nodes, &slab, stack, &mut r, &mut best, leaf);
+    assert!(need <= STACK, "a tree deeper than MAX_DEPTH + 1 levels");
+    let mut stack = [MaybeUninit::<Entry>::uninit(); STACK];
+    walk_stack::<Node, N, ANY_HIT, V, K>(level, nodes, &slab, &mut stack, &mut r, &mut best, leaf);
     best.best()
 }
 
 /// The stack loop of [`traverse_nodes`] from the root, over `stack` (large enough; its
-/// entries are read only after the walk has written them).
+/// entries are read only after the walk has written them). Every index is taken modulo
+/// `STACK` (a power of two: one mask, no bounds check, and no change, since the walk never
+/// holds more than `STACK` entries).
 #[inline(always)]
 fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level, K: Keep>(
     level: V,
     nodes: &[Node],
     slab: &SlabRay,
-    stack: &mut [MaybeUninit<Entry>],
+    stack: &mut [MaybeUninit<Entry>; STACK],
     r: &mut Ray,
     best: &mut K,
     mut leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
 ) {
+    let slot = |i: usize| i & (STACK - 1);
     let mut sp = 0usize;
     // The root, then each child taken straight from its node's test (which entered it within
     // the interval) or popped (checked against the closest hit found since it was pushed).
@@ -161,7 +160,7 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
                     } else {
                         (other, item)
                     };
-                    stack[sp].write(then);
+                    stack[slot(sp)].write(then);
                     sp += 1;
                     next = first;
                     continue;
@@ -175,12 +174,12 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
                         while group != 0 {
                             let l = group.trailing_zeros() as usize;
                             group &= group - 1;
-                            stack[sp].write((node.child(l), node.count(l), t[l]));
+                            stack[slot(sp)].write((node.child(l), node.count(l), t[l]));
                             sp += 1;
                         }
                     }
                 } else {
-                    stack[sp].write(item);
+                    stack[slot(sp)].write(item);
                     sp += 1;
                     let base = sp - 1;
                     while mask != 0 {
@@ -191,11 +190,11 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
                         let mut k = sp;
                         // SAFETY: `k - 1 < sp`, and every entry below `sp` is written (the
                         // walk's invariant: see the pop below).
-                        while k > base && unsafe { stack[k - 1].assume_init() }.2 < te {
-                            stack[k] = stack[k - 1];
+                        while k > base && unsafe { stack[slot(k - 1)].assume_init() }.2 < te {
+                            stack[slot(k)] = stack[slot(k - 1)];
                             k -= 1;
                         }
-                        stack[k].write(item);
+                        stack[slot(k)].write(item);
                         sp += 1;
                     }
                 }
@@ -211,7 +210,7 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
             // `stack[sp]` before `sp` grows past it, and the ordered insertion moves written
             // entries up by one (the top one into `stack[sp]`) and writes the new entry into
             // the slot left, before `sp` grows.
-            next = unsafe { stack[sp].assume_init() };
+            next = unsafe { stack[slot(sp)].assume_init() };
             if next.2 <= r.tmax {
                 break;
             }
@@ -222,8 +221,10 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
 /// A pending subtree: child, count, entry distance.
 type Entry = (u32, u32, f32);
 
-/// Stack entries kept in the walk's frame: enough for 8-wide trees 24 levels deep.
-const LOCAL_STACK: usize = 7 * 25 + 8;
+/// Stack entries in the walk's frame: enough for 8-wide trees of `MAX_DEPTH + 1` levels (the
+/// deepest any tree is), rounded up to a power of two so that a masked index needs no check.
+const STACK: usize = 512;
+const _: () = assert!(STACK.is_power_of_two() && 7 * (MAX_DEPTH + 2) + 8 <= STACK);
 
 /// The lanes whose boxes `min..max` (per axis, per lane) the ray enters within `[tmin, tmax]`
 /// (bit `lane`) and the entry distance per lane (meaningful for those; written as plain lane
