@@ -1,13 +1,16 @@
 //! Node layout ([`WideNode<N>`], structure of arrays so that one lane is one child):
 //!
 //! ```text
-//! min[axis][lane], max[axis][lane]   f32   child boxes; empty lanes have min = +inf, max = -inf
-//! child[lane]                        u32   inner: node index; leaf: first primitive (leaf order)
-//! count[lane]                        u32   0 for an inner child (or an empty lane), else the
-//!                                          leaf's primitive count
+//! min[axis][lane]   f32   child boxes' minimum corners; empty lanes have min = +inf
+//! child[lane]       u32   inner: node index; leaf: first primitive (leaf order)
+//! max[axis][lane]   f32   child boxes' maximum corners; empty lanes have max = -inf
+//! count[lane]       u32   0 for an inner child (or an empty lane), else the leaf's primitive count
 //! ```
 //!
-//! 4-wide: 128 bytes, 8-wide: 256 bytes. The lane loops are written over fixed-size arrays so
+//! 4-wide: 128 bytes, 8-wide: 256 bytes, in this order: every cache line of a node holds
+//! planes of the slab test, so the test's loads ask for all of the node's lines at once. With
+//! `child` and `count` together after the planes, the 8-wide node's last line held no plane
+//! and was first asked for by the read of the child hit, after the test. The lane loops are written over fixed-size arrays so
 //! that the compiler turns each into one SIMD instruction (SSE for 4 lanes; AVX for 8 lanes in
 //! the `-C target-cpu=native` build of `cargo xtask bench`), with no `unsafe` and a portable
 //! fallback on any target.
@@ -57,10 +60,10 @@ pub trait NodeLayout<const N: usize>: Copy + Send + Sync + std::fmt::Debug {
 pub struct WideNode<const N: usize> {
     /// Per axis and child, the minimum corner of the child box.
     pub min: [[f32; N]; 3],
-    /// Per axis and child, the maximum corner of the child box.
-    pub max: [[f32; N]; 3],
     /// Per child, the node index (inner) or the first primitive (leaf).
     pub child: [u32; N],
+    /// Per axis and child, the maximum corner of the child box.
+    pub max: [[f32; N]; 3],
     /// Per child, the primitive count of a leaf; 0 for an inner child or an unused lane.
     pub count: [u32; N],
 }
