@@ -8,12 +8,12 @@
 //! ```
 //!
 //! 4-wide: 128 bytes, 8-wide: 256 bytes, in this order: every cache line of a node holds
-//! planes of the slab test, so the test's loads ask for all of the node's lines at once. With
-//! `child` and `count` together after the planes, the 8-wide node's last line held no plane
-//! and was first asked for by the read of the child hit, after the test. The lane loops are written over fixed-size arrays so
-//! that the compiler turns each into one SIMD instruction (SSE for 4 lanes; AVX for 8 lanes in
-//! the `-C target-cpu=native` build of `cargo xtask bench`), with no `unsafe` and a portable
-//! fallback on any target.
+//! planes of the slab test, so the test's loads ask for all of the node's lines at once (a
+//! line of children and counts alone would be asked for only by the read of the child hit,
+//! after the test). The lane loops are written over fixed-size arrays so that the compiler
+//! turns each into one SIMD instruction (SSE for 4 lanes; AVX for 8 lanes in the `-C
+//! target-cpu=native` build of `cargo xtask bench`), with no `unsafe` and a portable fallback
+//! on any target.
 
 use super::traverse::lane_entries;
 use rt_geom::aabb::SlabRay;
@@ -71,6 +71,10 @@ pub struct WideNode<const N: usize> {
 const _: () = assert!(std::mem::size_of::<WideNode<4>>() == 128);
 const _: () = assert!(std::mem::size_of::<WideNode<8>>() == 256);
 const _: () = assert!(std::mem::align_of::<WideNode<4>>() == 64);
+// Planes in every cache line: the max planes start the second half of the node, and the
+// children share a line with the min planes, the counts one with the max planes.
+const _: () = assert!(std::mem::offset_of!(WideNode<8>, max) == 128);
+const _: () = assert!(std::mem::offset_of!(WideNode<4>, max) == 64);
 
 impl<const N: usize> WideNode<N> {
     pub(crate) const EMPTY: Self = Self {
