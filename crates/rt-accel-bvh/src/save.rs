@@ -357,7 +357,7 @@ fn read_tree<const N: usize, Node: NodeLayout<N> + SavedNode>(
         return Err(LoadError::TrailingBytes);
     }
     let mut tree = WideTree {
-        nodes,
+        nodes: rt_geom::pages::moved(nodes),
         root_bounds,
         root_leaf,
         depth: 0,

@@ -87,7 +87,7 @@ impl<const N: usize, Node: NodeLayout<N>> TriBvh<N, Node> {
         Self {
             tree,
             tris,
-            ids,
+            ids: rt_geom::pages::moved(ids),
             count,
             params,
             stats,

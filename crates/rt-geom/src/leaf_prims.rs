@@ -55,7 +55,7 @@ impl TriangleSoa {
     /// Lays out the leaf-ordered `tris`; `leaves` are the `(first, count)` ranges that cover
     /// them (each triangle in exactly one).
     pub fn new(tris: &[Triangle], leaves: impl IntoIterator<Item = (u32, u32)>) -> Self {
-        let mut data = vec![0.0; 9 * tris.len() + PADDING];
+        let mut data = crate::pages::filled(9 * tris.len() + PADDING, 0.0);
         for (first, count) in leaves {
             let (first, count) = (first as usize, count as usize);
             for k in 0..count {

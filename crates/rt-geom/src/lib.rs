@@ -22,6 +22,7 @@
 //! | [`isa`] | [`Isa`] and [`Walk`]: walks and leaf tests compiled for AVX2 too, chosen at run time |
 //! | [`leaf_prims`] | [`TriangleSoa`] (triangles leaf by leaf as structure of arrays, tested four at a time) and [`LeafPrims`] (the listed primitives of kd-trees, octrees and grids, laid out for the leaf test) |
 //! | [`mesh`] | [`Mesh`], [`load_obj`] (through tobj), [`MeshError`] |
+//! | [`pages`] | the structures' large arrays asked for on 2 MiB pages (Linux) |
 //!
 //! ```
 //! use rt_geom::{Accel, BruteForce, Ray, Triangle, Vec3};
@@ -47,6 +48,7 @@ pub mod geometries;
 pub mod isa;
 pub mod leaf_prims;
 pub mod mesh;
+pub mod pages;
 pub mod primitive;
 pub mod ray;
 pub mod saved;

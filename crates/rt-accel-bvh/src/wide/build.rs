@@ -50,6 +50,7 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
                 };
             }
         }
+        tree.nodes = rt_geom::pages::moved(tree.nodes);
         tree
     }
 }
