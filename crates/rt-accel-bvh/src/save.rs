@@ -341,7 +341,7 @@ fn read_tree<const N: usize, Node: NodeLayout<N> + SavedNode>(
         }
         _ => return Err(LoadError::Corrupt("unknown root leaf flag".into())),
     };
-    let nodes = (0..r.count(Node::SIZE)?)
+    let nodes: Vec<Node> = (0..r.count(Node::SIZE)?)
         .map(|_| {
             let mut b = [0u8; 256];
             let (head, rest) = r.0.split_at(Node::SIZE);
@@ -356,8 +356,8 @@ fn read_tree<const N: usize, Node: NodeLayout<N> + SavedNode>(
     if !r.0.is_empty() {
         return Err(LoadError::TrailingBytes);
     }
-    let mut tree = WideTree {
-        nodes: rt_geom::pages::moved(nodes),
+    let mut tree: WideTree<N, Node> = WideTree {
+        nodes: rt_geom::pages::Pages::from(nodes),
         root_bounds,
         root_leaf,
         depth: 0,

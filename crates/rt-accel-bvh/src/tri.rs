@@ -8,6 +8,7 @@ use crate::refit::{Refit, check_moved, in_leaf_order, leaf_bounds};
 use crate::stats::check_leaf_primitive;
 use crate::wide::{NodeLayout, WideNode, WideTree};
 use crate::{Bvh, BvhParams};
+use rt_geom::pages::Pages;
 use rt_geom::{
     Aabb, Accel, AccelStats, BuildError, FilteredAccel, Hit, Isa, Keep, Level, Ray, Triangle,
     TriangleSoa, Vec3, Walk, all_referenced,
@@ -40,7 +41,7 @@ fn check_leaf(
 pub struct TriBvh<const N: usize, Node = WideNode<N>> {
     pub(crate) tree: WideTree<N, Node>,
     tris: TriangleSoa,
-    pub(crate) ids: Vec<u32>,
+    pub(crate) ids: Pages<u32>,
     pub(crate) count: usize,
     pub(crate) params: BvhParams,
     stats: AccelStats,
@@ -87,7 +88,7 @@ impl<const N: usize, Node: NodeLayout<N>> TriBvh<N, Node> {
         Self {
             tree,
             tris,
-            ids: rt_geom::pages::moved(ids),
+            ids: Pages::from(ids),
             count,
             params,
             stats,
@@ -168,7 +169,7 @@ impl<const N: usize, Node: NodeLayout<N>> Refit<Triangle> for TriBvh<N, Node> {
         self.tree
             .refit(&|first, count| leaf_bounds(&leaf_tris, first, count));
         let mut stats = self.tree.stats(self.count, &self.params);
-        stats.bytes += self.tris.bytes() + std::mem::size_of_val(self.ids.as_slice());
+        stats.bytes += self.tris.bytes() + std::mem::size_of_val(&self.ids[..]);
         self.stats = stats;
         Ok(())
     }

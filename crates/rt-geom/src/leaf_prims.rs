@@ -21,6 +21,7 @@
 //! taken while more than four triangles remain and four-lane ones after.
 
 use crate::isa::{BaseLevel, Isa, Kernel, Level};
+use crate::pages::Pages;
 use crate::triangle::{
     AxisVertices, SimdLanes, lane_edges, signs_agree, watertight_rows_at, woop_hit,
 };
@@ -42,7 +43,7 @@ pub const PADDING: usize = WINDOW;
 /// Leaf-ordered triangles, each leaf as structure of arrays (see the module documentation).
 #[derive(Clone, Debug, Default)]
 pub struct TriangleSoa {
-    data: Vec<f32>,
+    data: Pages<f32>,
     len: usize,
     /// Bit `i` set where triangle `i` (leaf order) has zero area ([`Triangle::is_degenerate`]):
     /// never hit, but one of its edge functions is exactly zero for every ray (two coincident
@@ -55,7 +56,7 @@ impl TriangleSoa {
     /// Lays out the leaf-ordered `tris`; `leaves` are the `(first, count)` ranges that cover
     /// them (each triangle in exactly one).
     pub fn new(tris: &[Triangle], leaves: impl IntoIterator<Item = (u32, u32)>) -> Self {
-        let mut data = crate::pages::filled(9 * tris.len() + PADDING, 0.0);
+        let mut data = Pages::filled(9 * tris.len() + PADDING, 0.0);
         for (first, count) in leaves {
             let (first, count) = (first as usize, count as usize);
             for k in 0..count {

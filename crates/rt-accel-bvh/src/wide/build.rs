@@ -6,6 +6,7 @@ use crate::collapse::{Lane, SahCollapse, greedy_lanes};
 use crate::node::BvhNode;
 use crate::{BvhParams, WideCollapse};
 use rt_geom::Aabb;
+use rt_geom::pages::Pages;
 
 impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
     /// Collapses a binary BVH built with `params` as `params.collapse` says: every wide node
@@ -15,8 +16,9 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
     /// written in the layout `Node` from its exact boxes.
     pub fn collapse(bin: &[BvhNode], params: &BvhParams) -> Self {
         assert!((2..=32).contains(&N), "2..=32 lanes");
+        let mut nodes = Vec::new();
         let mut tree = Self {
-            nodes: Vec::new(),
+            nodes: Pages::default(),
             root_bounds: bin.first().map_or(Aabb::EMPTY, |n| n.bounds()),
             root_leaf: None,
             depth: 0,
@@ -28,7 +30,7 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
             Some(_) => {
                 let area = |b: usize| bin[b].bounds().half_area();
                 let greedy = |b: usize| greedy_lanes(bin, b, N);
-                let out = &mut tree.nodes;
+                let out = &mut nodes;
                 tree.depth = match params.collapse {
                     WideCollapse::LargestArea => write_nodes(bin, 0, out, 1, &greedy),
                     WideCollapse::Sah => {
@@ -50,7 +52,7 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
                 };
             }
         }
-        tree.nodes = rt_geom::pages::moved(tree.nodes);
+        tree.nodes = Pages::from(nodes);
         tree
     }
 }

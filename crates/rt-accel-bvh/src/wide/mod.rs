@@ -23,6 +23,7 @@ pub use bvh::{Bvh4, Bvh8, WideBvh};
 pub use node::{NodeLayout, WideNode};
 pub(crate) use traverse::{lane_entries, test_leaf};
 
+use rt_geom::pages::Pages;
 use rt_geom::{Aabb, Hit, Isa, Keep, Level, Ray};
 
 /// The topology of a wide BVH over a node layout (`N` lanes of [`WideNode<N>`] by default):
@@ -31,7 +32,7 @@ use rt_geom::{Aabb, Hit, Isa, Keep, Level, Ray};
 /// supplies the leaf test to [`WideTree::traverse`].
 #[derive(Clone, Debug)]
 pub struct WideTree<const N: usize, Node = WideNode<N>> {
-    pub(crate) nodes: Vec<Node>,
+    pub(crate) nodes: Pages<Node>,
     pub(crate) root_bounds: Aabb,
     /// The root is a single leaf (`first`, `count`) when the whole scene fits one leaf.
     pub(crate) root_leaf: Option<(u32, u32)>,

@@ -13,7 +13,7 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
             primitives: prims,
             nodes: self.nodes.len(),
             max_depth: self.depth,
-            bytes: std::mem::size_of_val(self.nodes.as_slice()),
+            bytes: std::mem::size_of_val(&self.nodes[..]),
             ..AccelStats::default()
         };
         let root_area = self.root_bounds.half_area_f64();
