@@ -171,24 +171,23 @@ mod mapped {
             if base == libc::MAP_FAILED {
                 return None;
             }
+            // Never null: the system picks the address (no `MAP_FIXED`).
             let base = NonNull::new(base)?;
-            let start = (base.as_ptr() as usize).next_multiple_of(LARGE);
-            let offset = start - base.as_ptr() as usize;
-            // SAFETY: `start .. start + span` lies inside the mapping (`offset < LARGE`,
-            // `map_len = span + LARGE`), which nothing has written yet; `MADV_HUGEPAGE` is a
-            // hint that changes no byte (a kernel without transparent huge pages refuses it
-            // and leaves the memory as it was, so the result is not needed).
-            let ptr = unsafe {
-                let p = base.as_ptr().byte_add(offset);
-                libc::madvise(p, span, libc::MADV_HUGEPAGE);
-                p.cast::<T>()
-            };
+            let offset = (base.as_ptr() as usize).next_multiple_of(LARGE) - base.as_ptr() as usize;
+            // SAFETY: `offset < LARGE < map_len`: the address lies inside the mapping.
+            let ptr = unsafe { base.byte_add(offset) }.cast::<T>();
+            // Owned from here: an early end (a panic in `init`) unmaps it.
             let mut m = Self {
                 base,
                 map_len,
-                ptr: NonNull::new(ptr)?,
+                ptr,
                 len: 0,
             };
+            // SAFETY: `ptr .. ptr + span` lies inside the mapping (`offset < LARGE`, `map_len =
+            // span + LARGE`), which nothing has written yet; `MADV_HUGEPAGE` is a hint that
+            // changes no byte (a kernel without transparent huge pages refuses it and leaves
+            // the memory as it was, so the result is not needed).
+            unsafe { libc::madvise(m.ptr.as_ptr().cast(), span, libc::MADV_HUGEPAGE) };
             for i in 0..len {
                 // SAFETY: element `i < len` lies inside the span (`len * size_of::<T>() <=
                 // span`), aligned (the span starts 2 MiB-aligned; `T`'s alignment divides
