@@ -3,6 +3,7 @@
 //! `traverse`.
 
 use crate::{BvhBuilder, BvhNode, BvhParams, build};
+use rt_geom::pages::Pages;
 use rt_geom::{
     Aabb, Accel, AccelStats, BuildError, FilteredAccel, Frame, Hit, Isa, Keep, Level, Primitive,
     Ray, Walk, check_primitives,
@@ -11,11 +12,11 @@ use rt_geom::{
 /// A binary BVH over primitives `P`, flattened depth-first, primitives stored in leaf order.
 #[derive(Clone, Debug)]
 pub struct Bvh<P> {
-    pub(crate) nodes: Vec<BvhNode>,
+    pub(crate) nodes: Pages<BvhNode>,
     /// Primitives in leaf order.
-    pub(crate) prims: Vec<P>,
+    pub(crate) prims: Pages<P>,
     /// `ids[i]`: the caller's index of `prims[i]` (repeated with spatial splits).
-    pub(crate) ids: Vec<u32>,
+    pub(crate) ids: Pages<u32>,
     /// Primitives the tree was built from (`prims` may hold some several times).
     pub(crate) count: usize,
     pub(crate) params: BvhParams,
@@ -34,9 +35,9 @@ impl<P: Primitive> Bvh<P> {
         let prims_len = prims.len();
         if prims.is_empty() {
             return Ok(Self {
-                nodes: vec![],
-                prims: vec![],
-                ids: vec![],
+                nodes: Pages::default(),
+                prims: Pages::default(),
+                ids: Pages::default(),
                 count: 0,
                 params,
                 isa: Isa::selected(),
@@ -62,7 +63,7 @@ impl<P: Primitive> Bvh<P> {
         let nodes = build::flatten(&root, count);
         drop(root);
         let (nodes, ids) = build::reinsert::optimize(nodes, ids, params.reinsertion);
-        let in_leaf_order = {
+        let in_leaf_order: Vec<P> = {
             use rayon::prelude::*;
             ids.par_iter()
                 .with_min_len(1 << 14)
@@ -70,9 +71,9 @@ impl<P: Primitive> Bvh<P> {
                 .collect()
         };
         let mut bvh = Self {
-            nodes,
-            prims: in_leaf_order,
-            ids,
+            nodes: nodes.into(),
+            prims: in_leaf_order.into(),
+            ids: ids.into(),
             count: prims_len,
             params,
             isa: Isa::selected(),

@@ -37,10 +37,17 @@ pub(crate) fn in_leaf_order<P: Primitive>(prims: &[P], ids: &[u32]) -> Vec<P> {
     ids.iter().map(|&i| prims[i as usize].clone()).collect()
 }
 
+/// [`in_leaf_order`] written over `slots` (as long as `ids`), which keep their memory.
+pub(crate) fn refill_in_leaf_order<P: Primitive>(slots: &mut [P], prims: &[P], ids: &[u32]) {
+    for (slot, &i) in slots.iter_mut().zip(ids) {
+        slot.clone_from(&prims[i as usize]);
+    }
+}
+
 impl<P: Primitive> Refit<P> for Bvh<P> {
     fn refit(&mut self, prims: &[P]) -> Result<(), BuildError> {
         check_moved(prims, self.count)?;
-        self.prims = in_leaf_order(prims, &self.ids);
+        refill_in_leaf_order(&mut self.prims, prims, &self.ids);
         self.refit_boxes();
         Ok(())
     }

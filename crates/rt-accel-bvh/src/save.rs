@@ -423,7 +423,7 @@ impl<const N: usize, Node: NodeLayout<N> + SavedNode> TriBvh<N, Node> {
                 return Err(corrupt(format!("leaf {first}+{count} overlaps another")));
             }
         }
-        let bvh = Self::assemble(tree, soa, ids, tris.len(), params);
+        let bvh = Self::assemble(tree, soa, ids.into(), tris.len(), params);
         bvh.validate().map_err(corrupt)?;
         if params.splits_primitives() {
             let boxes = wide_leaf_boxes(&bvh.tree, &bvh.ids, tris.len()).map_err(corrupt)?;
@@ -455,7 +455,8 @@ impl<P: Primitive, const N: usize, Node: NodeLayout<N> + SavedNode> WideBvh<P, N
         let Saved { params, tree, ids } =
             read_tree::<N, Node>(bytes, PRIMITIVES, (prims.len(), bounds_hash(prims)))?;
         let corrupt = |e: String| LoadError::Corrupt(e);
-        let bvh = Self::assemble(tree, in_leaf_order(prims, &ids), ids, prims.len(), params);
+        let leaf_prims = in_leaf_order(prims, &ids).into();
+        let bvh = Self::assemble(tree, leaf_prims, ids.into(), prims.len(), params);
         bvh.validate().map_err(corrupt)?;
         if params.splits_primitives() {
             let boxes = wide_leaf_boxes(&bvh.tree, &bvh.ids, prims.len()).map_err(corrupt)?;
@@ -504,9 +505,9 @@ impl<P: Primitive> Bvh<P> {
             return Err(corrupt(format!("id {id} of {} primitives", prims.len())));
         }
         let bvh = Bvh {
-            nodes,
-            prims: in_leaf_order(prims, &ids),
-            ids,
+            nodes: nodes.into(),
+            prims: in_leaf_order(prims, &ids).into(),
+            ids: ids.into(),
             count: prims.len(),
             params,
             isa: Isa::selected(),

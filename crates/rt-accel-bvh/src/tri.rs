@@ -79,7 +79,7 @@ impl<const N: usize, Node: NodeLayout<N>> TriBvh<N, Node> {
     pub(crate) fn assemble(
         tree: WideTree<N, Node>,
         tris: TriangleSoa,
-        ids: Vec<u32>,
+        ids: Pages<u32>,
         count: usize,
         params: BvhParams,
     ) -> Self {
@@ -88,7 +88,7 @@ impl<const N: usize, Node: NodeLayout<N>> TriBvh<N, Node> {
         Self {
             tree,
             tris,
-            ids: Pages::from(ids),
+            ids,
             count,
             params,
             stats,

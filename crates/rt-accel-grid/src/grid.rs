@@ -2,6 +2,7 @@
 
 use crate::level::NO_CHILD;
 use crate::{GridParams, Level, build};
+use rt_geom::pages::Pages;
 use rt_geom::{
     Aabb, Accel, BuildError, FilteredAccel, Frame, Isa, LeafPrims, Primitive, check_primitives,
 };
@@ -10,13 +11,13 @@ use rt_geom::{
 #[derive(Clone, Debug)]
 pub struct Grid<P> {
     pub(crate) levels: Vec<Level>,
-    pub(crate) offsets: Vec<u32>,
-    pub(crate) children: Vec<u32>,
-    pub(crate) refs: Vec<u32>,
+    pub(crate) offsets: Pages<u32>,
+    pub(crate) children: Pages<u32>,
+    pub(crate) refs: Pages<u32>,
     /// Per cell, its distance to the nearest occupied cell of its level ([`skip`](crate::skip)).
-    pub(crate) skip: Vec<u8>,
+    pub(crate) skip: Pages<u8>,
     /// Every level's cell planes ([`level`]).
-    pub(crate) planes: Vec<f32>,
+    pub(crate) planes: Pages<f32>,
     pub(crate) prims: Vec<P>,
     /// The primitives of every cell, in `refs` order, laid out for the cell test.
     pub(crate) listed: LeafPrims<P>,
@@ -63,11 +64,11 @@ impl<P: Primitive> Grid<P> {
         Ok(Self {
             listed,
             levels: flat.levels,
-            offsets: flat.offsets,
-            children: flat.children,
-            refs: flat.refs,
-            skip: flat.skip,
-            planes: flat.planes,
+            offsets: Pages::from(flat.offsets),
+            children: Pages::from(flat.children),
+            refs: Pages::from(flat.refs),
+            skip: Pages::from(flat.skip),
+            planes: Pages::from(flat.planes),
             prims: prims.to_vec(),
             params,
             frame,

@@ -151,11 +151,11 @@ impl Grid<Triangle> {
         Self {
             listed: LeafPrims::new(tris, &refs, lists),
             levels,
-            offsets,
-            children,
-            refs,
-            skip,
-            planes,
+            offsets: offsets.into(),
+            children: children.into(),
+            refs: refs.into(),
+            skip: skip.into(),
+            planes: planes.into(),
             prims: tris.to_vec(),
             params,
             frame,
@@ -482,8 +482,10 @@ mod tests {
                 .find(|&i| listed(grid.refs[i]) > 1)
                 .unwrap();
             let mut dropped = grid.clone();
-            dropped.refs.remove(at);
-            for o in &mut dropped.offsets {
+            let mut refs = dropped.refs.to_vec();
+            refs.remove(at);
+            dropped.refs = refs.into();
+            for o in dropped.offsets.iter_mut() {
                 *o -= (*o as usize > at) as u32;
             }
             let err = Grid::from_bytes(&dropped.to_bytes(), &tris).unwrap_err();

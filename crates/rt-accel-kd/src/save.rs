@@ -345,9 +345,9 @@ mod tests {
             .map(|(first, _)| first as usize)
             .find(|&f| listed(kd.indices[f]) > 1)
             .unwrap();
-        let mut indices = kd.indices.clone();
+        let mut indices = kd.indices.to_vec();
         indices[first] = indices[first + 1];
-        let dropped = KdTree::assemble(&tris, kd.nodes.clone(), indices, kd.frame, kd.params);
+        let dropped = KdTree::assemble(&tris, kd.nodes.to_vec(), indices, kd.frame, kd.params);
         let err = KdTree::from_bytes(&dropped.to_bytes(), &tris).unwrap_err();
         assert!(
             err.to_string().contains("not listed in every cell"),

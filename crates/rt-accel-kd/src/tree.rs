@@ -1,6 +1,7 @@
 //! [`KdTree`]: the kd-tree over any primitive, its build entry points and queries.
 
 use crate::{KdBuilder, KdNode, KdParams, KdTraversal, build, node, traverse};
+use rt_geom::pages::Pages;
 use rt_geom::{
     Aabb, Accel, AccelStats, BuildError, FilteredAccel, Frame, Hit, Isa, Keep, LeafPrims, Level,
     Primitive, Ray, Walk, check_primitives,
@@ -10,9 +11,9 @@ use rt_geom::{
 /// primitives by index (a primitive cut by planes is in several leaves).
 #[derive(Clone, Debug)]
 pub struct KdTree<P> {
-    pub(crate) nodes: Vec<KdNode>,
+    pub(crate) nodes: Pages<KdNode>,
     /// Leaves of more than one primitive hold ranges of this array.
-    pub(crate) indices: Vec<u32>,
+    pub(crate) indices: Pages<u32>,
     /// The caller's primitives, in the caller's order.
     pub(crate) prims: Vec<P>,
     /// The primitives of the leaves of several, in `indices` order, laid out for the leaf
@@ -78,8 +79,8 @@ impl<P: Primitive> KdTree<P> {
         let root = frame.to_local(&Aabb::around(prims));
         let listed = LeafPrims::new(prims, &indices, nodes.iter().filter_map(KdNode::list));
         Self {
-            nodes,
-            indices,
+            nodes: Pages::from(nodes),
+            indices: Pages::from(indices),
             prims: prims.to_vec(),
             listed,
             bounds: frame.to_world(&root),

@@ -2,6 +2,7 @@
 
 use crate::node::{MAX_NODES, octant};
 use crate::{ChildRef, MAX_DEPTH, OctLeaf, OctNode, OctreeParams, OctreeTraversal, build};
+use rt_geom::pages::Pages;
 use rt_geom::{
     Aabb, Accel, BuildError, FilteredAccel, Frame, Isa, LeafPrims, Primitive, Vec3,
     check_primitives,
@@ -10,9 +11,9 @@ use rt_geom::{
 /// An octree over primitives `P`.
 #[derive(Clone, Debug)]
 pub struct Octree<P> {
-    pub(crate) nodes: Vec<OctNode>,
-    pub(crate) leaves: Vec<OctLeaf>,
-    pub(crate) indices: Vec<u32>,
+    pub(crate) nodes: Pages<OctNode>,
+    pub(crate) leaves: Pages<OctLeaf>,
+    pub(crate) indices: Pages<u32>,
     /// The root node (unused when there are no primitives).
     pub(crate) root: ChildRef,
     pub(crate) prims: Vec<P>,
@@ -53,9 +54,9 @@ impl<P: Primitive> Octree<P> {
         let lists = flat.leaves.iter().map(|l| (l.first, l.count));
         Ok(Self {
             leaf_prims: LeafPrims::new(prims, &flat.indices, lists),
-            nodes: flat.nodes,
-            leaves: flat.leaves,
-            indices: flat.indices,
+            nodes: flat.nodes.into(),
+            leaves: flat.leaves.into(),
+            indices: flat.indices.into(),
             root,
             prims: prims.to_vec(),
             bounds,

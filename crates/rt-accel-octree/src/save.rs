@@ -119,9 +119,9 @@ impl Octree<Triangle> {
         let lists = leaves.iter().map(|l| (l.first, l.count));
         let tree = Self {
             leaf_prims: LeafPrims::new(tris, &indices, lists),
-            nodes,
-            leaves,
-            indices,
+            nodes: nodes.into(),
+            leaves: leaves.into(),
+            indices: indices.into(),
             root,
             prims: tris.to_vec(),
             bounds,

@@ -315,7 +315,7 @@ fn triangle_at(win: &[f32; WINDOW], m: usize, i: usize) -> Triangle {
 #[derive(Clone, Debug, Default)]
 pub struct LeafPrims<P> {
     soa: Option<TriangleSoa>,
-    listed: Vec<P>,
+    listed: Pages<P>,
 }
 
 impl<P: Primitive> LeafPrims<P> {
@@ -327,9 +327,12 @@ impl<P: Primitive> LeafPrims<P> {
         match tris {
             Some(tris) if !tris.is_empty() => Self {
                 soa: Some(TriangleSoa::new(&tris, lists)),
-                listed: Vec::new(),
+                listed: Pages::default(),
             },
-            _ => Self { soa: None, listed },
+            _ => Self {
+                soa: None,
+                listed: listed.into(),
+            },
         }
     }
 

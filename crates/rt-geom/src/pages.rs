@@ -54,6 +54,14 @@ impl<T: Clone> Pages<T> {
     }
 }
 
+impl<T> Pages<T> {
+    /// The elements as a slice (as [`Vec::as_slice`]).
+    #[inline(always)]
+    pub fn as_slice(&self) -> &[T] {
+        self
+    }
+}
+
 impl<T: Clone> From<Vec<T>> for Pages<T> {
     /// The vector's elements, moved onto large pages when they span one (else kept where
     /// they are).

@@ -1,10 +1,11 @@
 //! [`WideBvh`]: a wide topology that owns its leaf-ordered primitives.
 
 use super::{NodeLayout, WideNode, WideTree, test_leaf};
-use crate::refit::{Refit, check_moved, in_leaf_order, leaf_bounds};
+use crate::refit::{Refit, check_moved, leaf_bounds, refill_in_leaf_order};
 use crate::stats::check_leaf_primitive;
 use crate::{Bvh, BvhParams};
 use rt_geom::all_referenced;
+use rt_geom::pages::Pages;
 use rt_geom::{
     Accel, AccelStats, BuildError, FilteredAccel, Hit, Isa, Keep, Level, Primitive, Ray, Walk,
 };
@@ -14,8 +15,8 @@ use rt_geom::{
 #[derive(Clone, Debug)]
 pub struct WideBvh<P, const N: usize, Node = WideNode<N>> {
     pub(crate) tree: WideTree<N, Node>,
-    pub(crate) prims: Vec<P>,
-    pub(crate) ids: Vec<u32>,
+    pub(crate) prims: Pages<P>,
+    pub(crate) ids: Pages<u32>,
     pub(crate) count: usize,
     pub(crate) params: BvhParams,
 }
@@ -47,8 +48,8 @@ impl<P: Primitive, const N: usize, Node: NodeLayout<N>> WideBvh<P, N, Node> {
     /// The structure of a tree, its leaf-ordered primitives and their ids.
     pub(crate) fn assemble(
         tree: WideTree<N, Node>,
-        prims: Vec<P>,
-        ids: Vec<u32>,
+        prims: Pages<P>,
+        ids: Pages<u32>,
         count: usize,
         params: BvhParams,
     ) -> Self {
@@ -110,7 +111,7 @@ impl<P: Primitive, const N: usize, Node: NodeLayout<N>> Walk for WideBvh<P, N, N
 impl<P: Primitive, const N: usize, Node: NodeLayout<N>> Refit<P> for WideBvh<P, N, Node> {
     fn refit(&mut self, prims: &[P]) -> Result<(), BuildError> {
         check_moved(prims, self.count)?;
-        self.prims = in_leaf_order(prims, &self.ids);
+        refill_in_leaf_order(&mut self.prims, prims, &self.ids);
         let prims = &self.prims;
         self.tree
             .refit(&|first, count| leaf_bounds(prims, first, count));

@@ -5,6 +5,7 @@ use super::build::{self, Side, classify, clip_cell};
 use crate::build::{BuildNode, MAX_LOCAL, flatten, root_budget};
 use crate::params::MAX_DEPTH;
 use crate::{KdNode, KdParams};
+use rt_geom::pages::Pages;
 use rt_geom::{
     Aabb, Accel, AccelStats, BuildError, FilteredAccel, Frame, Hit, Isa, Keep, LeafPrims, Level,
     Primitive, Ray, Vec3, Walk, check_primitives,
@@ -25,9 +26,9 @@ pub struct SplitPlane {
 /// A BSP tree over primitives `P`.
 #[derive(Clone, Debug)]
 pub struct BspTree<P> {
-    pub(super) nodes: Vec<KdNode>,
-    pub(super) planes: Vec<SplitPlane>,
-    pub(super) indices: Vec<u32>,
+    pub(super) nodes: Pages<KdNode>,
+    pub(super) planes: Pages<SplitPlane>,
+    pub(super) indices: Pages<u32>,
     pub(super) prims: Vec<P>,
     /// The primitives of the leaves of several, laid out for the leaf test ([`LeafPrims`]).
     pub(super) listed: LeafPrims<P>,
@@ -83,9 +84,9 @@ impl<P: Primitive> BspTree<P> {
         }
         let listed = LeafPrims::new(prims, &indices, nodes.iter().filter_map(KdNode::list));
         Ok(Self {
-            nodes,
-            planes,
-            indices,
+            nodes: Pages::from(nodes),
+            planes: Pages::from(planes),
+            indices: Pages::from(indices),
             prims: prims.to_vec(),
             listed,
             bounds,
