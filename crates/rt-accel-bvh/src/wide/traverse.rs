@@ -58,7 +58,8 @@ fn le_lanes<const N: usize, V: Level>(level: V, t0: &[f32; N], t1: &[f32; N]) ->
 /// - more: all are pushed far to near and the nearest is popped (closest-hit queries);
 ///   any-hit queries push the inner children, then the leaves, and pop a leaf first.
 ///
-/// Popped entries whose entry distance lies beyond the closest hit found since are skipped.
+/// Popped entries whose entry distance lies beyond the closest hit found since are skipped
+/// (closest-hit queries; any-hit ones keep no distances).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn traverse_nodes<
@@ -135,11 +136,12 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
                 rt_geom::counters::nodes(used as u32);
             }
             let (entered, t) = node.entries(level, slab, r.tmin, r.tmax);
+            let entry = |l: usize| entry::<Node, N, ANY_HIT>(node, &t, l);
             let mut mask = entered & node.used_mask();
             if mask != 0 {
                 let lane = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
-                let item = (node.child(lane), node.count(lane), t[lane]);
+                let item = entry(lane);
                 if mask == 0 {
                     next = item;
                     continue;
@@ -148,8 +150,7 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
                     // Two children: one visited next straight from the node, the other
                     // pushed (no trip through the stack for the next node's index).
                     // Closest hit: the nearer next; any hit: a leaf first.
-                    let l = mask.trailing_zeros() as usize;
-                    let other = (node.child(l), node.count(l), t[l]);
+                    let other = entry(mask.trailing_zeros() as usize);
                     let item_first = if ANY_HIT {
                         item.1 > 0 && other.1 == 0
                     } else {
@@ -174,7 +175,7 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
                         while group != 0 {
                             let l = group.trailing_zeros() as usize;
                             group &= group - 1;
-                            stack[slot(sp)].write((node.child(l), node.count(l), t[l]));
+                            stack[slot(sp)].write(entry(l));
                             sp += 1;
                         }
                     }
@@ -185,8 +186,8 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
                     while mask != 0 {
                         let lane = mask.trailing_zeros() as usize;
                         mask &= mask - 1;
-                        let te = t[lane];
-                        let item = (node.child(lane), node.count(lane), te);
+                        let item = entry(lane);
+                        let te = item.2;
                         let mut k = sp;
                         // SAFETY: `k - 1 < sp`, and every entry below `sp` is written (the
                         // walk's invariant: see the pop below).
@@ -211,7 +212,7 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
             // entries up by one (the top one into `stack[sp]`) and writes the new entry into
             // the slot left, before `sp` grows.
             next = unsafe { stack[slot(sp)].assume_init() };
-            if next.2 <= r.tmax {
+            if ANY_HIT || next.2 <= r.tmax {
                 break;
             }
         }
@@ -220,6 +221,22 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
 
 /// A pending subtree: child, count, entry distance.
 type Entry = (u32, u32, f32);
+
+/// Lane `l` of `node`, entered at `t[l]`, as a stack entry. Any-hit queries end at their first
+/// hit and never lower `tmax` before: their entries carry no distance (0), and their pops
+/// check none.
+#[inline(always)]
+fn entry<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool>(
+    node: &Node,
+    t: &[f32; N],
+    l: usize,
+) -> Entry {
+    (
+        node.child(l),
+        node.count(l),
+        if ANY_HIT { 0.0 } else { t[l] },
+    )
+}
 
 /// Stack entries in the walk's frame: enough for 8-wide trees of `MAX_DEPTH + 1` levels (the
 /// deepest any tree is), rounded up to a power of two so that a masked index needs no check.
