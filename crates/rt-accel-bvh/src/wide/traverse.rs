@@ -136,7 +136,7 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
                 rt_geom::counters::nodes(used as u32);
             }
             let (entered, t) = node.entries(level, slab, r.tmin, r.tmax);
-            let entry = |l: usize| entry::<Node, N, ANY_HIT>(node, &t, l);
+            let entry = |l: usize| stack_entry::<Node, N, ANY_HIT>(node, &t, l);
             let mut mask = entered & node.used_mask();
             if mask != 0 {
                 let lane = mask.trailing_zeros() as usize;
@@ -226,7 +226,7 @@ type Entry = (u32, u32, f32);
 /// hit and never lower `tmax` before: their entries carry no distance (0), and their pops
 /// check none.
 #[inline(always)]
-fn entry<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool>(
+fn stack_entry<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool>(
     node: &Node,
     t: &[f32; N],
     l: usize,
