@@ -64,7 +64,7 @@ macro_rules! queries_from_walk {
 
         #[inline]
         fn occluded(&self, ray: &$crate::Ray) -> bool {
-            $crate::isa::query::<_, true, _>(self, ray, || None).is_some()
+            $crate::isa::query::<_, true, _>(self, ray, || $crate::Occlusion(None)).is_some()
         }
 
         fn filtered(&self) -> Option<&dyn $crate::FilteredAccel> {
@@ -90,7 +90,8 @@ macro_rules! queries_from_walk {
 
         #[inline]
         fn occluded(&self, ray: &$crate::Ray) -> bool {
-            self.traverse::<true, _>(ray, || None).is_some()
+            self.traverse::<true, _>(ray, || $crate::Occlusion(None))
+                .is_some()
         }
 
         fn filtered(&self) -> Option<&dyn $crate::FilteredAccel> {
@@ -121,7 +122,10 @@ macro_rules! filtered_from_walk {
         }
 
         fn occluded_leaving(&self, ray: &$crate::Ray, prim: u32) -> bool {
-            $crate::isa::query::<_, true, _>(self, ray, || $crate::Skipping::new(prim)).is_some()
+            $crate::isa::query::<_, true, _>(self, ray, || {
+                $crate::Occlusion($crate::Skipping::new(prim))
+            })
+            .is_some()
         }
     };
     () => {
@@ -143,7 +147,7 @@ macro_rules! filtered_from_walk {
         }
 
         fn occluded_leaving(&self, ray: &$crate::Ray, prim: u32) -> bool {
-            self.traverse::<true, _>(ray, || $crate::Skipping::new(prim))
+            self.traverse::<true, _>(ray, || $crate::Occlusion($crate::Skipping::new(prim)))
                 .is_some()
         }
     };

@@ -139,6 +139,11 @@ pub trait Keep {
     /// asked, and for [`Skipping`].
     const SKIPS: bool = Self::FILTERED;
 
+    /// Whether an any-hit query reads the `t`, `u`, `v` of the hit it ends on. Where it only
+    /// asks whether there is one ([`Occlusion`]), a leaf test may end it on a hit it has proven
+    /// to lie in the ray's interval without working them out.
+    const ANY_HIT_VALUES: bool = true;
+
     /// The hit kept so far.
     fn best(&self) -> Option<Hit>;
 
@@ -271,6 +276,38 @@ impl Keep for Skipping {
     #[inline(always)]
     fn record<const ANY_HIT: bool>(&mut self, h: PrimHit, prim: u32, tmax: &mut f32) -> bool {
         crate::keep_hit::<ANY_HIT>(h, prim, tmax, &mut self.hit)
+    }
+}
+
+/// What an occlusion query keeps: the hits of keeper `K`, of which it asks only whether there
+/// is one. An any-hit leaf test may end it on a hit proven to lie in the ray's interval
+/// without working out that hit's `t`, `u`, `v` ([`Keep::ANY_HIT_VALUES`]): the [`Hit`] it
+/// reports then carries the primitive, `t = tmin` and `u = v = 0`.
+pub struct Occlusion<K>(pub K);
+
+impl<K: Keep> Keep for Occlusion<K> {
+    const FILTERED: bool = K::FILTERED;
+    const SKIPS: bool = K::SKIPS;
+    const ANY_HIT_VALUES: bool = K::FILTERED;
+
+    #[inline(always)]
+    fn best(&self) -> Option<Hit> {
+        self.0.best()
+    }
+
+    #[inline(always)]
+    fn accepts(&mut self, hit: &Hit) -> bool {
+        self.0.accepts(hit)
+    }
+
+    #[inline(always)]
+    fn skips(&self, prim: u32) -> bool {
+        self.0.skips(prim)
+    }
+
+    #[inline(always)]
+    fn record<const ANY_HIT: bool>(&mut self, h: PrimHit, prim: u32, tmax: &mut f32) -> bool {
+        self.0.record::<ANY_HIT>(h, prim, tmax)
     }
 }
 

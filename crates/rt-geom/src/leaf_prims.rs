@@ -140,7 +140,8 @@ impl TriangleSoa {
     /// hit [`proven_hit`](crate::triangle::proven_hit) proves inside the ray's interval
     /// (proved for the window's lanes at once) is handed over with Woop's `f32` estimates of
     /// `t`, `u`, `v` instead of the refined ones: the same answer, without the `f64`
-    /// refinement.
+    /// refinement; to a keeper that does not read them ([`Keep::ANY_HIT_VALUES`]), as a hit
+    /// at `tmin`.
     ///
     /// The eight-lane windows run on `level`'s vectors ([`Level`]: one AVX register at the
     /// AVX2 level, inside a walk [`crate::isa::run`] runs there).
@@ -230,6 +231,18 @@ impl TriangleSoa {
             }
             let edges = lane_edges(&sheared, l);
             if proven & (1 << l) != 0 {
+                if !K::ANY_HIT_VALUES {
+                    // Only whether there is a hit is asked, and this one is proven.
+                    let h = crate::PrimHit {
+                        t: r.tmin,
+                        u: 0.0,
+                        v: 0.0,
+                    };
+                    if best.keep::<ANY_HIT>(h, ids[k + l], &mut r.tmax) {
+                        return true;
+                    }
+                    continue;
+                }
                 // Woop's numbers for the lane, as `proven_hit` computes them.
                 let [_, _, kz] = r.watertight_axes();
                 let oz = r.origin().to_array()[kz];
@@ -592,6 +605,95 @@ mod tests {
                 .is_empty()
         );
         same_as_by_id(&tris, &mut seed);
+    }
+
+    /// Occlusion queries ([`crate::Occlusion`]) end on a proven hit without its `t`, `u`, `v`:
+    /// the same answer and the same primitive as the plain any-hit keeper, leaf by leaf, at
+    /// both levels, for rays that leave a triangle of the leaf (`tmin > 0`) and rays that
+    /// pass through, with the shortcut taken (a hit reported at `tmin`) in most of them.
+    #[test]
+    fn occlusion_answers_as_any_hit() {
+        let mut seed = 5;
+        let v = |s: &mut u64| Vec3::new(lcg(s), lcg(s), lcg(s));
+        let tris: Vec<Triangle> = (0..60)
+            .map(|_| {
+                let a = v(&mut seed) * 2.0 - 1.0;
+                Triangle::new(a, a + v(&mut seed) * 0.9, a + v(&mut seed) * 0.9)
+            })
+            .collect();
+        let leaves = [(0, 5), (5, 8), (13, 12), (25, 35)];
+        let soa = TriangleSoa::new(&tris, leaves);
+        let ids: Vec<u32> = (0..60).collect();
+        let (mut hits, mut shortcut) = (0, 0);
+        for k in 0..3000 {
+            // From a point of a triangle (a shadow ray), or from anywhere.
+            let t = &tris[k % 60];
+            let (u, w) = (lcg(&mut seed) * 0.5, lcg(&mut seed) * 0.5);
+            let on = t.v[0] + (t.v[1] - t.v[0]) * u + (t.v[2] - t.v[0]) * w;
+            let o = if k % 2 == 0 {
+                on
+            } else {
+                v(&mut seed) * 4.0 - 2.0
+            };
+            let ray = Ray::segment(o, v(&mut seed) - o, 1e-4, 0.5 + lcg(&mut seed) * 4.0);
+            for &(first, count) in &leaves {
+                let leaf = (first as usize, count as usize);
+                for isa in Isa::available() {
+                    struct Both<'a> {
+                        soa: &'a TriangleSoa,
+                        leaf: (usize, usize),
+                        ids: &'a [u32],
+                        ray: Ray,
+                    }
+                    impl Kernel for Both<'_> {
+                        type Output = (Option<crate::Hit>, Option<crate::Hit>);
+                        fn run<L: Level>(self, level: L) -> Self::Output {
+                            let mut plain = None;
+                            let mut occ = crate::Occlusion(None);
+                            let (mut r1, mut r2) = (self.ray, self.ray);
+                            self.soa.test_range::<true, L>(
+                                level,
+                                self.leaf,
+                                self.ids,
+                                &mut r1,
+                                |_| false,
+                                &mut plain,
+                            );
+                            self.soa.test_range::<true, L>(
+                                level,
+                                self.leaf,
+                                self.ids,
+                                &mut r2,
+                                |_| false,
+                                &mut occ,
+                            );
+                            (plain, occ.best())
+                        }
+                    }
+                    let (plain, occ) = crate::isa::run(
+                        isa,
+                        Both {
+                            soa: &soa,
+                            leaf,
+                            ids: &ids,
+                            ray,
+                        },
+                    );
+                    assert_eq!(
+                        plain.map(|h| h.prim),
+                        occ.map(|h| h.prim),
+                        "{ray:?} leaf {leaf:?} at {isa}"
+                    );
+                    hits += occ.is_some() as u32;
+                    shortcut +=
+                        occ.is_some_and(|h| h.t == ray.tmin && plain.unwrap().t != ray.tmin) as u32;
+                }
+            }
+        }
+        assert!(
+            hits > 2000 && shortcut * 10 > hits * 5,
+            "{shortcut} of {hits} hits by the shortcut"
+        );
     }
 
     #[test]

@@ -65,7 +65,7 @@ pub use accel::{
 pub use brute::BruteForce;
 pub use cone::Cone;
 pub use filter::{
-    Filtered, FilteredAccel, HitFilter, Keep, Masked, SkipPrim, Skipping, sorted_hits,
+    Filtered, FilteredAccel, HitFilter, Keep, Masked, Occlusion, SkipPrim, Skipping, sorted_hits,
 };
 pub use frame::Frame;
 pub use geometries::{Geometries, GeometryHit};

@@ -84,11 +84,10 @@ pub(crate) fn outside_and_proven_lanes<L: SimdLanes>(
         t.num + two * b.dt,
         L::splat(tmax) * (t.den - two * b.dd) * L::splat(1.0 - ROUNDING),
     );
-    let mut sum = t.num.abs() + t.den.abs();
-    for v in 0..3 {
-        sum = sum + t.x[v].abs() + t.y[v].abs() + t.dz[v].abs() + t.z[v].abs();
-    }
-    let finite = L::less_bits(sum, L::splat(f32::MAX));
+    // Every input finite, read from `T` and `D` alone: an infinite or NaN factor makes its
+    // product infinite or NaN (times zero), so an infinite or NaN sheared coordinate makes an
+    // edge function that holds it so, and with it `D`; an infinite or NaN depth makes `T` so.
+    let finite = L::less_bits(t.num.abs() + t.den, L::splat(f32::MAX));
     let proven = sure_edges & L::less_bits(two * b.dd, t.den) & after_tmin & before_tmax & finite;
     (sure_edges & out, proven)
 }
