@@ -128,6 +128,14 @@ impl<const N: usize, Node: NodeLayout<N>> TriBvh<N, Node> {
         self.tree = self.tree.with_isa(isa);
         self
     }
+
+    /// The same structure, its walks asking for each leaf's triangles as soon as a node's
+    /// test enters the leaf (`true`), or not ([`TriangleSoa::prefetches`]; by default, for
+    /// scenes whose triangles outgrow a last-level cache). The answers are the same.
+    pub fn with_leaf_prefetch(mut self, on: bool) -> Self {
+        self.tris.set_prefetch(on);
+        self
+    }
 }
 
 impl<const N: usize, Node: NodeLayout<N>> Walk for TriBvh<N, Node> {
@@ -142,7 +150,12 @@ impl<const N: usize, Node: NodeLayout<N>> Walk for TriBvh<N, Node> {
         level: L,
         best: K,
     ) -> Option<Hit> {
-        self.tree.traverse::<ANY_HIT, L, K>(
+        // Large scenes: the rows of each leaf entered asked for early.
+        let prefetch = self.tris.prefetches().then_some(
+            #[inline(always)]
+            |first: u32| self.tris.prefetch(first as usize),
+        );
+        self.tree.traverse_prefetching::<ANY_HIT, L, K>(
             level,
             ray,
             || best,
@@ -157,6 +170,7 @@ impl<const N: usize, Node: NodeLayout<N>> Walk for TriBvh<N, Node> {
                     best,
                 )
             },
+            prefetch,
         )
     }
 }
@@ -165,7 +179,9 @@ impl<const N: usize, Node: NodeLayout<N>> Refit<Triangle> for TriBvh<N, Node> {
     fn refit(&mut self, tris: &[Triangle]) -> Result<(), BuildError> {
         check_moved(tris, self.count)?;
         let leaf_tris = in_leaf_order(tris, &self.ids);
+        let prefetch = self.tris.prefetches();
         self.tris = TriangleSoa::new(&leaf_tris, self.tree.leaves());
+        self.tris.set_prefetch(prefetch);
         self.tree
             .refit(&|first, count| leaf_bounds(&leaf_tris, first, count));
         let mut stats = self.tree.stats(self.count, &self.params);
@@ -238,6 +254,13 @@ mod tests {
         );
         rt_testkit::filter_tests!(
             triangles: |p: &[Triangle]| CompressedTriBvh8::build(p, BvhParams::spatial().for_soa_leaves()),
+        );
+    }
+
+    mod tri8_leaf_prefetch {
+        use super::*;
+        rt_testkit::conformance_tests!(
+            triangles: |p: &[Triangle]| TriBvh8::build(p, BvhParams::balanced().for_soa_leaves()).map(|b| b.with_leaf_prefetch(true)),
         );
     }
 

@@ -99,6 +99,20 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
         best: impl FnOnce() -> K,
         leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
     ) -> Option<Hit> {
+        self.traverse_prefetching::<ANY_HIT, V, K>(level, ray, best, leaf, None::<fn(u32)>)
+    }
+
+    /// [`Self::traverse`], handing every leaf a node's test enters to `prefetch` (its first
+    /// primitive) when there is one, so that the owner can ask for the leaf's data early.
+    #[inline(always)]
+    pub(crate) fn traverse_prefetching<const ANY_HIT: bool, V: Level, K: Keep>(
+        &self,
+        level: V,
+        ray: &Ray,
+        best: impl FnOnce() -> K,
+        leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
+        prefetch: Option<impl Fn(u32)>,
+    ) -> Option<Hit> {
         traverse::traverse_nodes::<_, N, ANY_HIT, V, K>(
             level,
             &self.nodes,
@@ -108,6 +122,7 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
             ray,
             best,
             leaf,
+            prefetch,
         )
     }
 }

@@ -59,7 +59,8 @@ fn le_lanes<const N: usize, V: Level>(level: V, t0: &[f32; N], t1: &[f32; N]) ->
 ///   any-hit queries push the inner children, then the leaves, and pop a leaf first.
 ///
 /// Popped entries whose entry distance lies beyond the closest hit found since are skipped
-/// (closest-hit queries; any-hit ones keep no distances).
+/// (closest-hit queries; any-hit ones keep no distances). With `prefetch`, every leaf a
+/// node's test enters is handed to it (its first primitive) as soon as the test is done.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn traverse_nodes<
@@ -77,6 +78,7 @@ pub(crate) fn traverse_nodes<
     ray: &Ray,
     best: impl FnOnce() -> K,
     mut leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
+    prefetch: Option<impl Fn(u32)>,
 ) -> Option<Hit> {
     if !ray.is_valid() {
         return None;
@@ -100,7 +102,9 @@ pub(crate) fn traverse_nodes<
     let need = (N - 1) * (depth + 1) + N;
     assert!(need <= STACK, "a tree deeper than MAX_DEPTH + 1 levels");
     let mut stack = [MaybeUninit::<Entry>::uninit(); STACK];
-    walk_stack::<Node, N, ANY_HIT, V, K>(level, nodes, &slab, &mut stack, &mut r, &mut best, leaf);
+    walk_stack::<Node, N, ANY_HIT, V, K>(
+        level, nodes, &slab, &mut stack, &mut r, &mut best, leaf, prefetch,
+    );
     best.best()
 }
 
@@ -109,6 +113,7 @@ pub(crate) fn traverse_nodes<
 /// `STACK` (a power of two: one mask, no bounds check, and no change, since the walk never
 /// holds more than `STACK` entries).
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level, K: Keep>(
     level: V,
     nodes: &[Node],
@@ -117,6 +122,7 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
     r: &mut Ray,
     best: &mut K,
     mut leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
+    prefetch: Option<impl Fn(u32)>,
 ) {
     let slot = |i: usize| i & (STACK - 1);
     let mut sp = 0usize;
@@ -138,6 +144,17 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
             let (entered, t) = node.entries(level, slab, r.tmin, r.tmax);
             let entry = |l: usize| stack_entry::<Node, N, ANY_HIT>(node, &t, l);
             let mut mask = entered & node.used_mask();
+            if let Some(prefetch) = &prefetch {
+                // Every leaf entered asked for at once, before the walk reaches it.
+                let mut hit = mask;
+                while hit != 0 {
+                    let l = hit.trailing_zeros() as usize;
+                    hit &= hit - 1;
+                    if node.count(l) > 0 {
+                        prefetch(node.child(l));
+                    }
+                }
+            }
             if mask != 0 {
                 let lane = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
