@@ -129,10 +129,11 @@ impl<const N: usize, Node: NodeLayout<N>> TriBvh<N, Node> {
         self
     }
 
-    /// The same structure, its walks asking for each leaf's triangles as soon as a node's
-    /// test enters the leaf (`true`), or not ([`TriangleSoa::prefetches`]; by default, for
-    /// scenes whose triangles outgrow a last-level cache). The answers are the same.
-    pub fn with_leaf_prefetch(mut self, on: bool) -> Self {
+    /// The same structure, its walks asking for every child a node's test enters (the node,
+    /// or the leaf's triangles) as soon as the test is done (`true`), or not
+    /// ([`TriangleSoa::prefetches`]; by default, for scenes whose triangles outgrow a
+    /// last-level cache). The answers are the same.
+    pub fn with_prefetch(mut self, on: bool) -> Self {
         self.tris.set_prefetch(on);
         self
     }
@@ -150,7 +151,7 @@ impl<const N: usize, Node: NodeLayout<N>> Walk for TriBvh<N, Node> {
         level: L,
         best: K,
     ) -> Option<Hit> {
-        // Large scenes: the rows of each leaf entered asked for early.
+        // Large scenes: the nodes and leaf rows a node's test enters asked for early.
         let prefetch = self.tris.prefetches().then_some(
             #[inline(always)]
             |first: u32| self.tris.prefetch(first as usize),
@@ -257,10 +258,10 @@ mod tests {
         );
     }
 
-    mod tri8_leaf_prefetch {
+    mod tri8_prefetch {
         use super::*;
         rt_testkit::conformance_tests!(
-            triangles: |p: &[Triangle]| TriBvh8::build(p, BvhParams::balanced().for_soa_leaves()).map(|b| b.with_leaf_prefetch(true)),
+            triangles: |p: &[Triangle]| TriBvh8::build(p, BvhParams::balanced().for_soa_leaves()).map(|b| b.with_prefetch(true)),
         );
     }
 

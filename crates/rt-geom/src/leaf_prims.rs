@@ -40,8 +40,8 @@ const WINDOW: usize = 80;
 /// the data.
 pub const PADDING: usize = WINDOW;
 
-/// Rows of this many bytes or more are prefetched leaf by leaf as a walk enters them
-/// ([`TriangleSoa::prefetches`]).
+/// Rows of this many bytes or more are prefetched leaf by leaf as a walk enters them, and the
+/// walk's nodes with them ([`TriangleSoa::prefetches`]).
 pub const PREFETCH_BYTES: usize = 8 << 20;
 
 /// Cache lines asked for per leaf by [`TriangleSoa::prefetch`]: the 180 bytes of a leaf of
@@ -139,10 +139,11 @@ impl TriangleSoa {
         self.data.len() * 4 + self.degenerate.len() * 8
     }
 
-    /// Whether walks ask for the rows of the leaves a node's test enters at once
-    /// ([`Self::prefetch`]), before they reach them: by default where the rows are too many
-    /// for a last-level cache to keep beside a tree's nodes ([`PREFETCH_BYTES`] or more).
-    /// Smaller rows stay cached, and the requests would only add instructions.
+    /// Whether walks ask for the children a node's test enters (the nodes, and the rows of
+    /// the leaves through [`Self::prefetch`]) at once, before they reach them: by default where
+    /// the rows are too many for a last-level cache to keep beside a tree's nodes
+    /// ([`PREFETCH_BYTES`] or more). Smaller scenes stay cached, and the requests would only
+    /// add instructions.
     pub fn prefetches(&self) -> bool {
         self.prefetch
     }
@@ -156,23 +157,8 @@ impl TriangleSoa {
     /// `first` (leaf order): a hint, which reads nothing and changes no answer.
     #[inline(always)]
     pub fn prefetch(&self, first: usize) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-            let p = self
-                .data
-                .as_slice()
-                .as_ptr()
-                .wrapping_add(9 * first)
-                .cast::<i8>();
-            for line in 0..PREFETCH_LINES {
-                // SAFETY: a prefetch only hints the cache: it reads nothing the program sees
-                // and does not fault, whatever the address.
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * line)) }
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = first;
+        let p = self.data.as_slice().as_ptr().wrapping_add(9 * first);
+        crate::isa::prefetch(p.cast(), PREFETCH_LINES);
     }
 
     /// Tests triangles `first .. first + count` against the ray, in order: the edge functions

@@ -102,8 +102,9 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
         self.traverse_prefetching::<ANY_HIT, V, K>(level, ray, best, leaf, None::<fn(u32)>)
     }
 
-    /// [`Self::traverse`], handing every leaf a node's test enters to `prefetch` (its first
-    /// primitive) when there is one, so that the owner can ask for the leaf's data early.
+    /// [`Self::traverse`], with `prefetch`: every inner node a node's test enters asked for
+    /// early, and every leaf handed to `prefetch` (its first primitive), so that the owner can
+    /// ask for the leaf's data.
     #[inline(always)]
     pub(crate) fn traverse_prefetching<const ANY_HIT: bool, V: Level, K: Keep>(
         &self,

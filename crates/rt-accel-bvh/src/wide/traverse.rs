@@ -59,8 +59,9 @@ fn le_lanes<const N: usize, V: Level>(level: V, t0: &[f32; N], t1: &[f32; N]) ->
 ///   any-hit queries push the inner children, then the leaves, and pop a leaf first.
 ///
 /// Popped entries whose entry distance lies beyond the closest hit found since are skipped
-/// (closest-hit queries; any-hit ones keep no distances). With `prefetch`, every leaf a
-/// node's test enters is handed to it (its first primitive) as soon as the test is done.
+/// (closest-hit queries; any-hit ones keep no distances). With `prefetch`, every child a
+/// node's test enters is asked for as soon as the test is done: inner nodes by the walk,
+/// leaves handed to `prefetch` (their first primitive).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn traverse_nodes<
@@ -145,13 +146,16 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
             let entry = |l: usize| stack_entry::<Node, N, ANY_HIT>(node, &t, l);
             let mut mask = entered & node.used_mask();
             if let Some(prefetch) = &prefetch {
-                // Every leaf entered asked for at once, before the walk reaches it.
+                // Every child entered asked for at once, before the walk reaches it.
                 let mut hit = mask;
                 while hit != 0 {
                     let l = hit.trailing_zeros() as usize;
                     hit &= hit - 1;
                     if node.count(l) > 0 {
                         prefetch(node.child(l));
+                    } else if let Some(child) = nodes.get(node.child(l) as usize) {
+                        let lines = std::mem::size_of::<Node>().div_ceil(64);
+                        rt_geom::isa::prefetch((child as *const Node).cast(), lines);
                     }
                 }
             }
