@@ -262,20 +262,20 @@ impl TriangleSoa {
             if K::SKIPS && best.skips(ids[k + l]) {
                 continue;
             }
+            if proven & (1 << l) != 0 && !K::ANY_HIT_VALUES {
+                // Only whether there is a hit is asked, and this one is proven.
+                let h = crate::PrimHit {
+                    t: r.tmin,
+                    u: 0.0,
+                    v: 0.0,
+                };
+                if best.keep::<ANY_HIT>(h, ids[k + l], &mut r.tmax) {
+                    return true;
+                }
+                continue;
+            }
             let edges = lane_edges(&sheared, l);
             if proven & (1 << l) != 0 {
-                if !K::ANY_HIT_VALUES {
-                    // Only whether there is a hit is asked, and this one is proven.
-                    let h = crate::PrimHit {
-                        t: r.tmin,
-                        u: 0.0,
-                        v: 0.0,
-                    };
-                    if best.keep::<ANY_HIT>(h, ids[k + l], &mut r.tmax) {
-                        return true;
-                    }
-                    continue;
-                }
                 // Woop's numbers for the lane, as `proven_hit` computes them.
                 let [_, _, kz] = r.watertight_axes();
                 let oz = r.origin().to_array()[kz];
