@@ -529,6 +529,21 @@ mod tests {
         (*seed >> 40) as f32 / (1u64 << 24) as f32
     }
 
+    /// A point of `[0, 1)^3` from [`lcg`].
+    fn point(seed: &mut u64) -> Vec3 {
+        Vec3::new(lcg(seed), lcg(seed), lcg(seed))
+    }
+
+    /// `n` triangles with a corner in `[-1, 1)^3` and edges up to `size` along each axis.
+    fn random_triangles(n: usize, size: f32, seed: &mut u64) -> Vec<Triangle> {
+        (0..n)
+            .map(|_| {
+                let a = point(seed) * 2.0 - 1.0;
+                Triangle::new(a, a + point(seed) * size, a + point(seed) * size)
+            })
+            .collect()
+    }
+
     /// `LeafPrims::test` against `test_primitives` over the same ids: same hit, same `tmax`,
     /// same answer, closest and any hit, with and without skipped ids.
     fn same_as_by_id<P: Primitive + std::fmt::Debug>(prims: &[P], seed: &mut u64) {
@@ -580,16 +595,10 @@ mod tests {
     #[test]
     fn listed_triangles_and_spheres_answer_as_by_id() {
         let mut seed = 7;
-        let v = |s: &mut u64| Vec3::new(lcg(s), lcg(s), lcg(s));
-        let tris: Vec<Triangle> = (0..30)
-            .map(|_| {
-                let a = v(&mut seed) * 2.0 - 1.0;
-                Triangle::new(a, a + v(&mut seed) * 0.8, a + v(&mut seed) * 0.8)
-            })
-            .collect();
+        let tris = random_triangles(30, 0.8, &mut seed);
         same_as_by_id(&tris, &mut seed);
         let spheres: Vec<crate::Sphere> = (0..30)
-            .map(|_| crate::Sphere::new(v(&mut seed) * 2.0 - 1.0, 0.05 + lcg(&mut seed) * 0.3))
+            .map(|_| crate::Sphere::new(point(&mut seed) * 2.0 - 1.0, 0.05 + lcg(&mut seed) * 0.3))
             .collect();
         same_as_by_id(&spheres, &mut seed);
         // Triangles among other shapes: no SoA, the listed copies answer.
@@ -613,15 +622,15 @@ mod tests {
     #[test]
     fn degenerate_triangles_answer_as_by_id() {
         let mut seed = 11;
-        let v = |s: &mut u64| Vec3::new(lcg(s), lcg(s), lcg(s));
-        let tris: Vec<Triangle> = (0..150)
-            .map(|i| {
-                let a = v(&mut seed) * 2.0 - 1.0;
-                let (b, c) = (a + v(&mut seed) * 0.8, a + v(&mut seed) * 0.8);
+        let tris: Vec<Triangle> = random_triangles(150, 0.8, &mut seed)
+            .into_iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let [a, b, _] = t.v;
                 match i % 5 {
                     0 => Triangle::new(a, b, b),
                     1 => Triangle::new(a, b, a + (b - a) * 0.5),
-                    _ => Triangle::new(a, b, c),
+                    _ => t,
                 }
             })
             .collect();
@@ -647,13 +656,7 @@ mod tests {
     #[test]
     fn occlusion_answers_as_any_hit() {
         let mut seed = 5;
-        let v = |s: &mut u64| Vec3::new(lcg(s), lcg(s), lcg(s));
-        let tris: Vec<Triangle> = (0..60)
-            .map(|_| {
-                let a = v(&mut seed) * 2.0 - 1.0;
-                Triangle::new(a, a + v(&mut seed) * 0.9, a + v(&mut seed) * 0.9)
-            })
-            .collect();
+        let tris = random_triangles(60, 0.9, &mut seed);
         let leaves = [(0, 5), (5, 8), (13, 12), (25, 35)];
         let soa = TriangleSoa::new(&tris, leaves);
         let ids: Vec<u32> = (0..60).collect();
@@ -666,9 +669,9 @@ mod tests {
             let o = if k % 2 == 0 {
                 on
             } else {
-                v(&mut seed) * 4.0 - 2.0
+                point(&mut seed) * 4.0 - 2.0
             };
-            let ray = Ray::segment(o, v(&mut seed) - o, 1e-4, 0.5 + lcg(&mut seed) * 4.0);
+            let ray = Ray::segment(o, point(&mut seed) - o, 1e-4, 0.5 + lcg(&mut seed) * 4.0);
             for &(first, count) in &leaves {
                 let leaf = (first as usize, count as usize);
                 for isa in Isa::available() {
