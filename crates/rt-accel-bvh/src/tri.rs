@@ -131,8 +131,8 @@ impl<const N: usize, Node: NodeLayout<N>> TriBvh<N, Node> {
 
     /// The same structure, its walks asking for every child a node's test enters (the node,
     /// or the leaf's triangles) as soon as the test is done (`true`), or not
-    /// ([`TriangleSoa::prefetches`]; by default, for scenes whose triangles outgrow a
-    /// last-level cache). The answers are the same.
+    /// ([`TriangleSoa::prefetches`]; by default, for large scenes). The answers are the
+    /// same.
     pub fn with_prefetch(mut self, on: bool) -> Self {
         self.tris.set_prefetch(on);
         self

@@ -140,10 +140,10 @@ impl TriangleSoa {
     }
 
     /// Whether walks ask for the children a node's test enters (the nodes, and the rows of
-    /// the leaves through [`Self::prefetch`]) at once, before they reach them: by default where
-    /// the rows are too many for a last-level cache to keep beside a tree's nodes
-    /// ([`PREFETCH_BYTES`] or more). Smaller scenes stay cached, and the requests would only
-    /// add instructions.
+    /// the leaves through [`Self::prefetch`]) at once, before they reach them: by default for
+    /// large scenes ([`PREFETCH_BYTES`] of rows or more), whose walks reach past the caches
+    /// often enough for early requests to pay. In smaller scenes the requests only add
+    /// instructions.
     pub fn prefetches(&self) -> bool {
         self.prefetch
     }
