@@ -14,11 +14,11 @@ use crate::{PrimHit, Ray};
 ///   edge functions then agree in sign, `refine` takes its interpolating branch, and its `t`
 ///   is the exact `T / D` to `f64` rounding, `T = |U| za + |V| zb + |W| zc` and `D = |U| +
 ///   |V| + |W|` (the absolute values flip both by the common sign).
-/// - The bounds: sheared `x`, `y` off by `gamma(8) (max |x| + max |dz|)` (the subtraction,
-///   the shear product, the `f32` rounding of the shear constant, `|sx| <= 1`), the depths
-///   `z = dz sz` by `gamma(4) max |z|`, each edge function (two products, a difference) by
-///   `dE = 4 (gamma(2) max|x| max|y| + dY max|x| + dX max|y|)`, `T` by
-///   `dT = 3 (gamma(3) max|e| max|z| + dE max|z| + dZ max|e|)`, `D` by `3 gamma(2) max|e| + 3 dE`.
+/// - The bounds: sheared `x`, `y` off by `dX = gamma(8) (max |x| + max |dz|)` and `dY` alike
+///   (the subtraction, the shear product, the `f32` rounding of the shear constant, `|sx| <=
+///   1`), the depths `z = dz sz` by `gamma(4) max |z|`, each edge function (two products, a
+///   difference) by `dE = 4 (gamma(2) max|x| max|y| + dY max|x| + dX max|y|)`, `T` by
+///   `dT = 3 max|z| ((gamma(3) + gamma(4)) max|e| + dE)`, `D` by `dD = 3 gamma(2) max|e| + 3 dE`.
 /// - Culled when `T + 2 dT < tmin (D - 2 dD) (1 - 2^-20)`: the exact `T / D` lies below `tmin`
 ///   by more than the `f64` evaluation and its rounding to `f32` can move it.
 ///
@@ -65,30 +65,25 @@ pub(crate) fn outside_and_proven_lanes<L: SimdLanes>(
     tmax: f32,
 ) -> (u32, u32) {
     let b = EstimateBounds::of(t);
-    let two = L::splat(2.0);
+    // `T` and `D` moved by twice their bounds, toward and away from zero.
+    let (num_lo, num_hi) = (t.num - b.dt2, t.num + b.dt2);
+    let (den_lo, den_hi) = (t.den - b.dd2, t.den + b.dd2);
+    let (below, above) = (L::splat(1.0 - ROUNDING), L::splat(1.0 + ROUNDING));
     let mut out = 0;
     if tmin > 0.0 {
-        let bound = L::splat(tmin) * (t.den - two * b.dd) * L::splat(1.0 - ROUNDING);
-        out |= L::less_bits(t.num + two * b.dt, bound);
+        out |= L::less_bits(num_hi, L::splat(tmin) * below * den_lo);
     }
     if tmax > 0.0 && tmax < f32::INFINITY {
-        let bound = L::splat(tmax) * (t.den + two * b.dd) * L::splat(1.0 + ROUNDING);
-        out |= L::less_bits(bound, t.num - two * b.dt);
+        out |= L::less_bits(L::splat(tmax) * above * den_hi, num_lo);
     }
     let sure_edges = L::less_bits(b.de, b.e_min);
-    let after_tmin = L::less_bits(
-        L::splat(tmin) * (t.den + two * b.dd) * L::splat(1.0 + ROUNDING),
-        t.num - two * b.dt,
-    );
-    let before_tmax = L::less_bits(
-        t.num + two * b.dt,
-        L::splat(tmax) * (t.den - two * b.dd) * L::splat(1.0 - ROUNDING),
-    );
+    let after_tmin = L::less_bits(L::splat(tmin) * above * den_hi, num_lo);
+    let before_tmax = L::less_bits(num_hi, L::splat(tmax) * below * den_lo);
     // Every input finite, read from `T` and `D` alone: an infinite or NaN factor makes its
     // product infinite or NaN (times zero), so an infinite or NaN sheared coordinate makes an
     // edge function that holds it so, and with it `D`; an infinite or NaN depth makes `T` so.
     let finite = L::less_bits(t.num.abs() + t.den, L::splat(f32::MAX));
-    let proven = sure_edges & L::less_bits(two * b.dd, t.den) & after_tmin & before_tmax & finite;
+    let proven = sure_edges & L::less_bits(b.dd2, t.den) & after_tmin & before_tmax & finite;
     (sure_edges & out, proven)
 }
 
@@ -97,12 +92,13 @@ pub(crate) fn outside_and_proven_lanes<L: SimdLanes>(
 const ROUNDING: f32 = 1.0 / (1 << 20) as f32;
 
 /// The error bounds of [`hits_before_tmin`] for Woop's depth estimate `T / D` of sheared
-/// triangles: each edge function's `dE`, the smallest `|e|`, `dT` for `T`, `dD` for `D`.
+/// triangles: each edge function's `dE`, the smallest `|e|`, and twice `dT` and `dD` (the
+/// bounds are taken twice over).
 struct EstimateBounds<L> {
     de: L,
     e_min: L,
-    dt: L,
-    dd: L,
+    dt2: L,
+    dd2: L,
 }
 
 impl<L: SimdLanes> EstimateBounds<L> {
@@ -112,18 +108,21 @@ impl<L: SimdLanes> EstimateBounds<L> {
         let abs_max = |v: &[L; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
         let (x_max, y_max) = (abs_max(&t.x), abs_max(&t.y));
         let (dz_max, z_max) = (abs_max(&t.dz), abs_max(&t.z));
-        let g = |n| L::splat(gamma(n));
-        let dx = g(8) * (x_max + dz_max);
-        let dy = g(8) * (y_max + dz_max);
-        let de = L::splat(4.0) * (g(2) * x_max * y_max + dy * x_max + dx * y_max);
+        // `4 (gamma(2) x y + dY x + dX y)` expanded.
+        let de = L::splat(4.0 * gamma(2) + 8.0 * gamma(8)) * x_max * y_max
+            + L::splat(4.0 * gamma(8)) * dz_max * (x_max + y_max);
         let e = &t.edges;
         let e_max = e[0].max(e[1]).max(e[2]);
         let e_min = e[0].min(e[1]).min(e[2]);
-        let dzz = g(4) * z_max;
-        let three = L::splat(3.0);
-        let dt = three * (g(3) * e_max * z_max + de * z_max + dzz * e_max);
-        let dd = three * g(2) * e_max + three * de;
-        Self { de, e_min, dt, dd }
+        let de6 = L::splat(6.0) * de;
+        let dt2 = z_max * (L::splat(6.0 * (gamma(3) + gamma(4))) * e_max + de6);
+        let dd2 = L::splat(6.0 * gamma(2)) * e_max + de6;
+        Self {
+            de,
+            e_min,
+            dt2,
+            dd2,
+        }
     }
 }
 
@@ -164,10 +163,8 @@ pub fn proven_hit(
         num,
         den,
     };
-    let b = EstimateBounds::of(&t);
-    let after_tmin = (num - 2.0 * b.dt) > tmin * (den + 2.0 * b.dd) * (1.0 + ROUNDING);
-    let before_tmax = (num + 2.0 * b.dt) < tmax * (den - 2.0 * b.dd) * (1.0 - ROUNDING);
-    if !(b.de < b.e_min && 2.0 * b.dd < den && after_tmin && before_tmax) {
+    let (_, proven) = outside_and_proven_lanes(&t, tmin, tmax);
+    if proven == 0 {
         return None;
     }
     woop_hit(num, den, (u, v, w), ray)
