@@ -55,9 +55,8 @@ pub(crate) fn hits_outside_and_proven<L: SimdLanes>(
 /// [`hits_outside`]'s lanes (its body, inlined at the AVX2 level), and beside them
 /// the lanes whose hit [`proven_hit`] proves inside `[tmin, tmax]` (`tmin > 0`): the same
 /// bounds, computed once for every lane. A lane is proven only where its inputs are all
-/// finite (the lanes' `max` drops NaN where `f32::max` of the one-lane form keeps the other
-/// operand); where they are, its bit is `proven_hit`'s answer for that lane's edge
-/// functions, as long as none of them is zero (the caller masks those).
+/// finite (the lanes' `max` drops NaN where `f32::max` keeps the other operand, so the two
+/// would differ there); `proven_hit` is this function on one lane.
 #[inline(always)]
 pub(crate) fn outside_and_proven_lanes<L: SimdLanes>(
     t: &ShearedLanes<L>,
