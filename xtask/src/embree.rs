@@ -180,6 +180,8 @@ fn isa_config() -> String {
     let name = match isa {
         rt_geom::Isa::Baseline => "sse2",
         rt_geom::Isa::Avx2 => "avx2",
+        // Embree's own best, its AVX-512 kernels where the CPU has them.
+        rt_geom::Isa::Avx512 => return String::new(),
     };
     format!(",isa={name}")
 }

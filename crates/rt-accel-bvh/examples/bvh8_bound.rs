@@ -391,7 +391,7 @@ fn against<const ANY_HIT: bool>(a: &TriBvh8, b: &TriBvh8, rays: &[Ray]) -> Vec<f
         .collect()
 }
 
-/// `bvh` with one change for `--against`: `isa=baseline|avx2`, or one of the build's
+/// `bvh` with one change for `--against`: `isa=baseline|avx2|avx512`, or one of the build's
 /// parameters (`leaf_block=N`, `max_leaf=N`, `traversal_cost=X`, `reinsertion=X`, `bins=N`,
 /// `spatial=ALPHA`, `budget=X`, `collapse=greedy|sah|ABOVE`), each as a change to
 /// [`rt_accel_bvh::BvhParams::fastest_trace`].
