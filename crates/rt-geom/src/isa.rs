@@ -8,8 +8,8 @@
 //! does not inline into a caller without it. The kernels work on eight lanes, which one AVX2
 //! register holds; the AVX-512 level ([`Isa::Avx512`]) runs the same eight-lane code with
 //! AVX-512's 32 vector registers and mask registers, and only for the work that gains from
-//! them ([`Kernel::AVX512`]: any-hit walks, whose exact leaf test no longer spills its
-//! vectors); all other work runs its AVX2 copy there, which ran faster than an AVX-512 one.
+//! them ([`Kernel::AVX512`]: any-hit walks, whose exact leaf test spills vectors at AVX2);
+//! all other work runs its AVX2 copy there, which ran faster than an AVX-512 one.
 //!
 //! Work to compile per level implements [`Kernel`] and runs through [`run`]; a structure
 //! implements [`Walk`] (its whole query, `#[inline(always)]`, and the level it asks for) and
