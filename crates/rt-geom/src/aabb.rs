@@ -230,6 +230,21 @@ pub fn pad_interval(t0: f32, t1: f32, tmin: f32) -> (f32, f32) {
     (if lo <= hi { lo.max(tmin) } else { f32::NAN }, hi)
 }
 
+/// [`Aabb::holds_hit`] along one axis: whether a ray's step `step` from its origin lies
+/// between the faces' offsets `lo` and `hi` from it, up to `PAD / 2` of the step.
+#[inline(always)]
+pub(crate) fn step_held(lo: f64, hi: f64, step: f64) -> bool {
+    let (below, above) = step_reach(step);
+    lo <= above && below <= hi
+}
+
+/// The span `step -+ PAD / 2 |step|` in which [`step_held`] looks for a face's offset.
+#[inline(always)]
+pub(crate) fn step_reach(step: f64) -> (f64, f64) {
+    let slack = step.abs() * (PAD as f64 * 0.5);
+    (step - slack, step + slack)
+}
+
 /// An axis-aligned box. The empty box has `min = +inf`, `max = -inf`, so that `union` with it is
 /// the identity. A box may be flat (zero extent along an axis): planar geometry has flat boxes.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -348,19 +363,24 @@ impl Aabb {
         e.x * e.y + e.y * e.z + e.z * e.x
     }
 
-    /// Whether the point at `t` of `ray`, computed in `f64`, lies in the box up to half the
-    /// box test's padding (`PAD / 2` of the ray's step along each axis): a hit this accepts,
-    /// every structure's padded box test accepts too. The analytic kernels (spheres, cones)
-    /// check their hits with it: from far away (or on a cone far longer than wide) their
-    /// `f64` roots lose the digits that place a hit.
+    /// Whether the point at `t` of `ray` lies in the box up to half the box test's padding
+    /// (`PAD / 2` of the ray's step along each axis): a hit this accepts, every structure's
+    /// padded box test accepts too. The step `d t` is compared, in `f64`, with the faces'
+    /// offsets from the origin (exact there but for far-apart magnitudes), not the point
+    /// `o + d t` with the faces: far from the origin the point's own rounding exceeds the
+    /// padding of a short step. The analytic kernels (spheres, cones) and the triangle's
+    /// `f64` refinement check their hits with it: from far away (or on a cone far longer than
+    /// wide, or a sliver seen edge-on) their `f64` depths lose the digits that place a hit.
     #[inline]
     pub fn holds_hit(&self, ray: &Ray, t: f32) -> bool {
         let (o, d) = (ray.origin().as_dvec3(), ray.dir().as_dvec3());
         let step = d * t as f64;
-        let p = o + step;
         (0..3).all(|k| {
-            let slack = step[k].abs() * (PAD as f64 * 0.5) + p[k].abs() * 1e-15;
-            self.min[k] as f64 - slack <= p[k] && p[k] <= self.max[k] as f64 + slack
+            step_held(
+                self.min[k] as f64 - o[k],
+                self.max[k] as f64 - o[k],
+                step[k],
+            )
         })
     }
 

@@ -13,7 +13,7 @@ use rt_geom::aabb::PAD;
 #[cfg(doc)]
 use rt_geom::aabb::{pad_down, pad_up};
 use rt_geom::{Cone, Hit, PrimHit, Primitive, Shape, Sphere, Triangle, Vec3, keep_hit};
-use wide::{CmpGe, CmpGt, f64x4};
+use wide::{CmpGe, CmpGt, CmpLe, f64x4};
 
 /// The block width for packets of `N` lanes.
 pub(crate) const fn block_width(n: usize) -> usize {
@@ -402,7 +402,8 @@ fn sheared<V: F8>(v: Vec3, o: &[V; 3], s: &[V; 6]) -> (V, V) {
 /// refinement of [`Triangle::refine`] with the same operations in the same order on
 /// `wide::f64x4` (each lane's shear from its own dominant axis), so every lane's answer is the
 /// scalar one, bit for bit. A lane whose `f64` edge functions disagree (the ray passes a
-/// rounding error outside the triangle) goes through the scalar `refine` for its fallback,
+/// rounding error outside the triangle), or whose depth lies outside the triangle's box,
+/// goes through the scalar `refine` for its fallback,
 /// and the last lanes, fewer than four, through the scalar path altogether (gathering them
 /// costs more than it saves where a triangle meets one or two lanes). Each lane's answer goes to `keep(lane, answer)`
 /// (lanes relative to `base`); a lane whose interval excludes the hit is not handed over.
@@ -489,20 +490,27 @@ fn refine_lanes<const N: usize>(
         );
         let d = d.map(f64x4::new);
         let o = o.map(f64x4::new);
-        // The shear scaled by the major component, as the scalar refinement takes it.
-        // A function, not a closure: see `rt_geom::isa`.
+        // The offsets from the origin, and the shear scaled by the major component, as the
+        // scalar refinement takes them. Functions, not closures: see `rt_geom::isa`.
         #[inline(always)]
-        fn shear(vert: [[f64; 4]; 3], o: [f64x4; 3], d: [f64x4; 3]) -> [f64x4; 3] {
-            let (px, py, pz) = (
-                f64x4::new(vert[0]) - o[0],
-                f64x4::new(vert[1]) - o[1],
-                f64x4::new(vert[2]) - o[2],
-            );
-            [px * d[2] - d[0] * pz, py * d[2] - d[1] * pz, pz]
+        fn offsets(vert: [[f64; 4]; 3], o: [f64x4; 3]) -> [f64x4; 3] {
+            [0, 1, 2].map(
+                #[inline(always)]
+                |j| f64x4::new(vert[j]) - o[j],
+            )
         }
-        let [ax, ay, az] = shear(v[0], o, d);
-        let [bx, by, bz] = shear(v[1], o, d);
-        let [cx, cy, cz] = shear(v[2], o, d);
+        #[inline(always)]
+        fn shear([px, py, pz]: [f64x4; 3], d: [f64x4; 3]) -> [f64x4; 2] {
+            [px * d[2] - d[0] * pz, py * d[2] - d[1] * pz]
+        }
+        let off = v.map(
+            #[inline(always)]
+            |vert| offsets(vert, o),
+        );
+        let [ax, ay] = shear(off[0], d);
+        let [bx, by] = shear(off[1], d);
+        let [cx, cy] = shear(off[2], d);
+        let (az, bz, cz) = (off[0][2], off[1][2], off[2][2]);
         let orient = f64x4::new(orient);
         let e0 = (cx * by - cy * bx) * orient;
         let e1 = (ax * cy - ay * cx) * orient;
@@ -510,19 +518,37 @@ fn refine_lanes<const N: usize>(
         let sum = e0 + e1 + e2;
         let zero = f64x4::ZERO;
         let inside = e0.cmp_ge(zero) & e1.cmp_ge(zero) & e2.cmp_ge(zero) & sum.cmp_gt(zero);
-        let inside = inside.move_mask();
-        let t = ((e0 * az + e1 * bz + e2 * cz) / (sum * d[2])).to_array();
+        let t = ((e0 * az + e1 * bz + e2 * cz) / (sum * d[2]))
+            .to_array()
+            .map(|t| t as f32);
+        // `Aabb::holds_hit` of the triangle's box at each lane's `t` (as the scalar
+        // refinement asks it): the lanes whose depth lies outside take the scalar path.
+        let step_t = f64x4::new(t.map(f64::from));
+        let half_pad = f64x4::splat(rt_geom::aabb::PAD as f64 * 0.5);
+        let mut held = inside;
+        for j in 0..3 {
+            let (a, b, c) = (off[0][j], off[1][j], off[2][j]);
+            let step = d[j] * step_t;
+            let slack = step.abs() * half_pad;
+            let (below, above) = (step - slack, step + slack);
+            held = held
+                & (a.cmp_le(above) | b.cmp_le(above) | c.cmp_le(above))
+                & (a.cmp_ge(below) | b.cmp_ge(below) | c.cmp_ge(below));
+        }
+        let held = held.move_mask();
         for (k, &l) in pick[..n].iter().enumerate() {
             let (u, v, w) = (eu[l], ev[l], ew[l]);
             if u + v + w == 0.0 {
                 continue;
             }
             let lane = base + l;
-            if inside >> k & 1 == 0 {
+            let t = t[k];
+            // Grazing lanes, and depths outside the triangle's box (far vertices: see
+            // `Aabb::holds_hit`), take the scalar refinement, which moves them into it.
+            if held >> k & 1 == 0 {
                 keep(l, tri.refine(&p.ray(lane), (u, v, w)));
                 continue;
             }
-            let t = t[k] as f32;
             if t >= p.tmin[lane] && t <= p.tmax[lane] {
                 let rcp = 1.0 / (u + v + w);
                 keep(

@@ -765,7 +765,7 @@ macro_rules! conformance_tests {
         $crate::conformance_tests!(@tri $tol, $tri;
             soup, sphere_mesh, torus, planar_grid, coplanar, axis_slivers, duplicates,
             teapot_in_stadium, overlapping_fan, long_slivers, huge_coords, tiny_coords,
-            one_triangle, empty, far_soup, far_sphere, far_stadium, far_dense);
+            one_triangle, empty, far_soup, far_sphere, far_stadium, far_dense, far_slivers);
         #[test]
         fn rejects_non_finite_triangles() {
             let valid = $crate::scenes::random_soup(10, 1);

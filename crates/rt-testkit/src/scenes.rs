@@ -145,6 +145,43 @@ pub fn long_slivers(n: usize, seed: u64) -> Vec<Triangle> {
         .collect()
 }
 
+/// Slivers in two planes a hundredth apart (`z` = -0.04625 and -0.03625), each reaching from
+/// near `x = 0` to near `x = 5.7e8` and 900 to 1,000 wide in `y`: rays that start between
+/// the planes meet a sliver a few thousandths away, its vertices 1e8 away. There the `f64`
+/// depth, interpolated between the vertices, loses the digits that place a hit near the
+/// origin: the hit must still lie in the sliver's box, where every structure looks for it.
+pub fn far_slivers(n: usize, seed: u64) -> Vec<Triangle> {
+    let mut rng = Rng::new(seed);
+    (0..n)
+        .map(|i| {
+            let z = if i % 2 == 0 { -0.04625 } else { -0.03625 };
+            let far = 569_315_840.0;
+            let (xa, xb) = (rng.range(0.0, 1000.0), far - rng.range(0.0, 2000.0));
+            let xc = if rng.chance(0.5) {
+                rng.range(0.0, 1000.0)
+            } else {
+                far - rng.range(0.0, 2000.0)
+            };
+            let (ya, yb, yc) = (
+                rng.range(0.0, 50.0),
+                rng.range(0.0, 1000.0),
+                rng.range(950.0, 1000.0),
+            );
+            let v = [
+                Vec3::new(xa, ya, z),
+                Vec3::new(xb, yb, z),
+                Vec3::new(xc, yc, z),
+            ];
+            // Either vertex order, so that both sides face the rays.
+            if rng.chance(0.5) {
+                Triangle::new(v[0], v[1], v[2])
+            } else {
+                Triangle::new(v[0], v[2], v[1])
+            }
+        })
+        .collect()
+}
+
 /// Long, thin triangles aligned with the axes (boxes that are flat in one or two dimensions).
 pub fn axis_slivers(n: usize, seed: u64) -> Vec<Triangle> {
     let mut rng = Rng::new(seed);
@@ -349,6 +386,8 @@ pub fn conformance_triangle_scenes() -> Vec<Scene<Triangle>> {
             "far_dense",
             placed(&torus(2000, 1.0, 0.3), 1.5, [5.0e6, 3.5e6, -5.0e6]),
         ),
+        // Slivers 5.7e8 long, rays starting a hundredth from them.
+        Scene::new("far_slivers", far_slivers(200, 9)),
     ]
 }
 

@@ -65,6 +65,7 @@ per_scene!(
     far_sphere,
     far_stadium,
     far_dense,
+    far_slivers,
 );
 
 mod brute {

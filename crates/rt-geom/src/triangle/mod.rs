@@ -128,13 +128,14 @@ impl Triangle {
     /// for both triangles. Hits exactly on an edge or vertex count. Zero-area triangles never
     /// hit.
     ///
-    /// Where the edge tests accept, `t` is computed in `f64` from the plane equation
-    /// ([`Self::refine`]). In `f32`, the paper's `t = (U az + V bz + W cz) / (U + V + W)` loses
-    /// most of its digits on thin slivers, whose edge functions cancel: a sliver of the test
-    /// scenes reports a hit 5e-5 (relative) before its own plane and before its bounding box,
-    /// where no box-culling structure can agree with brute force. In `f64` the error stays far
-    /// below the padding of [`Aabb::clip_ray`], so every structure that culls by box entry
-    /// agrees exactly.
+    /// Where the edge tests accept, `t` is computed in `f64` ([`Self::refine`]). In `f32`, the
+    /// paper's `t = (U az + V bz + W cz) / (U + V + W)` loses most of its digits on thin
+    /// slivers, whose edge functions cancel: a sliver of the test scenes reports a hit 5e-5
+    /// (relative) before its own plane and before its bounding box, where no box-culling
+    /// structure can agree with brute force. In `f64` the error mostly stays far below the
+    /// padding of [`Aabb::clip_ray`]; where it does not (vertices far from a hit close to the
+    /// origin), the hit is moved into the triangle's box, so every structure that culls by
+    /// box entry agrees exactly.
     #[inline]
     pub fn intersect_watertight(&self, ray: &Ray) -> Option<PrimHit> {
         if !ray.is_valid() {
@@ -255,7 +256,9 @@ impl Triangle {
     ///   shear's products and differences rounded once each); when all three agree
     ///   the ray pierces the triangle, and `t = (U za + V zb + W zc) / (U + V + W)` with
     ///   `z = (p - o)[kz] / d[kz]` (the depth interpolation of Woop et al., exact here where in
-    ///   `f32` it loses most digits on thin slivers);
+    ///   `f32` it loses most digits on thin slivers), moved into the ray's interval over the
+    ///   triangle's box where it lies outside by more than the box tests' padding (vertices
+    ///   `1e8` away from a hit a thousandth from the origin leave `f64` too few digits);
     /// - when they do not (the `f32` test accepted a ray that passes a rounding error outside
     ///   an edge or vertex, typically grazing the plane, where the plane equation would put the
     ///   hit far along the ray, outside the triangle's box), `t` is the ray parameter of the
@@ -269,15 +272,29 @@ impl Triangle {
 
     /// The depth of a grazing hit (the `f32` test accepts it, the `f64` edge functions do
     /// not agree): the parameter of the point of the ray closest to the triangle's boundary,
-    /// moved into the ray's interval over the triangle's box (or, for a ray that passes the
-    /// box, between its exit and its entry) and kept only where [`Aabb::holds_hit`] holds it,
-    /// so that every structure whose padded boxes or cells hold the triangle finds it there.
+    /// [`Self::held_in_box`].
     fn grazing_depth(&self, ray: &Ray) -> Option<f32> {
         let (o, d) = (ray.origin().as_dvec3(), ray.dir().as_dvec3());
-        let s = self.closest_on_boundary(o, d)?;
+        self.held_in_box(ray, self.closest_on_boundary(o, d)?)
+    }
+
+    /// The parameter `s` along `ray` as a hit that every structure whose padded boxes or
+    /// cells hold the triangle finds there: kept where [`Aabb::holds_hit`] holds it, else
+    /// moved into the ray's interval over the triangle's box (or, for a ray that passes the
+    /// box, between its exit and its entry) and kept only where `holds_hit` holds it then.
+    /// A depth interpolated in `f64` between vertices far from the origin (a sliver seen
+    /// nearly edge-on, a hit close to the origin) can lie before or after the box by more
+    /// than the box tests' padding, which is relative to the hit's own distance.
+    #[cold]
+    #[inline(never)]
+    fn held_in_box(&self, ray: &Ray, s: f64) -> Option<f32> {
         let b = self.bounds();
+        if b.holds_hit(ray, s as f32) {
+            return Some(s as f32);
+        }
         let (enter, exit) = b.slab_interval_f64(ray);
-        let t = s.max(enter.min(exit)).min(enter.max(exit)) as f32;
+        // `+ 0.0`: a face through the origin is entered at `-0.0` along a negative axis.
+        let t = s.max(enter.min(exit)).min(enter.max(exit)) as f32 + 0.0;
         b.holds_hit(ray, t).then_some(t)
     }
 
@@ -342,24 +359,47 @@ impl Triangle {
 }
 
 /// Edge functions of a triangle in a ray's shear (scaled by `dz^2`), the vertices' offsets
-/// from the origin along the ray's major axis and the direction's component `dz` there, in
+/// from the origin along the ray's axes `[kx, ky, kz]` and the direction along them, in
 /// `f64`.
 struct EdgesF64 {
     e: [f64; 3],
-    z: [f64; 3],
-    dz: f64,
+    /// Vertex `i`'s offset from the origin along the ray's axes (exact: two `f32`s).
+    off: [[f64; 3]; 3],
+    /// The direction along the ray's axes.
+    d: [f64; 3],
 }
 
 impl EdgesF64 {
     /// The depth `(U za + V zb + W zc) / ((U + V + W) dz)` of the point the ray meets, when
     /// the edge functions say it pierces the triangle (all `>= 0`, sum `> 0`): along the
-    /// major axis, a convex combination of the vertices' offsets, so the point lies in the
-    /// triangle's box.
+    /// major axis, a convex combination of the vertices' offsets `z`.
+    #[inline(always)]
     fn depth(&self) -> Option<f64> {
         let [e0, e1, e2] = self.e;
         let sum = e0 + e1 + e2;
+        let z = self.off.map(|o| o[2]);
         (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0 && sum > 0.0)
-            .then(|| (e0 * self.z[0] + e1 * self.z[1] + e2 * self.z[2]) / (sum * self.dz))
+            .then(|| (e0 * z[0] + e1 * z[1] + e2 * z[2]) / (sum * self.d[2]))
+    }
+
+    /// [`Aabb::holds_hit`] of the triangle's box at `t`, from the offsets at hand: whether
+    /// every structure that holds the triangle in its padded boxes finds the hit there.
+    #[inline(always)]
+    fn holds(&self, t: f32) -> bool {
+        // `step_held` of the vertices' least and greatest offsets, as comparisons with each
+        // (the same answers: `f64::min` and `max` cost more than the comparisons). A
+        // function, not a closure: see `crate::isa`.
+        #[inline(always)]
+        fn axis([a, b, c]: [f64; 3], step: f64) -> bool {
+            let (below, above) = crate::aabb::step_reach(step);
+            ((a <= above) | (b <= above) | (c <= above))
+                & ((a >= below) | (b >= below) | (c >= below))
+        }
+        let [a, b, c] = self.off;
+        let t = t as f64;
+        axis([a[0], b[0], c[0]], self.d[0] * t)
+            & axis([a[1], b[1], c[1]], self.d[1] * t)
+            & axis([a[2], b[2], c[2]], self.d[2] * t)
     }
 
     /// The barycentrics `(V, W) / (U + V + W)` of the edge functions clamped to `>= 0` (the
@@ -400,7 +440,8 @@ fn refine_along_axes(p: &AxisVertices, ray: &Ray, (u, v, w): (f32, f32, f32)) ->
     let orient = if u + v + w < 0.0 { -1.0 } else { 1.0 };
     let edges = edges_in_f64(p, ray, orient);
     let t = match edges.depth() {
-        Some(t) => t as f32,
+        Some(t) if edges.holds(t as f32) => t as f32,
+        Some(t) => from_axes(p, ray).held_in_box(ray, t)?,
         None => from_axes(p, ray).grazing_depth(ray)?,
     };
     if !ray.in_range(t) {
@@ -425,7 +466,12 @@ fn refine_in_f64(p: &AxisVertices, ray: &Ray) -> Option<PrimHit> {
     if edges.e.iter().sum::<f64>() < 0.0 {
         edges.e = edges.e.map(|e| -e);
     }
-    let t = edges.depth()? as f32;
+    let t = edges.depth()?;
+    let t = if edges.holds(t as f32) {
+        t as f32
+    } else {
+        from_axes(p, ray).held_in_box(ray, t)?
+    };
     if !ray.in_range(t) {
         return None;
     }
@@ -448,21 +494,19 @@ fn edges_in_f64(p: &AxisVertices, ray: &Ray, orient: f64) -> EdgesF64 {
     let (d, o) = (ray.dir().to_array(), ray.origin().to_array());
     let (dx, dy, dz) = (d[kx] as f64, d[ky] as f64, d[kz] as f64);
     let (ox, oy, oz) = (o[kx] as f64, o[ky] as f64, o[kz] as f64);
-    let shear = |q: [f32; 3]| {
-        let (x, y, z) = (q[0] as f64 - ox, q[1] as f64 - oy, q[2] as f64 - oz);
-        (x * dz - dx * z, y * dz - dy * z, z)
-    };
-    let (ax, ay, az) = shear(p[0]);
-    let (bx, by, bz) = shear(p[1]);
-    let (cx, cy, cz) = shear(p[2]);
+    let off = p.map(|q| [q[0] as f64 - ox, q[1] as f64 - oy, q[2] as f64 - oz]);
+    let shear = |[x, y, z]: [f64; 3]| (x * dz - dx * z, y * dz - dy * z);
+    let (ax, ay) = shear(off[0]);
+    let (bx, by) = shear(off[1]);
+    let (cx, cy) = shear(off[2]);
     EdgesF64 {
         e: [
             (cx * by - cy * bx) * orient,
             (ax * cy - ay * cx) * orient,
             (bx * ay - by * ax) * orient,
         ],
-        z: [az, bz, cz],
-        dz,
+        off,
+        d: [dx, dy, dz],
     }
 }
 
