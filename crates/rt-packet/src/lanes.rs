@@ -494,19 +494,17 @@ fn refine_lanes<const N: usize>(
         // scalar refinement takes them. Functions, not closures: see `rt_geom::isa`.
         #[inline(always)]
         fn offsets(vert: [[f64; 4]; 3], o: [f64x4; 3]) -> [f64x4; 3] {
-            [0, 1, 2].map(
-                #[inline(always)]
-                |j| f64x4::new(vert[j]) - o[j],
-            )
+            [
+                f64x4::new(vert[0]) - o[0],
+                f64x4::new(vert[1]) - o[1],
+                f64x4::new(vert[2]) - o[2],
+            ]
         }
         #[inline(always)]
         fn shear([px, py, pz]: [f64x4; 3], d: [f64x4; 3]) -> [f64x4; 2] {
             [px * d[2] - d[0] * pz, py * d[2] - d[1] * pz]
         }
-        let off = v.map(
-            #[inline(always)]
-            |vert| offsets(vert, o),
-        );
+        let off = [offsets(v[0], o), offsets(v[1], o), offsets(v[2], o)];
         let [ax, ay] = shear(off[0], d);
         let [bx, by] = shear(off[1], d);
         let [cx, cy] = shear(off[2], d);
@@ -518,12 +516,11 @@ fn refine_lanes<const N: usize>(
         let sum = e0 + e1 + e2;
         let zero = f64x4::ZERO;
         let inside = e0.cmp_ge(zero) & e1.cmp_ge(zero) & e2.cmp_ge(zero) & sum.cmp_gt(zero);
-        let t = ((e0 * az + e1 * bz + e2 * cz) / (sum * d[2]))
-            .to_array()
-            .map(|t| t as f32);
+        let t = ((e0 * az + e1 * bz + e2 * cz) / (sum * d[2])).to_array();
+        let t = [t[0] as f32, t[1] as f32, t[2] as f32, t[3] as f32];
         // `Aabb::holds_hit` of the triangle's box at each lane's `t` (as the scalar
         // refinement asks it): the lanes whose depth lies outside take the scalar path.
-        let step_t = f64x4::new(t.map(f64::from));
+        let step_t = f64x4::new([t[0] as f64, t[1] as f64, t[2] as f64, t[3] as f64]);
         let half_pad = f64x4::splat(rt_geom::aabb::PAD as f64 * 0.5);
         let mut held = inside;
         for j in 0..3 {

@@ -377,7 +377,7 @@ impl EdgesF64 {
     fn depth(&self) -> Option<f64> {
         let [e0, e1, e2] = self.e;
         let sum = e0 + e1 + e2;
-        let z = self.off.map(|o| o[2]);
+        let z = [self.off[0][2], self.off[1][2], self.off[2][2]];
         (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0 && sum > 0.0)
             .then(|| (e0 * z[0] + e1 * z[1] + e2 * z[2]) / (sum * self.d[2]))
     }
@@ -494,7 +494,16 @@ fn edges_in_f64(p: &AxisVertices, ray: &Ray, orient: f64) -> EdgesF64 {
     let (d, o) = (ray.dir().to_array(), ray.origin().to_array());
     let (dx, dy, dz) = (d[kx] as f64, d[ky] as f64, d[kz] as f64);
     let (ox, oy, oz) = (o[kx] as f64, o[ky] as f64, o[kz] as f64);
-    let off = p.map(|q| [q[0] as f64 - ox, q[1] as f64 - oy, q[2] as f64 - oz]);
+    // A function, not a closure in `map`: see `crate::isa`.
+    #[inline(always)]
+    fn offset(q: [f32; 3], (ox, oy, oz): (f64, f64, f64)) -> [f64; 3] {
+        [q[0] as f64 - ox, q[1] as f64 - oy, q[2] as f64 - oz]
+    }
+    let off = [
+        offset(p[0], (ox, oy, oz)),
+        offset(p[1], (ox, oy, oz)),
+        offset(p[2], (ox, oy, oz)),
+    ];
     let shear = |[x, y, z]: [f64; 3]| (x * dz - dx * z, y * dz - dy * z);
     let (ax, ay) = shear(off[0]);
     let (bx, by) = shear(off[1]);
