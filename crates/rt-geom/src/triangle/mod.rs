@@ -402,6 +402,18 @@ impl EdgesF64 {
             & axis([a[2], b[2], c[2]], self.d[2] * t)
     }
 
+    /// The depth `t` (from [`Self::depth`]) as a hit: kept where [`Self::holds`] holds it,
+    /// else [`Triangle::held_in_box`] of the triangle whose vertices along the ray's axes are
+    /// `p` (the cold path: far slivers).
+    #[inline(always)]
+    fn held(&self, t: f64, p: &AxisVertices, ray: &Ray) -> Option<f32> {
+        if self.holds(t as f32) {
+            Some(t as f32)
+        } else {
+            from_axes(p, ray).held_in_box(ray, t)
+        }
+    }
+
     /// The barycentrics `(V, W) / (U + V + W)` of the edge functions clamped to `>= 0` (the
     /// point of the triangle nearest the ray where they disagree in sign); `(0, 0)` when all
     /// vanish.
@@ -440,8 +452,7 @@ fn refine_along_axes(p: &AxisVertices, ray: &Ray, (u, v, w): (f32, f32, f32)) ->
     let orient = if u + v + w < 0.0 { -1.0 } else { 1.0 };
     let edges = edges_in_f64(p, ray, orient);
     let t = match edges.depth() {
-        Some(t) if edges.holds(t as f32) => t as f32,
-        Some(t) => from_axes(p, ray).held_in_box(ray, t)?,
+        Some(t) => edges.held(t, p, ray)?,
         None => from_axes(p, ray).grazing_depth(ray)?,
     };
     if !ray.in_range(t) {
@@ -466,12 +477,7 @@ fn refine_in_f64(p: &AxisVertices, ray: &Ray) -> Option<PrimHit> {
     if edges.e.iter().sum::<f64>() < 0.0 {
         edges.e = edges.e.map(|e| -e);
     }
-    let t = edges.depth()?;
-    let t = if edges.holds(t as f32) {
-        t as f32
-    } else {
-        from_axes(p, ray).held_in_box(ray, t)?
-    };
+    let t = edges.held(edges.depth()?, p, ray)?;
     if !ray.in_range(t) {
         return None;
     }
