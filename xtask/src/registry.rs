@@ -9,7 +9,9 @@ use rt_accel_bvh::{
 use rt_accel_grid::{Grid, GridParams};
 use rt_accel_kd::{BspParams, BspTree, KdParams, KdTraversal, KdTree};
 use rt_accel_octree::{Octree, OctreeParams, OctreeTraversal};
-use rt_geom::{Aabb, Accel, BoundingSphere, BruteForce, BuildError, Kdop7, Shape, Triangle};
+use rt_geom::{
+    Aabb, Accel, BoundingSphere, BruteForce, BuildError, Kdop7, Shape, Triangle, TriangleKernel,
+};
 use rt_packet::{MlrtaKdTree, PacketAccel, WithSingleRays};
 
 /// A packet path (boxed as a `PacketAccel`).
@@ -55,6 +57,8 @@ pub struct AccelEntry {
     /// `bench` measures only its packets (and compares them with that entry's), and `verify`
     /// only checks its packets against its single rays.
     pub packet_only: Option<&'static str>,
+    /// The ray/triangle kernel whose brute force it must agree with (`verify`).
+    pub kernel: TriangleKernel,
 }
 
 fn boxed<A: Accel + 'static>(r: Result<A, BuildError>) -> Result<Box<dyn Accel>, BuildError> {
@@ -99,6 +103,7 @@ const fn own(
         conformance: true,
         packets: None,
         packet_only: None,
+        kernel: TriangleKernel::Watertight,
     }
 }
 
@@ -123,6 +128,13 @@ impl AccelEntry {
         self
     }
 
+    /// Its leaves run Möller–Trumbore's kernel: `verify` holds it to brute force with that
+    /// kernel.
+    const fn moller_trumbore(mut self) -> Self {
+        self.kernel = TriangleKernel::MollerTrumbore;
+        self
+    }
+
     const fn with_packets(
         mut self,
         build: fn(&[Triangle]) -> Result<Box<dyn PacketAccel>, BuildError>,
@@ -137,6 +149,27 @@ impl AccelEntry {
     ) -> Self {
         self.build_shapes = Some(build);
         self
+    }
+
+    /// [`conformance::check_scene`](rt_testkit::conformance::check_scene) of the entry on a
+    /// triangle scene, against brute force with the entry's kernel.
+    pub fn check_triangle_scene(
+        &self,
+        scene: &rt_testkit::Scene<Triangle>,
+    ) -> Result<rt_testkit::Report, String> {
+        use rt_testkit::conformance::{MollerTrumbore, check_scene};
+        match self.kernel {
+            TriangleKernel::Watertight => check_scene(scene, self.build, self.tolerance),
+            TriangleKernel::MollerTrumbore => {
+                let mt = rt_testkit::Scene::new(
+                    scene.name.clone(),
+                    scene.prims.iter().copied().map(MollerTrumbore).collect(),
+                );
+                let build =
+                    |p: &[MollerTrumbore]| (self.build)(&p.iter().map(|m| m.0).collect::<Vec<_>>());
+                check_scene(&mt, build, self.tolerance)
+            }
+        }
     }
 
     /// Builds over a scene's shapes: with the shape builder, or with the triangle builder when
@@ -215,6 +248,7 @@ const EMBREE: AccelEntry = AccelEntry {
     conformance: false,
     packets: None,
     packet_only: None,
+    kernel: TriangleKernel::Watertight,
 };
 
 #[cfg(feature = "embree")]
@@ -265,6 +299,7 @@ const TINYBVH: &[AccelEntry] = &[AccelEntry {
     conformance: false,
     packets: None,
     packet_only: None,
+    kernel: TriangleKernel::Watertight,
 }];
 
 #[cfg(not(feature = "tinybvh"))]
@@ -316,6 +351,7 @@ const BASE: &[AccelEntry] = &[
         conformance: true,
         packets: None,
         packet_only: None,
+        kernel: TriangleKernel::Watertight,
     },
     generic!(
         "bvh",
@@ -345,6 +381,12 @@ const BASE: &[AccelEntry] = &[
         "rt BVH8 over SoA triangles, four watertight triangle tests at once (BvhParams::fastest_trace: binned SAH, leaf costs in blocks of four, reinsertion 0.25)",
         |p| boxed(TriBvh8::build_for_tracing(p)),
     ),
+    own(
+        "bvh8-tri-mt",
+        "bvh8-tri with Möller–Trumbore leaf tests (TriangleKernel::MollerTrumbore: not watertight, as Embree's default mode; depths held in the triangle's box)",
+        |p| boxed(TriBvh8::build_for_tracing(p).map(|b| b.with_kernel(TriangleKernel::MollerTrumbore))),
+    )
+    .moller_trumbore(),
     own(
         "bvh8-tri-spatial",
         "rt BVH8 over SoA triangles from the spatial-split BVH2",
@@ -576,6 +618,7 @@ const BASE: &[AccelEntry] = &[
         conformance: true,
         packets: None,
         packet_only: None,
+        kernel: TriangleKernel::Watertight,
     },
     AccelEntry {
         name: "obvhs-cwbvh",
@@ -589,6 +632,7 @@ const BASE: &[AccelEntry] = &[
         conformance: false,
         packets: None,
         packet_only: None,
+        kernel: TriangleKernel::Watertight,
     },
     AccelEntry {
         name: "obvhs-cwbvh-rt-kernel",
@@ -604,6 +648,7 @@ const BASE: &[AccelEntry] = &[
         conformance: true,
         packets: None,
         packet_only: None,
+        kernel: TriangleKernel::Watertight,
     },
 ];
 

@@ -6,8 +6,8 @@
 //! only with a clear error, and only where brute force rejects it too.
 
 use crate::registry::{AccelEntry, REGISTRY};
-use rt_geom::{Accel, BruteForce, Hit, Triangle, Vec3};
-use rt_testkit::conformance::{Tolerance, compare_with_expected};
+use rt_geom::{Accel, BruteForce, Hit, Primitive, Triangle, TriangleKernel, Vec3};
+use rt_testkit::conformance::{MollerTrumbore, Tolerance, compare_with_expected};
 use rt_testkit::rays::conformance_rays;
 use rt_testkit::scenes;
 use std::time::Instant;
@@ -173,6 +173,18 @@ pub fn run(
             Ok(b) => rays.iter().map(|r| b.intersect(&r.ray)).collect(),
             Err(_) => Vec::new(),
         };
+        // Entries on Möller–Trumbore's kernel answer as brute force with that kernel.
+        let mt: Vec<MollerTrumbore> = tris.iter().copied().map(MollerTrumbore).collect();
+        let expected_mt: Vec<Option<Hit>> = match BruteForce::build(&mt) {
+            Ok(b)
+                if entries
+                    .iter()
+                    .any(|e| e.kernel == TriangleKernel::MollerTrumbore) =>
+            {
+                rays.iter().map(|r| b.intersect(&r.ray)).collect()
+            }
+            _ => Vec::new(),
+        };
         for entry in entries {
             progress(&format!(
                 "{} on {} ({} triangles)",
@@ -202,6 +214,14 @@ pub fn run(
                     .problems
                     .push("built a scene brute force rejects".into()),
                 (Ok(_), Err(e)) => row.problems.push(format!("rejected a valid scene: {e}")),
+                (Ok(_), Ok(accel)) if entry.kernel == TriangleKernel::MollerTrumbore => check(
+                    &mut row,
+                    &mt,
+                    &rays,
+                    &expected_mt,
+                    accel.as_ref(),
+                    entry.tolerance,
+                ),
                 (Ok(_), Ok(accel)) => check(
                     &mut row,
                     tris,
@@ -217,9 +237,9 @@ pub fn run(
     rows
 }
 
-fn check(
+fn check<P: Primitive>(
     row: &mut StressRow,
-    tris: &[Triangle],
+    tris: &[P],
     rays: &[rt_testkit::TestRay],
     expected: &[Option<Hit>],
     accel: &dyn Accel,

@@ -6,8 +6,8 @@
 use crate::registry::{self, AccelEntry};
 use crate::run;
 use rayon::prelude::*;
-use rt_geom::{Accel, BruteForce, Triangle};
-use rt_testkit::conformance::{self, Report};
+use rt_geom::{Accel, BruteForce, Triangle, TriangleKernel};
+use rt_testkit::conformance::{self, MollerTrumbore, Report};
 use rt_testkit::{RaySets, TestRay, models, scenes};
 use std::time::Instant;
 
@@ -122,7 +122,7 @@ fn conformance_rows(entries: &[&'static AccelEntry]) -> Vec<Row> {
                     packet_report(&scene.name, &scene.prims, &rays, entry)
                 })
             } else {
-                conformance::check_scene(scene, entry.build, entry.tolerance)
+                entry.check_triangle_scene(scene)
             };
             pb.inc(1);
             Row {
@@ -241,6 +241,26 @@ fn mesh_rows(
         .par_iter()
         .map(|r| reference.intersect(&r.ray))
         .collect();
+    // Entries on Möller–Trumbore's kernel: brute force with it on small meshes, rt's BVH2
+    // over triangles on that kernel (its own structure and walk) on large ones.
+    let mt: Vec<MollerTrumbore> = tris.iter().copied().map(MollerTrumbore).collect();
+    let expected_mt: Option<Vec<_>> = entries
+        .iter()
+        .any(|e| e.kernel == TriangleKernel::MollerTrumbore)
+        .then(|| -> Result<_, String> {
+            pb.set_message(format!("{name}: the Möller–Trumbore reference"));
+            let reference: Box<dyn Accel> = if small {
+                Box::new(BruteForce::build(&mt).map_err(|e| e.to_string())?)
+            } else {
+                let params = rt_accel_bvh::BvhParams::balanced();
+                Box::new(rt_accel_bvh::Bvh::build(&mt, params).map_err(|e| e.to_string())?)
+            };
+            Ok(rays
+                .par_iter()
+                .map(|r| reference.intersect(&r.ray))
+                .collect())
+        })
+        .transpose()?;
     // Embree's answers on the same rays, when it is registered.
     let embree_hits: Option<Vec<Option<rt_geom::Hit>>> = match registry::find("embree") {
         Some(e) => {
@@ -255,6 +275,11 @@ fn mesh_rows(
         "{name} ({} vs {})",
         tris.len(),
         if small { "brute" } else { "obvhs" }
+    );
+    let scene_mt = format!(
+        "{name} ({} vs {}, Möller–Trumbore)",
+        tris.len(),
+        if small { "brute" } else { "bvh" }
     );
     let mut rows = Vec::new();
     for entry in entries {
@@ -287,19 +312,18 @@ fn mesh_rows(
             if let Some(theirs) = &embree_hits {
                 vs_embree = Some((disagreements(&rays, theirs, accel.as_ref()), rays.len()));
             }
-            Ok(compare_parallel(
-                &scene,
-                &tris,
-                &rays,
-                &expected,
-                accel.as_ref(),
-                entry,
-            ))
+            Ok(match &expected_mt {
+                Some(expected) if entry.kernel == TriangleKernel::MollerTrumbore => {
+                    compare_parallel(&scene_mt, &mt, &rays, expected, accel.as_ref(), entry)
+                }
+                _ => compare_parallel(&scene, &tris, &rays, &expected, accel.as_ref(), entry),
+            })
         });
         pb.finish_and_clear();
+        let mt = entry.kernel == TriangleKernel::MollerTrumbore && expected_mt.is_some();
         rows.push(Row {
             accel: entry.name,
-            scene: scene.clone(),
+            scene: if mt { scene_mt.clone() } else { scene.clone() },
             build_ms,
             report,
             vs_embree,
@@ -308,9 +332,9 @@ fn mesh_rows(
     Ok(rows)
 }
 
-fn compare_parallel(
+fn compare_parallel<P: rt_geom::Primitive>(
     scene: &str,
-    tris: &[Triangle],
+    tris: &[P],
     rays: &[TestRay],
     expected: &[Option<rt_geom::Hit>],
     accel: &dyn Accel,

@@ -24,7 +24,8 @@
 //! the same rays.
 //!
 //! With `--against KEY=VALUE`, instead: the whole query against the same structure with one
-//! change (another instruction set, `isa=baseline`, or a build parameter such as
+//! change (another instruction set, `isa=baseline`, another leaf kernel,
+//! `kernel=moller-trumbore`, or a build parameter such as
 //! `leaf_block=8`), the two timed in turn on alternate chunks of rays, so that the machine's
 //! swings in speed over seconds fall on both alike.
 //!
@@ -391,7 +392,8 @@ fn against<const ANY_HIT: bool>(a: &TriBvh8, b: &TriBvh8, rays: &[Ray]) -> Vec<f
         .collect()
 }
 
-/// `bvh` with one change for `--against`: `isa=baseline|avx2|avx512`, or one of the build's
+/// `bvh` with one change for `--against`: `isa=baseline|avx2|avx512`,
+/// `kernel=watertight|moller-trumbore`, or one of the build's
 /// parameters (`leaf_block=N`, `max_leaf=N`, `traversal_cost=X`, `reinsertion=X`, `bins=N`,
 /// `spatial=ALPHA`, `budget=X`, `collapse=greedy|sah|ABOVE`), each as a change to
 /// [`rt_accel_bvh::BvhParams::fastest_trace`].
@@ -403,6 +405,14 @@ fn variant(bvh: &TriBvh8, tris: &[rt_geom::Triangle], change: &str) -> Result<Tr
     let bad = |e: &dyn std::fmt::Display| format!("--against {change}: {e}");
     match key {
         "isa" => return Ok(bvh.clone().with_isa(rt_geom::Isa::parse(value)?)),
+        "kernel" => {
+            let kernel = match value {
+                "watertight" => rt_geom::TriangleKernel::Watertight,
+                "moller-trumbore" => rt_geom::TriangleKernel::MollerTrumbore,
+                _ => return Err(bad(&"kernel=watertight|moller-trumbore")),
+            };
+            return Ok(bvh.clone().with_kernel(kernel));
+        }
         "leaf_block" => params.leaf_block = value.parse().map_err(|e| bad(&e))?,
         "max_leaf" => params.max_leaf_size = value.parse().map_err(|e| bad(&e))?,
         "traversal_cost" => params.traversal_cost = value.parse().map_err(|e| bad(&e))?,
@@ -425,8 +435,8 @@ fn variant(bvh: &TriBvh8, tris: &[rt_geom::Triangle], change: &str) -> Result<Tr
         }
         _ => {
             return Err(bad(
-                &"unknown key (isa, leaf_block, max_leaf, traversal_cost, reinsertion, bins, \
-                   spatial, budget, collapse)",
+                &"unknown key (isa, kernel, leaf_block, max_leaf, traversal_cost, reinsertion, \
+                   bins, spatial, budget, collapse)",
             ));
         }
     }

@@ -408,7 +408,8 @@ impl<const N: usize, Node: NodeLayout<N> + SavedNode> TriBvh<N, Node> {
 
     /// The structure [`Self::to_bytes`] saved, over the same `tris` it was built over (checked
     /// by hash), checked as the [module](crate::save) says; its queries answer bit for bit as
-    /// the saved structure's did.
+    /// the saved structure's did, with the same kernel ([`Self::with_kernel`]: a choice of
+    /// the queries, like the instruction set, not saved; the watertight one by default).
     pub fn from_bytes(bytes: &[u8], tris: &[Triangle]) -> Result<Self, LoadError> {
         let Saved { params, tree, ids } =
             read_tree::<N, Node>(bytes, TRIANGLES, (tris.len(), hash(tris)))?;

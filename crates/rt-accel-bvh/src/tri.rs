@@ -11,7 +11,7 @@ use crate::{Bvh, BvhParams};
 use rt_geom::pages::Pages;
 use rt_geom::{
     Aabb, Accel, AccelStats, BuildError, FilteredAccel, Hit, Isa, Keep, Level, Ray, Triangle,
-    TriangleSoa, Vec3, Walk, all_referenced,
+    TriangleKernel, TriangleSoa, Vec3, Walk, all_referenced,
 };
 
 /// Checks the triangles of leaf `(first, count)` against its `bounds` and marks their ids
@@ -129,6 +129,20 @@ impl<const N: usize, Node: NodeLayout<N>> TriBvh<N, Node> {
         self
     }
 
+    /// The same structure, its leaves tested with `kernel` ([`TriangleSoa::kernel`]): the
+    /// watertight test by default, or [`TriangleKernel::MollerTrumbore`] (faster, not
+    /// watertight, as Embree's default mode is). Either way the answers are exactly those of
+    /// brute force with that kernel ([`Triangle::intersect_with`]).
+    pub fn with_kernel(mut self, kernel: TriangleKernel) -> Self {
+        self.tris.set_kernel(kernel);
+        self
+    }
+
+    /// The kernel the leaves are tested with ([`Self::with_kernel`]).
+    pub fn kernel(&self) -> TriangleKernel {
+        self.tris.kernel()
+    }
+
     /// The same structure, its walks asking for every child a node's test enters (the node,
     /// or the leaf's triangles) as soon as the test is done (`true`), or not
     /// ([`TriangleSoa::prefetches`]; by default, for large scenes). The answers are the
@@ -180,9 +194,10 @@ impl<const N: usize, Node: NodeLayout<N>> Refit<Triangle> for TriBvh<N, Node> {
     fn refit(&mut self, tris: &[Triangle]) -> Result<(), BuildError> {
         check_moved(tris, self.count)?;
         let leaf_tris = in_leaf_order(tris, &self.ids);
-        let prefetch = self.tris.prefetches();
+        let (prefetch, kernel) = (self.tris.prefetches(), self.tris.kernel());
         self.tris = TriangleSoa::new(&leaf_tris, self.tree.leaves());
         self.tris.set_prefetch(prefetch);
+        self.tris.set_kernel(kernel);
         self.tree
             .refit(&|first, count| leaf_bounds(&leaf_tris, first, count));
         let mut stats = self.tree.stats(self.count, &self.params);
@@ -239,6 +254,10 @@ mod tests {
         rt_testkit::conformance_tests!(
             triangles: |p: &[Triangle]| TriBvh8::build(p, BvhParams::balanced().for_soa_leaves()),
         );
+        rt_testkit::conformance_tests!(
+            moller_trumbore: |p: &[Triangle]| TriBvh8::build_for_tracing(p)
+                .map(|b| b.with_kernel(TriangleKernel::MollerTrumbore)),
+        );
     }
 
     mod compressed_tri8 {
@@ -285,6 +304,10 @@ mod tests {
                     );
                     rt_testkit::filter_tests!(
                         triangles: |p: &[Triangle]| TriBvh8::build(p, BvhParams::balanced().for_soa_leaves()).map(|b| b.with_isa($isa)),
+                    );
+                    rt_testkit::conformance_tests!(
+                        moller_trumbore: |p: &[Triangle]| TriBvh8::build_for_tracing(p)
+                            .map(|b| b.with_isa($isa).with_kernel(TriangleKernel::MollerTrumbore)),
                     );
                 }
                 mod tri4 {

@@ -264,7 +264,7 @@ impl sealed::Sealed for BaseLevel {
 impl sealed::Sealed for Avx2Level {
     #[inline(always)]
     fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32 {
-        crate::triangle::Avx8::le_bits(a, b)
+        crate::triangle::Avx8::le_bits8(a, b)
     }
 
     window8_on!(crate::triangle::Avx8);

@@ -23,9 +23,10 @@
 use crate::isa::{BaseLevel, Isa, Kernel, Level};
 use crate::pages::Pages;
 use crate::triangle::{
-    AxisVertices, SimdLanes, lane_edges, signs_agree, watertight_rows_at, woop_hit,
+    AxisVertices, SimdLanes, lane_edges, moller_trumbore_held, moller_trumbore_rows,
+    moller_trumbore_span, signs_agree, watertight_rows_at, woop_hit,
 };
-use crate::{Keep, Primitive, Ray, Triangle, Vec3};
+use crate::{Keep, Primitive, Ray, Triangle, TriangleKernel, Vec3};
 use wide::f32x4;
 
 /// Triangles tested together in the narrow window.
@@ -60,6 +61,8 @@ pub struct TriangleSoa {
     degenerate: Vec<u64>,
     /// See [`Self::prefetches`].
     prefetch: bool,
+    /// See [`Self::kernel`].
+    kernel: TriangleKernel,
 }
 
 impl TriangleSoa {
@@ -88,6 +91,7 @@ impl TriangleSoa {
             data,
             len: tris.len(),
             degenerate,
+            kernel: TriangleKernel::Watertight,
         }
     }
 
@@ -151,6 +155,18 @@ impl TriangleSoa {
     /// Sets [`Self::prefetches`] (the answers stay the same either way).
     pub fn set_prefetch(&mut self, on: bool) {
         self.prefetch = on;
+    }
+
+    /// The ray/triangle kernel the leaf tests run: the watertight one by default, or
+    /// Möller–Trumbore's ([`Triangle::intersect_moller_trumbore`]: faster, not watertight).
+    /// Either way a range answers what testing each of its triangles with that kernel does.
+    pub fn kernel(&self) -> TriangleKernel {
+        self.kernel
+    }
+
+    /// Sets [`Self::kernel`].
+    pub fn set_kernel(&mut self, kernel: TriangleKernel) {
+        self.kernel = kernel;
     }
 
     /// Asks the cache for the first lines of the rows of the leaf starting at triangle
@@ -234,6 +250,18 @@ impl TriangleSoa {
             }
         }
         crate::counters::prims(lanes.count_ones());
+        if self.kernel == TriangleKernel::MollerTrumbore {
+            return self.moller_window::<L, K, ANY_HIT>(
+                #[inline(always)]
+                |j| L::load(&win[j * m + off..]),
+                (win, m, off),
+                first + k,
+                &ids[k..],
+                lanes,
+                r,
+                best,
+            );
+        }
         // Any-hit queries leaving a surface: the lanes whose hit `proven_hit` proves, all at
         // once with the window's other bounds, rather than one lane at a time (a long chain
         // of dependent operations on the way to the query's end).
@@ -305,6 +333,79 @@ impl TriangleSoa {
                 if best.keep::<ANY_HIT>(h, ids[k + l], &mut r.tmax) {
                     return true;
                 }
+            }
+        }
+        false
+    }
+
+    /// [`Self::test_window`] with Möller–Trumbore's kernel: the window's `lanes` (rows from
+    /// `row`; `win`, `m`, `off` as there; `at` the window's first triangle in leaf order,
+    /// `ids` its ids onwards) tested at once, then each lane whose barycentrics pass finished
+    /// one by one, as [`Triangle::intersect_moller_trumbore`] finishes it (its depth held in
+    /// its box, then checked against the ray's interval as it stands), but for the lanes the
+    /// window's vector tests decide ([`moller_trumbore_held`], [`moller_trumbore_span`]).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn moller_window<L: SimdLanes, K: Keep, const ANY_HIT: bool>(
+        &self,
+        row: impl Fn(usize) -> L + Copy,
+        (win, m, off): (&[f32; WINDOW], usize, usize),
+        at: usize,
+        ids: &[u32],
+        lanes: u32,
+        r: &mut Ray,
+        best: &mut K,
+    ) -> bool {
+        let (inside, numbers) = moller_trumbore_rows(row, r);
+        let mut hit = inside & lanes;
+        if !self.degenerate.is_empty() {
+            hit &= !self.degenerate_bits(at);
+        }
+        if hit == 0 {
+            return false;
+        }
+        let [t, u, v] = numbers.values();
+        // Lanes whose depth lies outside the interval hit only where the depth moves into it
+        // (not held in the box): those whose box surely holds it do not, and many others are
+        // ruled out by the span of their vertices' parameters along the axes. Where these
+        // tests run, the lanes in the interval whose box surely holds the depth need no check
+        // of their own.
+        let inside = L::le_bits(L::splat(r.tmin), t) & L::le_bits(t, L::splat(r.tmax));
+        let mut sure = 0;
+        if hit & !inside != 0 {
+            let held = moller_trumbore_held(row, r, t);
+            hit &= inside | !held;
+            if hit & !inside != 0 {
+                hit &= !moller_trumbore_span(row, r) | inside;
+            }
+            sure = held & inside;
+        }
+        let (t, u, v) = (t.to_lanes(), u.to_lanes(), v.to_lanes());
+        while hit != 0 {
+            let l = hit.trailing_zeros() as usize & 7;
+            hit &= hit - 1;
+            if K::SKIPS && best.skips(ids[l]) {
+                continue;
+            }
+            let h = if sure & (1 << l) != 0 {
+                // Surely held, and in the interval as it stood at the window's test: still
+                // in it unless a hit of this window since lowered `tmax` below it.
+                if t[l] > r.tmax {
+                    continue;
+                }
+                crate::PrimHit {
+                    t: t[l],
+                    u: u[l],
+                    v: v[l],
+                }
+            } else {
+                match triangle_at(win, m, off + l).moller_trumbore_hit(r, t[l], u[l], v[l]) {
+                    Some(h) => h,
+                    None => continue,
+                }
+            };
+            if best.keep::<ANY_HIT>(h, ids[l], &mut r.tmax) {
+                return true;
             }
         }
         false
@@ -649,6 +750,53 @@ mod tests {
         same_as_by_id(&tris, &mut seed);
     }
 
+    /// The leaf `leaf` of `soa` asked at `isa`'s level by `ray`: its closest hit (and the ray's
+    /// `tmax` after), its any hit, and its occlusion query's hit.
+    fn leaf_queries(
+        soa: &TriangleSoa,
+        leaf: (usize, usize),
+        ids: &[u32],
+        ray: Ray,
+        isa: Isa,
+    ) -> (
+        (Option<crate::Hit>, f32),
+        Option<crate::Hit>,
+        Option<crate::Hit>,
+    ) {
+        struct Queries<'a> {
+            soa: &'a TriangleSoa,
+            leaf: (usize, usize),
+            ids: &'a [u32],
+            ray: Ray,
+        }
+        impl Kernel for Queries<'_> {
+            type Output = (
+                (Option<crate::Hit>, f32),
+                Option<crate::Hit>,
+                Option<crate::Hit>,
+            );
+            fn run<L: Level>(self, level: L) -> Self::Output {
+                let (mut closest, mut any, mut occ) = (None, None, crate::Occlusion(None));
+                let mut r = self.ray;
+                let (soa, leaf, ids) = (self.soa, self.leaf, self.ids);
+                soa.test_range::<false, L>(level, leaf, ids, &mut r, |_| false, &mut closest);
+                let tmax = r.tmax;
+                let mut r = self.ray;
+                soa.test_range::<true, L>(level, leaf, ids, &mut r, |_| false, &mut any);
+                let mut r = self.ray;
+                soa.test_range::<true, L>(level, leaf, ids, &mut r, |_| false, &mut occ);
+                ((closest, tmax), any, occ.best())
+            }
+        }
+        let queries = Queries {
+            soa,
+            leaf,
+            ids,
+            ray,
+        };
+        crate::isa::run(isa, queries)
+    }
+
     /// Occlusion queries ([`crate::Occlusion`]) end on a proven hit without its `t`, `u`, `v`:
     /// the same answer and the same primitive as the plain any-hit keeper, leaf by leaf, at
     /// both levels, for rays that leave a triangle of the leaf (`tmin > 0`) and rays that
@@ -675,46 +823,7 @@ mod tests {
             for &(first, count) in &leaves {
                 let leaf = (first as usize, count as usize);
                 for isa in Isa::available() {
-                    struct Both<'a> {
-                        soa: &'a TriangleSoa,
-                        leaf: (usize, usize),
-                        ids: &'a [u32],
-                        ray: Ray,
-                    }
-                    impl Kernel for Both<'_> {
-                        type Output = (Option<crate::Hit>, Option<crate::Hit>);
-                        fn run<L: Level>(self, level: L) -> Self::Output {
-                            let mut plain = None;
-                            let mut occ = crate::Occlusion(None);
-                            let (mut r1, mut r2) = (self.ray, self.ray);
-                            self.soa.test_range::<true, L>(
-                                level,
-                                self.leaf,
-                                self.ids,
-                                &mut r1,
-                                |_| false,
-                                &mut plain,
-                            );
-                            self.soa.test_range::<true, L>(
-                                level,
-                                self.leaf,
-                                self.ids,
-                                &mut r2,
-                                |_| false,
-                                &mut occ,
-                            );
-                            (plain, occ.best())
-                        }
-                    }
-                    let (plain, occ) = crate::isa::run(
-                        isa,
-                        Both {
-                            soa: &soa,
-                            leaf,
-                            ids: &ids,
-                            ray,
-                        },
-                    );
+                    let (_, plain, occ) = leaf_queries(&soa, leaf, &ids, ray, isa);
                     assert_eq!(
                         plain.map(|h| h.prim),
                         occ.map(|h| h.prim),
@@ -729,6 +838,129 @@ mod tests {
         assert!(
             hits > 2000 && shortcut * 10 > hits * 5,
             "{shortcut} of {hits} hits by the shortcut"
+        );
+    }
+
+    /// Möller–Trumbore leaves answer, at every level, what its scalar kernel answers
+    /// triangle by triangle, closest and any hit (and occlusion queries, on the same
+    /// triangle): on small triangles, on slivers far from the
+    /// rays, and on large flat ones met a hair from their surface, whose `f32` depths the box
+    /// often does not hold (some of them moved into the ray's interval from outside it); and
+    /// the scalar kernel's closest hit does not depend on the order the triangles are tried
+    /// in.
+    #[test]
+    fn moller_trumbore_leaves_answer_as_the_scalar_kernel() {
+        let mut seed = 23;
+        let mut tris = random_triangles(48, 0.9, &mut seed);
+        for i in 0..24 {
+            // Slivers 1e4 away, seen along their length from near the origin.
+            let a = Vec3::new(1.0e4 + lcg(&mut seed), lcg(&mut seed), lcg(&mut seed));
+            let b = a + Vec3::new(-2.0e4, 1e-3 * (1 + i % 5) as f32, lcg(&mut seed) * 1e-3);
+            tris.push(Triangle::new(a, b, a + Vec3::new(0.0, 1e-3, 2e-3)));
+        }
+        for _ in 0..12 {
+            // Large triangles in planes of constant z (flat boxes, as a floor's), met a hair
+            // from their surface (a shadow ray's occluder).
+            let a = point(&mut seed) * 200.0 - 100.0;
+            let flat = Vec3::new(200.0, 200.0, 0.0);
+            tris.push(Triangle::new(
+                a,
+                a + point(&mut seed) * flat,
+                a + point(&mut seed) * flat,
+            ));
+        }
+        tris[7] = Triangle::new(tris[7].v[0], tris[7].v[1], tris[7].v[1]);
+        let n = tris.len() as u32;
+        let leaves = [
+            (0, 5),
+            (5, 8),
+            (13, 12),
+            (25, 23),
+            (48, 9),
+            (57, 15),
+            (72, 12),
+        ];
+        let mut soa = TriangleSoa::new(&tris, leaves);
+        soa.set_kernel(TriangleKernel::MollerTrumbore);
+        let ids: Vec<u32> = (0..n).rev().collect();
+        let (mut hits, mut moved, mut rescued) = (0, 0, 0);
+        for k in 0..4000 {
+            let t = &tris[k % tris.len()];
+            let (u, w) = (lcg(&mut seed) * 0.5, lcg(&mut seed) * 0.5);
+            let on = t.v[0] + (t.v[1] - t.v[0]) * u + (t.v[2] - t.v[0]) * w;
+            let big = &tris[72 + k % 12];
+            let near = big.v[0] + (big.v[1] - big.v[0]) * u + (big.v[2] - big.v[0]) * w;
+            let lift = big.normal() * (0.001 + lcg(&mut seed) * 0.3);
+            let o = match k % 4 {
+                0 => on,
+                1 => point(&mut seed) * 4.0 - 2.0,
+                2 => Vec3::new(-1.0e4, lcg(&mut seed) * 1e-2, lcg(&mut seed) * 1e-2),
+                _ => near + lift,
+            };
+            let to = match k % 4 {
+                2 => on,
+                3 => near - lift * (0.2 + lcg(&mut seed)) + (point(&mut seed) - 0.5) * 3.0,
+                _ => point(&mut seed),
+            };
+            let tmax = if k % 5 == 0 {
+                f32::INFINITY
+            } else {
+                0.5 + lcg(&mut seed) * 3e4
+            };
+            // Rays a hair from a large triangle: the interval ends where they cross its plane,
+            // where the `f32` depth and the one held in the box may part.
+            let cross = ((o.z - near.z) as f64 / (o.z - to.z) as f64) as f32;
+            let (tmin, tmax) = match (k % 4, k % 8) {
+                (0, _) => (1e-4, tmax),
+                (3, 3) => (0.0, cross),
+                (3, _) => (cross, tmax),
+                _ => (0.0, tmax),
+            };
+            let ray = Ray::segment(o, to - o, tmin, tmax);
+            // Every triangle in turn, forwards and backwards: the same closest hit.
+            let mut scalar = |order: &mut dyn Iterator<Item = usize>, any: bool| {
+                let (mut r, mut best) = (ray, None);
+                for i in order {
+                    if let Some(h) = tris[i].intersect_moller_trumbore(&r) {
+                        let c = |j: usize| tris[i].v[j / 3][j % 3];
+                        let [t, _, _] = crate::triangle::moller_trumbore_rows::<f32>(c, &r)
+                            .1
+                            .values();
+                        moved += (t != h.t) as u32;
+                        rescued += !r.in_range(t) as u32;
+                        let done = if any {
+                            best.keep::<true>(h, ids[i], &mut r.tmax)
+                        } else {
+                            best.keep::<false>(h, ids[i], &mut r.tmax)
+                        };
+                        if done {
+                            break;
+                        }
+                    }
+                }
+                best
+            };
+            for &(first, count) in &leaves {
+                let range = first as usize..(first + count) as usize;
+                let closest = scalar(&mut range.clone(), false);
+                let backwards = scalar(&mut range.clone().rev(), false);
+                assert_eq!(closest, backwards, "{ray:?} leaf {first}+{count}");
+                let any = scalar(&mut range.clone(), true);
+                hits += closest.is_some() as u32;
+                for isa in Isa::available() {
+                    let leaf = (first as usize, count as usize);
+                    let ((c, tmax), a, occ) = leaf_queries(&soa, leaf, &ids, ray, isa);
+                    let occ = occ.map(|h| h.prim);
+                    assert_eq!(c, closest, "{ray:?} leaf {leaf:?} at {isa}");
+                    assert_eq!(tmax, closest.map_or(ray.tmax, |h| h.t));
+                    assert_eq!(a, any, "{ray:?} leaf {leaf:?} at {isa}");
+                    assert_eq!(occ, any.map(|h| h.prim), "{ray:?} leaf {leaf:?} at {isa}");
+                }
+            }
+        }
+        assert!(
+            hits > 1500 && moved > 50 && rescued > 5,
+            "{hits} hits, {moved} depths moved, {rescued} into the interval"
         );
     }
 

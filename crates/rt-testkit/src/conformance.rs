@@ -9,7 +9,8 @@
 use crate::rays::{RayKind, SamplePoints, TestRay, conformance_rays};
 use crate::scenes::Scene;
 use rt_geom::{
-    Accel, BruteForce, BuildError, FilteredAccel, Hit, HitFilter, Masked, Primitive, Ray, SkipPrim,
+    Aabb, Accel, BruteForce, BuildError, DVec3, FilteredAccel, Hit, HitFilter, Masked, PrimHit,
+    Primitive, Ray, SkipPrim, Triangle, Vec3,
 };
 use std::any::TypeId;
 use std::collections::HashMap;
@@ -737,6 +738,97 @@ macro_rules! filter_tests {
     };
 }
 
+/// The triangle scenes every structure over triangles is checked on.
+pub const TRIANGLE_SCENES: [&str; 19] = [
+    "soup",
+    "sphere_mesh",
+    "torus",
+    "planar_grid",
+    "coplanar",
+    "axis_slivers",
+    "duplicates",
+    "teapot_in_stadium",
+    "overlapping_fan",
+    "long_slivers",
+    "huge_coords",
+    "tiny_coords",
+    "one_triangle",
+    "empty",
+    "far_soup",
+    "far_sphere",
+    "far_stadium",
+    "far_dense",
+    "far_slivers",
+];
+
+/// A triangle that brute force tests with Möller–Trumbore's kernel
+/// ([`Triangle::intersect_moller_trumbore`]): the reference for structures whose leaves run
+/// that kernel ([`conformance_tests!`]'s `moller_trumbore:` form).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MollerTrumbore(pub Triangle);
+
+impl Primitive for MollerTrumbore {
+    fn bounds(&self) -> Aabb {
+        self.0.bounds()
+    }
+
+    fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
+        self.0.intersect_moller_trumbore(ray)
+    }
+
+    fn centroid(&self) -> Vec3 {
+        self.0.centroid()
+    }
+
+    fn clipped_bounds(&self, clip: &Aabb) -> Aabb {
+        self.0.clipped_bounds(clip)
+    }
+
+    fn normal(&self, ray: &Ray, h: &PrimHit) -> Option<Vec3> {
+        Primitive::normal(&self.0, ray, h)
+    }
+
+    fn extent_along(&self, n: Vec3) -> (f32, f32) {
+        self.0.extent_along(n)
+    }
+
+    fn extent_along_from(&self, origin: Vec3, n: Vec3) -> (f32, f32) {
+        self.0.extent_along_from(origin, n)
+    }
+
+    fn farthest_distance(&self, p: DVec3) -> f32 {
+        self.0.farthest_distance(p)
+    }
+
+    fn is_finite(&self) -> bool {
+        Primitive::is_finite(&self.0)
+    }
+
+    fn plane(&self) -> Option<(Vec3, f32)> {
+        self.0.plane()
+    }
+}
+
+impl SamplePoints for MollerTrumbore {
+    fn sample(&self, u: f32, v: f32) -> Vec3 {
+        self.0.sample(u, v)
+    }
+
+    fn feature_point(&self, rng: &mut crate::Rng) -> Vec3 {
+        self.0.feature_point(rng)
+    }
+}
+
+/// Triangle scene `name` ([`crate::scenes::triangle_scene`]) as [`MollerTrumbore`]
+/// triangles.
+pub fn moller_trumbore_scene(name: &str) -> Scene<MollerTrumbore> {
+    let scene = crate::scenes::triangle_scene(name);
+    Scene::new(
+        scene.name,
+        scene.prims.into_iter().map(MollerTrumbore).collect(),
+    )
+}
+
 /// Stamps out the conformance tests of a structure: one `#[test]` per family of scenes
 /// (triangles, spheres, mixed shapes) walking every scene of it, and the refusal of
 /// non-finite primitives.
@@ -762,10 +854,7 @@ macro_rules! conformance_tests {
         );
     };
     (tolerance: $tol:expr, triangles: $tri:expr $(,)?) => {
-        $crate::conformance_tests!(@tri $tol, $tri;
-            soup, sphere_mesh, torus, planar_grid, coplanar, axis_slivers, duplicates,
-            teapot_in_stadium, overlapping_fan, long_slivers, huge_coords, tiny_coords,
-            one_triangle, empty, far_soup, far_sphere, far_stadium, far_dense, far_slivers);
+        $crate::conformance_tests!(@tri $tol, $tri);
         #[test]
         fn rejects_non_finite_triangles() {
             let valid = $crate::scenes::random_soup(10, 1);
@@ -821,7 +910,25 @@ macro_rules! conformance_tests {
             }
         }
     };
-    (@tri $tol:expr, $build:expr; $($scene:ident),*) => {
+    (moller_trumbore: $build:expr $(,)?) => {
+        /// The structure under test, its leaves on Möller–Trumbore's kernel, built over a
+        /// scene's triangles, as a boxed `Accel`.
+        fn built_moller_trumbore(
+            p: &[$crate::conformance::MollerTrumbore],
+        ) -> Result<Box<dyn $crate::rt_geom::Accel>, $crate::rt_geom::BuildError> {
+            let tris: Vec<$crate::rt_geom::Triangle> = p.iter().map(|m| m.0).collect();
+            ($build)(&tris[..]).map(|a| Box::new(a) as Box<dyn $crate::rt_geom::Accel>)
+        }
+        /// Every triangle scene, against brute force with Möller–Trumbore's kernel.
+        #[test]
+        fn moller_trumbore_scenes() {
+            for scene in $crate::conformance::TRIANGLE_SCENES {
+                $crate::conformance::assert_conforms(
+                    &$crate::conformance::moller_trumbore_scene(scene), built_moller_trumbore);
+            }
+        }
+    };
+    (@tri $tol:expr, $build:expr) => {
         /// The structure under test, built over triangles, as a boxed `Accel` (the check is then
         /// compiled once per primitive type).
         fn built_triangles(
@@ -832,7 +939,7 @@ macro_rules! conformance_tests {
         /// Every scene of the family (one test: the scene's name is in every failure).
         #[test]
         fn triangle_scenes() {
-            for scene in [$(stringify!($scene)),*] {
+            for scene in $crate::conformance::TRIANGLE_SCENES {
                 $crate::conformance::assert_conforms_within(
                     &$crate::scenes::triangle_scene(scene), built_triangles, $tol);
             }

@@ -1,17 +1,18 @@
 //! The conformance suite over every registered structure, and per structure with its options.
 
 use rt_geom::{BruteForce, Sphere, Triangle};
-use rt_testkit::{conformance, scenes};
+use rt_testkit::scenes;
 use xtask::registry::REGISTRY;
 
 /// Every structure in the registry (so every structure `verify`, `bench` and `trace` know) on
-/// `scene`, held to its registered tolerance; peers that answer otherwise by design on these
-/// scenes (`conformance: false`: not watertight) are checked on the meshes by `verify`.
+/// `scene`, held to its registered tolerance against brute force with its triangle kernel;
+/// peers that answer otherwise by design on these scenes (`conformance: false`: not
+/// watertight) are checked on the meshes by `verify`.
 fn every_registered_structure_conforms(scene: &str) {
     let scene = scenes::triangle_scene(scene);
     let mut failures = Vec::new();
     for entry in REGISTRY.iter().filter(|e| e.conformance) {
-        match conformance::check_scene(&scene, entry.build, entry.tolerance) {
+        match entry.check_triangle_scene(&scene) {
             Ok(r) if r.is_ok() => {}
             Ok(r) => failures.push(format!(
                 "{} on {}: {} mismatches, first: {}",

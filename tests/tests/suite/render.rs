@@ -168,15 +168,54 @@ fn chess_is_the_same_with_every_structure() {
     // near a surface see different things; `registry::CWBVH_NEAR_T`), and Embree (with the
     // `embree` feature), whose own triangle test is held to 1e-4 only.
     same_image_everywhere(&rt_shade::chess(), 96, 72, |e| {
-        e.tolerance.near_t == 0.0 && e.tolerance.rel_t <= 1e-6
+        e.tolerance.near_t == 0.0 && e.tolerance.rel_t <= 1e-6 && watertight(e)
     });
+}
+
+/// Whether the entry tests triangles with the watertight kernel (the others render as brute
+/// force with their own kernel: [`moller_trumbore_renders_as_its_brute_force`]).
+fn watertight(e: &xtask::registry::AccelEntry) -> bool {
+    e.kernel == rt_geom::TriangleKernel::Watertight
+}
+
+/// Structures on Möller–Trumbore's kernel render the chess scene as brute force with that
+/// kernel does, bit for bit (Whitted and path traced).
+#[test]
+fn moller_trumbore_renders_as_its_brute_force() {
+    let scene = rt_shade::chess();
+    let tris = triangles(&scene).expect("the chess scene is triangles");
+    let mt: Vec<_> = tris
+        .iter()
+        .copied()
+        .map(rt_testkit::conformance::MollerTrumbore)
+        .collect();
+    let reference = rt_geom::BruteForce::build(&mt).unwrap();
+    let (want, want_paths) = (
+        image(&scene, &reference, 96, 72),
+        path_image(&scene, &reference, 48, 36),
+    );
+    let mut checked = 0;
+    for entry in REGISTRY.iter().filter(|e| !watertight(e)) {
+        let accel = (entry.build)(&tris).unwrap_or_else(|e| panic!("{e}"));
+        assert!(
+            image(&scene, accel.as_ref(), 96, 72) == want,
+            "{}",
+            entry.name
+        );
+        let paths = path_image(&scene, accel.as_ref(), 48, 36);
+        assert!(paths == want_paths, "{}: path traced", entry.name);
+        checked += 1;
+    }
+    assert!(checked >= 1);
 }
 
 #[test]
 fn chess_lamp_is_the_same_with_every_structure() {
     // The bulb casts no shadow (a ray mask on the shadow rays): every rt structure, through
     // its filtered queries and its packet path.
-    same_image_everywhere(&rt_shade::chess_lamp(), 64, 48, |e| !e.external);
+    same_image_everywhere(&rt_shade::chess_lamp(), 64, 48, |e| {
+        !e.external && watertight(e)
+    });
 }
 
 /// An SPD-like scene: glass and mirror spheres, cylinders and cones, a concave star polygon,

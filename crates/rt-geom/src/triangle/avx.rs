@@ -42,10 +42,19 @@ impl std::ops::Mul for Avx8 {
     }
 }
 
+impl std::ops::Div for Avx8 {
+    type Output = Self;
+    #[inline(always)]
+    fn div(self, o: Self) -> Self {
+        // SAFETY: as in `add`.
+        Self(unsafe { _mm256_div_ps(self.0, o.0) })
+    }
+}
+
 impl Avx8 {
     /// Bit `l` set where `a[l] <= b[l]` (false for NaN).
     #[inline(always)]
-    pub(crate) fn le_bits(a: &[f32; 8], b: &[f32; 8]) -> u32 {
+    pub(crate) fn le_bits8(a: &[f32; 8], b: &[f32; 8]) -> u32 {
         let (a, b) = (Self::load(a), Self::load(b));
         // SAFETY: as in `add`.
         bits(unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(a.0, b.0) })
@@ -123,5 +132,11 @@ impl SimdLanes for Avx8 {
     fn less_bits(a: Self, b: Self) -> u32 {
         // SAFETY: as in `add`.
         bits(unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(a.0, b.0) })
+    }
+
+    #[inline(always)]
+    fn le_bits(a: Self, b: Self) -> u32 {
+        // SAFETY: as in `add`.
+        bits(unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(a.0, b.0) })
     }
 }

@@ -14,6 +14,7 @@ mod avx;
 mod bounds;
 mod clip;
 mod lanes;
+mod moller;
 mod simd;
 
 #[cfg(target_arch = "x86_64")]
@@ -25,6 +26,7 @@ pub(crate) use bounds::{hits_outside_and_proven, woop_hit};
 pub(crate) use lanes::test_triangles;
 pub(crate) use lanes::watertight_rows_at;
 pub use lanes::{lane_edges, watertight_lanes, watertight_rows};
+pub(crate) use moller::{moller_trumbore_held, moller_trumbore_rows, moller_trumbore_span};
 pub use simd::{ShearedLanes, SimdLanes, TriangleLanes};
 
 use crate::{Aabb, PrimHit, Ray};
@@ -51,7 +53,9 @@ pub enum TriangleKernel {
     /// through a shared edge or vertex of a closed mesh; no epsilon.
     #[default]
     Watertight,
-    /// Möller & Trumbore 1997: fast, not watertight (rays can slip through shared edges).
+    /// Möller & Trumbore 1997: fast, not watertight (rays can slip through shared edges),
+    /// its depth held in the triangle's box as the watertight kernel's is
+    /// ([`Triangle::intersect_moller_trumbore`]).
     MollerTrumbore,
 }
 
@@ -324,37 +328,6 @@ impl Triangle {
             }
         }
         best.map(|(_, s)| s)
-    }
-
-    /// Möller & Trumbore 1997 (no epsilon: only an exactly zero determinant is rejected).
-    #[inline]
-    pub fn intersect_moller_trumbore(&self, ray: &Ray) -> Option<PrimHit> {
-        if !ray.is_valid() {
-            return None;
-        }
-        let e1 = self.v[1] - self.v[0];
-        let e2 = self.v[2] - self.v[0];
-        let p = ray.dir().cross(e2);
-        let det = e1.dot(p);
-        if det == 0.0 || det.is_nan() {
-            return None;
-        }
-        let inv = 1.0 / det;
-        let tv = ray.origin() - self.v[0];
-        let u = tv.dot(p) * inv;
-        if !(0.0..=1.0).contains(&u) {
-            return None;
-        }
-        let q = tv.cross(e1);
-        let v = ray.dir().dot(q) * inv;
-        if v < 0.0 || u + v > 1.0 {
-            return None;
-        }
-        let t = e2.dot(q) * inv;
-        if !ray.in_range(t) || self.is_degenerate() {
-            return None;
-        }
-        Some(PrimHit { t, u, v })
     }
 }
 

@@ -8,7 +8,11 @@ use wide::f32x4;
 /// eight (`wide::f32x8`: one AVX register in builds for such CPUs, two SSE registers
 /// elsewhere). Only what [`watertight_lanes`](super::watertight_lanes) needs.
 pub trait SimdLanes:
-    Copy + std::ops::Add<Output = Self> + std::ops::Sub<Output = Self> + std::ops::Mul<Output = Self>
+    Copy
+    + std::ops::Add<Output = Self>
+    + std::ops::Sub<Output = Self>
+    + std::ops::Mul<Output = Self>
+    + std::ops::Div<Output = Self>
 {
     /// Number of lanes.
     const WIDTH: usize;
@@ -30,6 +34,8 @@ pub trait SimdLanes:
     fn min(self, other: Self) -> Self;
     /// Bits of the lanes where `a < b` (false for NaN).
     fn less_bits(a: Self, b: Self) -> u32;
+    /// Bits of the lanes where `a <= b` (false for NaN).
+    fn le_bits(a: Self, b: Self) -> u32;
 }
 
 macro_rules! simd_lanes {
@@ -77,6 +83,11 @@ macro_rules! simd_lanes {
                 use wide::CmpLt;
                 a.cmp_lt(b).move_mask() as u32
             }
+            #[inline(always)]
+            fn le_bits(a: Self, b: Self) -> u32 {
+                use wide::CmpLe;
+                a.cmp_le(b).move_mask() as u32
+            }
         }
     };
 }
@@ -121,6 +132,10 @@ impl SimdLanes for f32 {
     #[inline(always)]
     fn less_bits(a: Self, b: Self) -> u32 {
         (a < b) as u32
+    }
+    #[inline(always)]
+    fn le_bits(a: Self, b: Self) -> u32 {
+        (a <= b) as u32
     }
 }
 simd_lanes!(wide::f32x8, 8);
