@@ -183,7 +183,9 @@ impl TriangleSoa {
     /// [`Triangle::finish_watertight`] for the lanes that may hit, each hit offered to
     /// `best` ([`Keep::keep`], ids from `ids[first..]`), which records it and says whether the
     /// search is over. Triangles whose id `skip` names (mailboxes: asked in order, before
-    /// their window is tested) are not tested. Returns true when `best` did.
+    /// their window is tested) are not tested. Returns true when `best` did. With
+    /// Möller–Trumbore's kernel ([`Self::kernel`]) the windows run that test instead, with
+    /// the answers of [`Triangle::intersect_moller_trumbore`].
     ///
     /// With `ANY_HIT` (queries that stop at the first hit) and no filter, a triangle whose
     /// hit [`proven_hit`](crate::triangle::proven_hit) proves inside the ray's interval

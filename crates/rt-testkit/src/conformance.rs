@@ -763,7 +763,7 @@ pub const TRIANGLE_SCENES: [&str; 19] = [
 
 /// A triangle that brute force tests with Möller–Trumbore's kernel
 /// ([`Triangle::intersect_moller_trumbore`]): the reference for structures whose leaves run
-/// that kernel ([`conformance_tests!`]'s `moller_trumbore:` form).
+/// that kernel ([`conformance_tests!`](crate::conformance_tests)'s `moller_trumbore:` form).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MollerTrumbore(pub Triangle);
 

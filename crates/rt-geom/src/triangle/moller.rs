@@ -135,7 +135,8 @@ pub(crate) fn moller_trumbore_held<L: SimdLanes>(row: impl Fn(usize) -> L, ray: 
 impl Triangle {
     /// Möller & Trumbore 1997, no epsilon: fast, not watertight (a ray can slip through an
     /// edge two triangles share, or hit both). The barycentrics and the depth are computed in
-    /// `f32` ([`moller_trumbore_rows`]); a depth whose point lies outside the triangle's box
+    /// `f32` (the same operations a leaf test of eight lanes runs); a depth whose point lies
+    /// outside the triangle's box
     /// by more than half the box tests' padding ([`crate::Aabb::holds_hit`]: the `f32` depth
     /// from a vertex far from the hit loses the digits that place it) is recomputed in `f64`
     /// and held in the box, as the watertight kernel's are, so that every structure agrees
