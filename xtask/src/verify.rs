@@ -320,10 +320,14 @@ fn mesh_rows(
             })
         });
         pb.finish_and_clear();
-        let mt = entry.kernel == TriangleKernel::MollerTrumbore && expected_mt.is_some();
+        let on_mt = entry.kernel == TriangleKernel::MollerTrumbore && expected_mt.is_some();
         rows.push(Row {
             accel: entry.name,
-            scene: if mt { scene_mt.clone() } else { scene.clone() },
+            scene: if on_mt {
+                scene_mt.clone()
+            } else {
+                scene.clone()
+            },
             build_ms,
             report,
             vs_embree,
