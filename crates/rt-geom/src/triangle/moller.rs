@@ -51,8 +51,10 @@ pub(crate) fn moller_trumbore_rows<L: SimdLanes>(
     let (u, v, t) = (dot(&s, &p), dot(&d, &q), dot(&e2, &q));
     // The barycentrics' signs and sum against the determinant's, before any division.
     let (zero, uv) = (L::splat(0.0), u + v);
-    let front = L::less_bits(zero, det) & L::le_bits(zero, u) & L::le_bits(zero, v);
-    let back = L::less_bits(det, zero) & L::le_bits(u, zero) & L::le_bits(v, zero);
+    // A determinant below the normal range has no finite reciprocal: no hit.
+    let normal = L::splat(f32::MIN_POSITIVE);
+    let front = L::le_bits(normal, det) & L::le_bits(zero, u) & L::le_bits(zero, v);
+    let back = L::le_bits(det, L::splat(0.0) - normal) & L::le_bits(u, zero) & L::le_bits(v, zero);
     let inside = (front & L::le_bits(uv, det)) | (back & L::le_bits(det, uv));
     (inside & ((1 << L::WIDTH) - 1), MollerLanes { det, u, v, t })
 }
