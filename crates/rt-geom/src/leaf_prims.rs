@@ -858,17 +858,32 @@ mod tests {
             // Slivers 1e4 away, seen along their length from near the origin.
             let a = Vec3::new(1.0e4 + lcg(&mut seed), lcg(&mut seed), lcg(&mut seed));
             let b = a + Vec3::new(-2.0e4, 1e-3 * (1 + i % 5) as f32, lcg(&mut seed) * 1e-3);
-            tris.push(Triangle::new(a, b, a + Vec3::new(0.0, 1e-3, 2e-3)));
+            let c = if i % 2 == 0 {
+                a + Vec3::new(0.0, 1e-3, 2e-3)
+            } else {
+                // Along a diagonal, the third vertex a hair from the long edge: the `f32`
+                // normal's products cancel, and the plane it gives tilts.
+                let b = a + Vec3::new(-2.0e4, -1.3e4, 1e-3 * (1 + i % 5) as f32);
+                tris.push(Triangle::new(
+                    a,
+                    b,
+                    (a + b) * 0.5 + Vec3::new(0.0, 0.0, 2e-3),
+                ));
+                continue;
+            };
+            tris.push(Triangle::new(a, b, c));
         }
-        for _ in 0..12 {
-            // Large triangles in planes of constant z (flat boxes, as a floor's), met a hair
+        for i in 0..12 {
+            // Large triangles in planes of constant z (flat boxes, as a floor's) or tilted a
+            // little (thin boxes, whose plane the `f32` normal places less well), met a hair
             // from their surface (a shadow ray's occluder).
             let a = point(&mut seed) * 200.0 - 100.0;
             let flat = Vec3::new(200.0, 200.0, 0.0);
+            let tilt = Vec3::new(0.0, 0.0, [0.0, 1e-3, 3e-2][i % 3]);
             tris.push(Triangle::new(
                 a,
-                a + point(&mut seed) * flat,
-                a + point(&mut seed) * flat,
+                a + point(&mut seed) * flat + tilt,
+                a + point(&mut seed) * flat - tilt * 0.5,
             ));
         }
         tris[7] = Triangle::new(tris[7].v[0], tris[7].v[1], tris[7].v[1]);
@@ -886,20 +901,25 @@ mod tests {
         soa.set_kernel(TriangleKernel::MollerTrumbore);
         let ids: Vec<u32> = (0..n).rev().collect();
         let (mut hits, mut moved, mut rescued) = (0, 0, 0);
-        for k in 0..4000 {
+        for k in 0..12000 {
             let t = &tris[k % tris.len()];
             let (u, w) = (lcg(&mut seed) * 0.5, lcg(&mut seed) * 0.5);
             let on = t.v[0] + (t.v[1] - t.v[0]) * u + (t.v[2] - t.v[0]) * w;
             let big = &tris[72 + k % 12];
             let near = big.v[0] + (big.v[1] - big.v[0]) * u + (big.v[2] - big.v[0]) * w;
             let lift = big.normal() * (0.001 + lcg(&mut seed) * 0.3);
+            let sliver = (48..72).contains(&(k % tris.len()));
             let o = match k % 4 {
                 0 => on,
+                // A sliver met from close by: its `f32` edges lose its width, and with it the
+                // plane its depth lies on.
+                1 if sliver => on + (point(&mut seed) - 0.5) * 0.5,
                 1 => point(&mut seed) * 4.0 - 2.0,
                 2 => Vec3::new(-1.0e4, lcg(&mut seed) * 1e-2, lcg(&mut seed) * 1e-2),
                 _ => near + lift,
             };
             let to = match k % 4 {
+                1 if sliver => on * 2.0 - o,
                 2 => on,
                 3 => near - lift * (0.2 + lcg(&mut seed)) + (point(&mut seed) - 0.5) * 3.0,
                 _ => point(&mut seed),
@@ -914,6 +934,9 @@ mod tests {
             let cross = ((o.z - near.z) as f64 / (o.z - to.z) as f64) as f32;
             let (tmin, tmax) = match (k % 4, k % 8) {
                 (0, _) => (1e-4, tmax),
+                // Through the sliver's point halfway: the interval ends there.
+                (1, 1) if sliver => (0.0, 0.5),
+                (1, _) if sliver => (0.5, tmax),
                 (3, 3) => (0.0, cross),
                 (3, _) => (cross, tmax),
                 _ => (0.0, tmax),
@@ -961,8 +984,62 @@ mod tests {
             }
         }
         assert!(
-            hits > 1500 && moved > 50 && rescued > 5,
+            hits > 4500 && moved > 20 && rescued > 3,
             "{hits} hits, {moved} depths moved, {rescued} into the interval"
+        );
+    }
+
+    /// The span filter never rules out a hit: each depth the Möller–Trumbore kernel
+    /// reports (held in its box, moved there or not) lies within its triangle's span, even
+    /// with the ray's interval shrunk to that depth alone. Floors (flat boxes), slivers along
+    /// a diagonal (whose `f32` normal tilts) and small triangles, met from near and far.
+    #[test]
+    fn moller_trumbore_span_never_rules_out_a_hit() {
+        let mut seed = 41;
+        let mut tris = random_triangles(40, 0.9, &mut seed);
+        for i in 0..40 {
+            let a = point(&mut seed) * 200.0 - 100.0;
+            if i % 2 == 0 {
+                let flat = Vec3::new(200.0, 200.0, 0.0);
+                let (b, c) = (point(&mut seed) * flat, point(&mut seed) * flat);
+                tris.push(Triangle::new(a, a + b, a + c));
+            } else {
+                let a = a + Vec3::new(1.0e4, 0.0, 0.0);
+                let b = a + Vec3::new(-2.0e4, -1.3e4, lcg(&mut seed) * 1e-2);
+                tris.push(Triangle::new(
+                    a,
+                    b,
+                    (a + b) * 0.5 + Vec3::new(0.0, 0.0, 2e-3),
+                ));
+            }
+        }
+        let (mut hits, mut moved) = (0, 0);
+        for k in 0..40_000 {
+            let t = &tris[k % tris.len()];
+            let (u, w) = (lcg(&mut seed) * 0.5, lcg(&mut seed) * 0.5);
+            let on = t.v[0] + (t.v[1] - t.v[0]) * u + (t.v[2] - t.v[0]) * w;
+            let o = on + (point(&mut seed) - 0.5) * [1e-3, 0.5, 100.0][k % 3];
+            let Some(h) = t.intersect_moller_trumbore(&Ray::segment(o, on - o, 0.0, f32::INFINITY))
+            else {
+                continue;
+            };
+            let c = |j: usize| t.v[j / 3][j % 3];
+            let ray = Ray::segment(o, on - o, h.t, h.t);
+            let [f32_t, _, _] = crate::triangle::moller_trumbore_rows::<f32>(c, &ray)
+                .1
+                .values();
+            hits += 1;
+            moved += (f32_t != h.t) as u32;
+            assert_eq!(
+                crate::triangle::moller_trumbore_span::<f32>(c, &ray),
+                0,
+                "{t:?} {ray:?}"
+            );
+            assert_eq!(t.intersect_moller_trumbore(&ray), Some(h), "{t:?} {ray:?}");
+        }
+        assert!(
+            hits > 20_000 && moved > 50,
+            "{hits} hits, {moved} depths moved"
         );
     }
 

@@ -9,9 +9,10 @@ use super::simd::SimdLanes;
 use crate::{PrimHit, Ray};
 use glam::DVec3;
 
-/// The Möller–Trumbore test (Möller & Trumbore 1997, no epsilon) of the triangles whose
-/// coordinate row `j` of `[v0.x, v0.y, v0.z, v1.x, .., v2.z]` is `row(j)` (one triangle per
-/// lane), against `ray`'s line: the bits of the lanes whose barycentrics it accepts (their
+/// The Möller–Trumbore test (Möller & Trumbore 1997, no epsilon; in the form Embree's
+/// kernel takes, the determinant and the depth from the triangle's normal) of the triangles
+/// whose coordinate row `j` of `[v0.x, v0.y, v0.z, v1.x, .., v2.z]` is `row(j)` (one
+/// triangle per lane), against `ray`'s line: the bits of the lanes whose barycentrics it accepts (their
 /// numerators of the determinant's sign, or zero, and their sum no larger than it, a nonzero
 /// determinant; false wherever a value is NaN) and per lane the numbers that give `[t, u, v]`
 /// in `f32` ([`MollerLanes::values`]). Every lane's numbers are the same sequence of IEEE
@@ -40,21 +41,25 @@ pub(crate) fn moller_trumbore_rows<L: SimdLanes>(
     let e1 = [row(3) - v0[0], row(4) - v0[1], row(5) - v0[2]];
     let e2 = [row(6) - v0[0], row(7) - v0[1], row(8) - v0[2]];
     let d = [L::splat(d[0]), L::splat(d[1]), L::splat(d[2])];
-    let s = [
-        L::splat(o[0]) - v0[0],
-        L::splat(o[1]) - v0[1],
-        L::splat(o[2]) - v0[2],
+    let c = [
+        v0[0] - L::splat(o[0]),
+        v0[1] - L::splat(o[1]),
+        v0[2] - L::splat(o[2]),
     ];
-    let p = cross(&d, &e2);
-    let q = cross(&s, &e1);
-    let det = dot(&e1, &p);
-    let (u, v, t) = (dot(&s, &p), dot(&d, &q), dot(&e2, &q));
+    // The depth from the plane through `v0` with the normal `n` that the determinant uses
+    // too: their roundings of `n` cancel in the quotient, so the depth's point lies on the
+    // triangle's plane within a few units in the last place (a flat box holds it).
+    let n = cross(&e1, &e2);
+    let r = cross(&c, &d);
+    let det = dot(&d, &n);
+    let (u, v_neg, t) = (dot(&r, &e2), dot(&r, &e1), dot(&c, &n));
     // The barycentrics' signs and sum against the determinant's, before any division.
-    let (zero, uv) = (L::splat(0.0), u + v);
+    let (zero, uv) = (L::splat(0.0), u - v_neg);
+    let v = zero - v_neg;
     // A determinant below the normal range has no finite reciprocal: no hit.
     let normal = L::splat(f32::MIN_POSITIVE);
     let front = L::le_bits(normal, det) & L::le_bits(zero, u) & L::le_bits(zero, v);
-    let back = L::le_bits(det, L::splat(0.0) - normal) & L::le_bits(u, zero) & L::le_bits(v, zero);
+    let back = L::le_bits(det, zero - normal) & L::le_bits(u, zero) & L::le_bits(v, zero);
     let inside = (front & L::le_bits(uv, det)) | (back & L::le_bits(det, uv));
     (inside & ((1 << L::WIDTH) - 1), MollerLanes { det, u, v, t })
 }
@@ -138,9 +143,9 @@ impl Triangle {
     /// Möller & Trumbore 1997, no epsilon: fast, not watertight (a ray can slip through an
     /// edge two triangles share, or hit both). The barycentrics and the depth are computed in
     /// `f32` (the same operations a leaf test of eight lanes runs); a depth whose point lies
-    /// outside the triangle's box
-    /// by more than half the box tests' padding ([`crate::Aabb::holds_hit`]: the `f32` depth
-    /// from a vertex far from the hit loses the digits that place it) is recomputed in `f64`
+    /// outside the triangle's box by more than half the box tests' padding
+    /// ([`crate::Aabb::holds_hit`]: the `f32` normal of a sliver, whose products cancel,
+    /// tilts the plane the depth lies on) is recomputed in `f64`
     /// and held in the box, as the watertight kernel's are, so that every structure agrees
     /// with brute force on this kernel too. The depth so held decides whether the hit lies in
     /// the ray's interval. Zero-area triangles never hit.
