@@ -858,18 +858,13 @@ mod tests {
             // Slivers 1e4 away, seen along their length from near the origin.
             let a = Vec3::new(1.0e4 + lcg(&mut seed), lcg(&mut seed), lcg(&mut seed));
             let b = a + Vec3::new(-2.0e4, 1e-3 * (1 + i % 5) as f32, lcg(&mut seed) * 1e-3);
-            let c = if i % 2 == 0 {
-                a + Vec3::new(0.0, 1e-3, 2e-3)
+            let (b, c) = if i % 2 == 0 {
+                (b, a + Vec3::new(0.0, 1e-3, 2e-3))
             } else {
                 // Along a diagonal, the third vertex a hair from the long edge: the `f32`
                 // normal's products cancel, and the plane it gives tilts.
                 let b = a + Vec3::new(-2.0e4, -1.3e4, 1e-3 * (1 + i % 5) as f32);
-                tris.push(Triangle::new(
-                    a,
-                    b,
-                    (a + b) * 0.5 + Vec3::new(0.0, 0.0, 2e-3),
-                ));
-                continue;
+                (b, (a + b) * 0.5 + Vec3::new(0.0, 0.0, 2e-3))
             };
             tris.push(Triangle::new(a, b, c));
         }
@@ -911,8 +906,8 @@ mod tests {
             let sliver = (48..72).contains(&(k % tris.len()));
             let o = match k % 4 {
                 0 => on,
-                // A sliver met from close by: its `f32` edges lose its width, and with it the
-                // plane its depth lies on.
+                // A sliver met from close by: where its normal's products cancel, the plane
+                // its `f32` depth lies on tilts.
                 1 if sliver => on + (point(&mut seed) - 0.5) * 0.5,
                 1 => point(&mut seed) * 4.0 - 2.0,
                 2 => Vec3::new(-1.0e4, lcg(&mut seed) * 1e-2, lcg(&mut seed) * 1e-2),
