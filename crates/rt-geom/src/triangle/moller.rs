@@ -12,13 +12,13 @@ use glam::DVec3;
 /// The Möller–Trumbore test (Möller & Trumbore 1997, no epsilon; in the form Embree's
 /// kernel takes, the determinant and the depth from the triangle's normal) of the triangles
 /// whose coordinate row `j` of `[v0.x, v0.y, v0.z, v1.x, .., v2.z]` is `row(j)` (one
-/// triangle per lane), against `ray`'s line: the bits of the lanes whose barycentrics it accepts (their
-/// numerators of the determinant's sign, or zero, and their sum no larger than it, a nonzero
-/// determinant; false wherever a value is NaN) and per lane the numbers that give `[t, u, v]`
-/// in `f32` ([`MollerLanes::values`]). Every lane's numbers are the same sequence of IEEE
-/// operations whatever the lanes' width (a single `f32` included). The depth `t` is not
-/// checked against the ray's interval here: the depth a hit reports is `t` only where the
-/// triangle's box holds it ([`Triangle::moller_trumbore_hit`]).
+/// triangle per lane), against `ray`'s line: the bits of the lanes whose barycentrics it
+/// accepts (their numerators of the determinant's sign, or zero, and their sum no larger than
+/// it, a nonzero determinant; false wherever a value is NaN) and per lane the numbers that
+/// give `[t, u, v]` in `f32` ([`MollerLanes::values`]). Every lane's numbers are the same
+/// sequence of IEEE operations whatever the lanes' width (a single `f32` included). The depth
+/// `t` is not checked against the ray's interval here: the depth a hit reports is `t` only
+/// where the triangle's box holds it ([`Triangle::moller_trumbore_hit`]).
 #[inline(always)]
 pub(crate) fn moller_trumbore_rows<L: SimdLanes>(
     row: impl Fn(usize) -> L,
@@ -145,8 +145,8 @@ impl Triangle {
     /// `f32` (the same operations a leaf test of eight lanes runs); a depth whose point lies
     /// outside the triangle's box by more than half the box tests' padding
     /// ([`crate::Aabb::holds_hit`]: the `f32` normal of a sliver, whose products cancel,
-    /// tilts the plane the depth lies on) is recomputed in `f64`
-    /// and held in the box, as the watertight kernel's are, so that every structure agrees
+    /// tilts the plane the depth lies on) is recomputed in `f64` and held in the box, as the
+    /// watertight kernel's are, so that every structure agrees
     /// with brute force on this kernel too. The depth so held decides whether the hit lies in
     /// the ray's interval. Zero-area triangles never hit.
     #[inline]
