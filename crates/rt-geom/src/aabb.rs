@@ -68,8 +68,11 @@ const OFFSET_SLACK: f32 = 1.0 / (1u32 << 22) as f32;
 /// inv` is moved outward once per ray (down for near planes, up for far ones) past its
 /// rounding error, so it only moves entries earlier and exits later, and the one rounding of
 /// the fused operation stays within the padding budgeted for four. An axis whose reciprocal
-/// or offset is not finite (a zero direction component) constrains nothing in that form:
-/// conservative, where the difference form culls boxes beside the ray.
+/// or offset is not finite (a zero direction component, or a tiny one with an origin far
+/// away) constrains nothing in that form: conservative, where the difference form culls boxes
+/// beside the ray. The form gives no NaN: an empty box (min `+inf`, max `-inf`) is entered at
+/// `+inf` and left at `-inf` on every axis, so that it is missed whatever order the axes are
+/// combined in.
 #[derive(Clone, Copy, Debug)]
 pub struct SlabRay {
     /// The ray origin.
@@ -83,10 +86,12 @@ pub struct SlabRay {
     /// The interval is padded after the planes (rays with `tmin < 0`).
     pub pad_after: bool,
     /// Per axis, the reciprocal of the fused form for near planes and for far planes (the
-    /// padded ones; 0 where the axis constrains nothing).
+    /// padded ones; `f32::MIN_POSITIVE` of the direction's sign where the axis constrains
+    /// nothing).
     pub fused_inv: [[f32; 3]; 2],
     /// Per axis, `-origin * inv` of the fused form moved down (near planes) and up (far
-    /// planes) past its rounding; `-inf` and `+inf` where the axis constrains nothing.
+    /// planes) past its rounding; `f32::MIN` and `f32::MAX` where the axis constrains
+    /// nothing.
     pub fused_offset: [[f32; 3]; 2],
 }
 
@@ -132,6 +137,11 @@ impl SlabRay {
             & lo.is_finite_mask()
             & hi.is_finite_mask();
         let neg = inv.is_negative_bitmask();
+        // An axis that constrains nothing: the smallest normal reciprocal of the direction's
+        // sign and the most negative (near) and positive (far) finite offsets. A finite plane
+        // then lies at `f32::MIN` and `f32::MAX`, and an empty lane's infinite planes at
+        // `+inf` (entry) and `-inf` (exit), as on every other axis: no NaN in this form.
+        let tiny = Vec3A::splat(f32::MIN_POSITIVE).copysign(inv);
         Self {
             origin: origin.to_array(),
             inv_near: inv_near.to_array(),
@@ -139,12 +149,12 @@ impl SlabRay {
             neg: [0, 1, 2].map(|a| neg & (1 << a) != 0),
             pad_after,
             fused_inv: [
-                Vec3A::select(ok, inv_near, Vec3A::ZERO).to_array(),
-                Vec3A::select(ok, inv_far, Vec3A::ZERO).to_array(),
+                Vec3A::select(ok, inv_near, tiny).to_array(),
+                Vec3A::select(ok, inv_far, tiny).to_array(),
             ],
             fused_offset: [
-                Vec3A::select(ok, lo, Vec3A::NEG_INFINITY).to_array(),
-                Vec3A::select(ok, hi, Vec3A::INFINITY).to_array(),
+                Vec3A::select(ok, lo, Vec3A::splat(f32::MIN)).to_array(),
+                Vec3A::select(ok, hi, Vec3A::splat(f32::MAX)).to_array(),
             ],
         }
     }
@@ -636,7 +646,9 @@ mod tests {
             for a in 0..3 {
                 let exact = |inv: f32| -(o[a] as f64) * inv as f64;
                 let [near, far] = slab.fused_offset.map(|off| off[a] as f64);
-                assert!(near <= exact(slab.inv_near[a]) && far >= exact(slab.inv_far[a]));
+                if slab.fused_inv[0][a] == slab.inv_near[a] {
+                    assert!(near <= exact(slab.inv_near[a]) && far >= exact(slab.inv_far[a]));
+                }
             }
             let (min, max) = (b.min.to_array(), b.max.to_array());
             assert_conservative(&b, &r, slab.entry_fused(&min, &max, r.tmin, r.tmax));

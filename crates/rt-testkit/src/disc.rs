@@ -45,11 +45,12 @@ impl Primitive for Disc {
             return None;
         }
         let t = (self.center - ray.origin()).dot(self.normal) / d;
-        if !(t >= ray.tmin && t <= ray.tmax) {
+        // A depth beyond the floats (a far origin, a short direction) hits nothing.
+        if !(t >= ray.tmin && t <= ray.tmax && t.is_finite()) {
             return None;
         }
         let offset = ray.origin() + t * ray.dir() - self.center;
-        if offset.length_squared() > self.radius * self.radius {
+        if !(offset.length_squared() <= self.radius * self.radius) {
             return None;
         }
         let (e1, e2) = self.normal.any_orthonormal_pair();

@@ -101,6 +101,10 @@ pub enum RayKind {
     /// Origin inside the scene's box, the interval starting far behind it (`tmin < 0`): the
     /// ray crosses behind its origin the planes and cells it heads away from.
     Behind,
+    /// The shortest valid directions (largest component [`rt_geom::MIN_DIRECTION`]) from
+    /// origins as far from the world's origin as a valid origin lies: the slab tests'
+    /// offsets (origin over direction) overflow on every axis.
+    Faint,
     /// Zero, NaN or infinite directions and origins, NaN intervals: must miss.
     Invalid,
     /// Primary rays of the standard camera (mesh verification).
@@ -217,6 +221,18 @@ pub fn conformance_rays<P: SamplePoints>(
             push(ray.with_range(a, b), RayKind::Limited);
         }
         limited += 7;
+    }
+    let far = rt_geom::MAX_COORDINATE / 2.0;
+    for corner in [
+        Vec3::splat(far),
+        Vec3::new(far, -far, far),
+        Vec3::splat(-far),
+    ] {
+        let to_scene = (lo + hi) * 0.5 - corner;
+        let d = to_scene / to_scene.abs().max_element() * rt_geom::MIN_DIRECTION;
+        for d in [d, -d, Vec3::new(d.x, -d.y, 0.0)] {
+            push(Ray::new(corner, d), RayKind::Faint);
+        }
     }
     let o = rng.point_in(lo, hi);
     let inf = f32::INFINITY;

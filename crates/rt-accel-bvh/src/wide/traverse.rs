@@ -282,22 +282,42 @@ pub(crate) fn lane_entries<const N: usize, V: Level>(
 ) -> (u32, [f32; N]) {
     let mut t0 = [tmin; N];
     let mut t1 = [tmax; N];
-    for a in 0..3 {
-        let (near, far) = if ray.neg[a] {
-            (&max[a], &min[a])
-        } else {
-            (&min[a], &max[a])
-        };
-        let (o, inv_near, inv_far) = (ray.origin[a], ray.inv_near[a], ray.inv_far[a]);
-        for l in 0..N {
-            let (tn, tf) = if V::FMA {
-                ray.fused_distances(a, near[l], far[l])
+    if V::FMA {
+        // The fused form gives no NaN (empty lanes enter at +inf and leave at -inf on every
+        // axis): the three axes and the interval combine as a tree of maxima and minima, two
+        // steps deep instead of a chain of three.
+        let mut tn = [[0.0; N]; 3];
+        let mut tf = [[0.0; N]; 3];
+        for a in 0..3 {
+            let (near, far) = if ray.neg[a] {
+                (&max[a], &min[a])
             } else {
-                ((near[l] - o) * inv_near, (far[l] - o) * inv_far)
+                (&min[a], &max[a])
             };
-            // NaN (origin on the plane, zero direction) leaves the interval unchanged.
-            t0[l] = if tn > t0[l] { tn } else { t0[l] };
-            t1[l] = if tf < t1[l] { tf } else { t1[l] };
+            for l in 0..N {
+                (tn[a][l], tf[a][l]) = ray.fused_distances(a, near[l], far[l]);
+            }
+        }
+        let most = |x: f32, y: f32| if x > y { x } else { y };
+        let least = |x: f32, y: f32| if x < y { x } else { y };
+        for l in 0..N {
+            t0[l] = most(most(tn[0][l], tn[1][l]), most(tn[2][l], tmin));
+            t1[l] = least(least(tf[0][l], tf[1][l]), least(tf[2][l], tmax));
+        }
+    } else {
+        for a in 0..3 {
+            let (near, far) = if ray.neg[a] {
+                (&max[a], &min[a])
+            } else {
+                (&min[a], &max[a])
+            };
+            let (o, inv_near, inv_far) = (ray.origin[a], ray.inv_near[a], ray.inv_far[a]);
+            for l in 0..N {
+                let (tn, tf) = ((near[l] - o) * inv_near, (far[l] - o) * inv_far);
+                // NaN (origin on the plane, zero direction) leaves the interval unchanged.
+                t0[l] = if tn > t0[l] { tn } else { t0[l] };
+                t1[l] = if tf < t1[l] { tf } else { t1[l] };
+            }
         }
     }
     if ray.pad_after {
