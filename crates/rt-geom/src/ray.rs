@@ -39,6 +39,14 @@ pub struct Ray {
 }
 
 const _: () = assert!(std::mem::size_of::<Ray>() == 64);
+// No padding (`Ray::copy_narrow` copies every byte as a word): the fields end to end.
+const _: () = {
+    use std::mem::offset_of;
+    assert!(offset_of!(Ray, origin) == 0 && offset_of!(Ray, dir) == 12);
+    assert!(offset_of!(Ray, tmin) == 24 && offset_of!(Ray, tmax) == 28);
+    assert!(offset_of!(Ray, shear_rows) == 32 && offset_of!(Ray, shear_z) == 56);
+    assert!(offset_of!(Ray, axes) == 60 && offset_of!(Ray, valid) == 63);
+};
 
 /// The shortest ray direction (its largest component), `2^-100`: shorter directions make
 /// invalid rays. Components of a valid direction below 2^-48 of its largest are flushed to
@@ -51,6 +59,31 @@ const _: () = assert!(MIN_DIRECTION == 1.0 / (1u128 << 100) as f32);
 const FLUSH_BELOW: f32 = 1.0 / (1u64 << 48) as f32;
 
 impl Ray {
+    /// A copy of this ray made of eight 8-byte moves that the compiler keeps apart, for the
+    /// any-hit walks, which copy the ray they are asked about. Inside code compiled with
+    /// AVX-512 enabled (the any-hit walks of [`crate::Isa::Avx512`]) a plain copy of the
+    /// 64-byte ray becomes one 512-bit move, and on Intel CPUs one 512-bit instruction per
+    /// query slows the 256-bit code around it (the core's frequency and its vector ports
+    /// step down for 512-bit work).
+    #[inline(always)]
+    pub fn copy_narrow(&self) -> Ray {
+        let mut out = std::mem::MaybeUninit::<Ray>::uninit();
+        let src = (self as *const Ray).cast::<u64>();
+        let dst = out.as_mut_ptr().cast::<u64>();
+        for k in 0..8 {
+            // SAFETY: `Ray` is 64 bytes, aligned to 64, with no padding (checked after its
+            // definition): `src` and `dst` point to eight aligned words, initialised (source)
+            // or writable (destination). Volatile reads keep the compiler from merging them
+            // into one 512-bit move. Measured reason: the any-hit walks at the AVX-512 level
+            // ran slower on an Intel Xeon with the merged move than at the AVX2 level, and
+            // faster without it.
+            unsafe { dst.add(k).write(src.add(k).read_volatile()) };
+        }
+        // SAFETY: all 64 bytes are written, each a byte of a valid `Ray` (the `bool` one
+        // included).
+        unsafe { out.assume_init() }
+    }
+
     /// A ray over `[0, +inf]`.
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
         Self::segment(origin, dir, 0.0, f32::INFINITY)
