@@ -282,6 +282,14 @@ pub(crate) fn lane_entries<const N: usize, V: Level>(
     tmin: f32,
     tmax: f32,
 ) -> (u32, [f32; N]) {
+    // Each axis's near and far planes, picked by the ray's sign.
+    let planes: [(&[f32; N], &[f32; N]); 3] = std::array::from_fn(|a| {
+        if ray.neg[a] {
+            (&max[a], &min[a])
+        } else {
+            (&min[a], &max[a])
+        }
+    });
     let mut t0 = [tmin; N];
     let mut t1 = [tmax; N];
     if V::FMA {
@@ -290,12 +298,7 @@ pub(crate) fn lane_entries<const N: usize, V: Level>(
         // steps deep instead of a chain of three.
         let mut tn = [[0.0; N]; 3];
         let mut tf = [[0.0; N]; 3];
-        for a in 0..3 {
-            let (near, far) = if ray.neg[a] {
-                (&max[a], &min[a])
-            } else {
-                (&min[a], &max[a])
-            };
+        for (a, (near, far)) in planes.iter().enumerate() {
             for l in 0..N {
                 (tn[a][l], tf[a][l]) = ray.fused_distances(a, near[l], far[l]);
             }
@@ -307,12 +310,7 @@ pub(crate) fn lane_entries<const N: usize, V: Level>(
             t1[l] = least(least(tf[0][l], tf[1][l]), least(tf[2][l], tmax));
         }
     } else {
-        for a in 0..3 {
-            let (near, far) = if ray.neg[a] {
-                (&max[a], &min[a])
-            } else {
-                (&min[a], &max[a])
-            };
+        for (a, (near, far)) in planes.iter().enumerate() {
             let (o, inv_near, inv_far) = (ray.origin[a], ray.inv_near[a], ray.inv_far[a]);
             for l in 0..N {
                 let (tn, tf) = ((near[l] - o) * inv_near, (far[l] - o) * inv_far);
