@@ -23,7 +23,7 @@
 //! stack loop, over [`NodeLayout`]) then visits a superset of the nodes the exact boxes would
 //! give, and returns exactly their hits.
 
-use crate::wide::{NodeLayout, WideBvh, WideNode, WideTree, lane_entries};
+use crate::wide::{NodeLayout, WideBvh, WideNode, WideTree, lane_entries, near_far};
 use rt_geom::aabb::SlabRay;
 use rt_geom::{Aabb, Level, Vec3};
 
@@ -141,14 +141,8 @@ impl NodeLayout<8> for CompressedNode {
                 std::array::from_fn(|l| self.origin[a] + q[a][l] as f32 * step)
             })
         };
-        lane_entries(
-            level,
-            &dequantize(&self.qmin),
-            &dequantize(&self.qmax),
-            ray,
-            tmin,
-            tmax,
-        )
+        let (min, max) = (dequantize(&self.qmin), dequantize(&self.qmax));
+        lane_entries(level, near_far(&min, &max, ray), ray, tmin, tmax)
     }
 
     #[inline(always)]

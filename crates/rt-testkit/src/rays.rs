@@ -96,7 +96,8 @@ pub enum RayKind {
     AxisParallel,
     /// One zero direction component.
     PlaneParallel,
-    /// `tmin`/`tmax` placed on, just before and just after the closest hit.
+    /// `tmin`/`tmax` placed on, just before and just after the closest hit; intervals ending
+    /// in signed zeros from vertex and edge points.
     Limited,
     /// Origin inside the scene's box, the interval starting far behind it (`tmin < 0`): the
     /// ray crosses behind its origin the planes and cells it heads away from.
@@ -220,7 +221,12 @@ pub fn conformance_rays<P: SamplePoints>(
         ] {
             push(ray.with_range(a, b), RayKind::Limited);
         }
-        limited += 7;
+        // Signed zeros at the ends of the interval, from a vertex or edge point (hits at 0).
+        let from = Ray::new(target(&mut rng, true), ray.dir());
+        for (a, b) in [(-0.0, -0.0), (0.0, -0.0), (-0.0, f32::INFINITY)] {
+            push(from.with_range(a, b), RayKind::Limited);
+        }
+        limited += 10;
     }
     let far = rt_geom::MAX_COORDINATE / 2.0;
     for corner in [

@@ -21,7 +21,7 @@ mod traverse;
 
 pub use bvh::{Bvh4, Bvh8, WideBvh};
 pub use node::{NodeLayout, WideNode};
-pub(crate) use traverse::{lane_entries, test_leaf};
+pub(crate) use traverse::{lane_entries, near_far, test_leaf};
 
 use rt_geom::pages::Pages;
 use rt_geom::{Aabb, Hit, Isa, Keep, Level, Ray};

@@ -266,7 +266,24 @@ fn stack_entry<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool>(
 const STACK: usize = 512;
 const _: () = assert!(STACK.is_power_of_two() && 7 * (MAX_DEPTH + 2) + 8 <= STACK);
 
-/// The lanes whose boxes `min..max` (per axis, per lane) the ray enters within `[tmin, tmax]`
+/// Each axis's near and far planes of the boxes `min..max` (per axis, per lane), picked by
+/// the ray's sign.
+#[inline(always)]
+pub(crate) fn near_far<'a, const N: usize>(
+    min: &'a [[f32; N]; 3],
+    max: &'a [[f32; N]; 3],
+    ray: &SlabRay,
+) -> [(&'a [f32; N], &'a [f32; N]); 3] {
+    std::array::from_fn(|a| {
+        if ray.neg[a] {
+            (&max[a], &min[a])
+        } else {
+            (&min[a], &max[a])
+        }
+    })
+}
+
+/// The lanes whose boxes (each axis's near and far planes, per lane) the ray enters within `[tmin, tmax]`
 /// (bit `lane`) and the entry distance per lane (meaningful for those; written as plain lane
 /// loops: one SIMD operation each after vectorisation), in [`SlabRay`]'s fused form at
 /// levels with fused multiply-add. The mask comes from the interval compare itself (a lane's
@@ -276,20 +293,11 @@ const _: () = assert!(STACK.is_power_of_two() && 7 * (MAX_DEPTH + 2) + 8 <= STAC
 #[inline(always)]
 pub(crate) fn lane_entries<const N: usize, V: Level>(
     level: V,
-    min: &[[f32; N]; 3],
-    max: &[[f32; N]; 3],
+    planes: [(&[f32; N], &[f32; N]); 3],
     ray: &SlabRay,
     tmin: f32,
     tmax: f32,
 ) -> (u32, [f32; N]) {
-    // Each axis's near and far planes, picked by the ray's sign.
-    let planes: [(&[f32; N], &[f32; N]); 3] = std::array::from_fn(|a| {
-        if ray.neg[a] {
-            (&max[a], &min[a])
-        } else {
-            (&min[a], &max[a])
-        }
-    });
     let mut t0 = [tmin; N];
     let mut t1 = [tmax; N];
     if V::FMA {
@@ -303,11 +311,32 @@ pub(crate) fn lane_entries<const N: usize, V: Level>(
                 (tn[a][l], tf[a][l]) = ray.fused_distances(a, near[l], far[l]);
             }
         }
-        let most = |x: f32, y: f32| if x > y { x } else { y };
-        let least = |x: f32, y: f32| if x < y { x } else { y };
-        for l in 0..N {
-            t0[l] = most(most(tn[0][l], tn[1][l]), most(tn[2][l], tmin));
-            t1[l] = least(least(tf[0][l], tf[1][l]), least(tf[2][l], tmax));
+        if tmin >= 0.0 {
+            // Every entry's maximum includes `tmin >= +0` (`+ 0.0` turns -0.0 into +0.0):
+            // such a maximum and the compare with the exit order the floats' bits as signed
+            // integers do (a non-negative float's bits order as its value; any negative
+            // one, which its integer maximum does not pick, is below them all), and the
+            // integer operations take one cycle where the float ones take up to four. The
+            // exit's integer minimum may pick another negative value than the float one
+            // would: both are below every entry, so the lane misses either way. No operand
+            // is NaN, and no far plane's distance is -0.0 (its offset never is).
+            let bits = |x: f32| x.to_bits() as i32;
+            let (lo, hi) = (bits(tmin + 0.0), bits(tmax + 0.0));
+            let most = |x: i32, y: i32| if x > y { x } else { y };
+            let least = |x: i32, y: i32| if x < y { x } else { y };
+            for l in 0..N {
+                let (n0, n1, n2) = (bits(tn[0][l]), bits(tn[1][l]), bits(tn[2][l]));
+                let (f0, f1, f2) = (bits(tf[0][l]), bits(tf[1][l]), bits(tf[2][l]));
+                t0[l] = f32::from_bits(most(most(n0, n1), most(n2, lo)) as u32);
+                t1[l] = f32::from_bits(least(least(f0, f1), least(f2, hi)) as u32);
+            }
+        } else {
+            let most = |x: f32, y: f32| if x > y { x } else { y };
+            let least = |x: f32, y: f32| if x < y { x } else { y };
+            for l in 0..N {
+                t0[l] = most(most(tn[0][l], tn[1][l]), most(tn[2][l], tmin));
+                t1[l] = least(least(tf[0][l], tf[1][l]), least(tf[2][l], tmax));
+            }
         }
     } else {
         for (a, (near, far)) in planes.iter().enumerate() {
