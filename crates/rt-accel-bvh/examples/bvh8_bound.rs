@@ -393,7 +393,7 @@ fn against<const ANY_HIT: bool>(a: &TriBvh8, b: &TriBvh8, rays: &[Ray]) -> Vec<f
 }
 
 /// `bvh` with one change for `--against`: `isa=baseline|avx2|avx512`,
-/// `kernel=watertight|moller-trumbore`, or one of the build's
+/// `kernel=watertight|moller-trumbore`, `prefetch=true|false`, or one of the build's
 /// parameters (`leaf_block=N`, `max_leaf=N`, `traversal_cost=X`, `reinsertion=X`, `bins=N`,
 /// `spatial=ALPHA`, `budget=X`, `collapse=greedy|sah|ABOVE`), each as a change to
 /// [`rt_accel_bvh::BvhParams::fastest_trace`].
@@ -412,6 +412,11 @@ fn variant(bvh: &TriBvh8, tris: &[rt_geom::Triangle], change: &str) -> Result<Tr
                 _ => return Err(bad(&"kernel=watertight|moller-trumbore")),
             };
             return Ok(bvh.clone().with_kernel(kernel));
+        }
+        "prefetch" => {
+            return Ok(bvh
+                .clone()
+                .with_prefetch(value.parse().map_err(|e| bad(&e))?));
         }
         "leaf_block" => params.leaf_block = value.parse().map_err(|e| bad(&e))?,
         "max_leaf" => params.max_leaf_size = value.parse().map_err(|e| bad(&e))?,
@@ -435,7 +440,7 @@ fn variant(bvh: &TriBvh8, tris: &[rt_geom::Triangle], change: &str) -> Result<Tr
         }
         _ => {
             return Err(bad(
-                &"unknown key (isa, kernel, leaf_block, max_leaf, traversal_cost, reinsertion, \
+                &"unknown key (isa, kernel, prefetch, leaf_block, max_leaf, traversal_cost, reinsertion, \
                    bins, spatial, budget, collapse)",
             ));
         }

@@ -167,6 +167,14 @@ pub trait Level: Copy + Send + Sync + std::fmt::Debug + sealed::Sealed {
     fn le_bits8(self, a: &[f32; 8], b: &[f32; 8]) -> u32 {
         sealed::Sealed::le8(self, a, b)
     }
+
+    /// Bit `l` set where `a[l] <= b[l]` as signed integers: one integer compare of the
+    /// level's eight-lane vectors (the wide walk's hit mask on the bits of non-negative
+    /// floats, which order as their integers do).
+    #[inline(always)]
+    fn le_bits8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32 {
+        sealed::Sealed::le8_i32(self, a, b)
+    }
 }
 
 /// The baseline level: `wide`'s eight-lane vectors.
@@ -210,6 +218,8 @@ pub(crate) mod sealed {
         ) -> bool;
         /// [`Level::le_bits8`](super::Level::le_bits8).
         fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32;
+        /// [`Level::le_bits8_i32`](super::Level::le_bits8_i32).
+        fn le8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32;
         /// [`hits_outside`](crate::triangle::hits_outside), and the lanes
         /// [`proven_hit`](crate::triangle::proven_hit) proves, compiled for the level (out of
         /// line at the baseline, inlined into the AVX2 level's copy).
@@ -247,6 +257,12 @@ impl sealed::Sealed for BaseLevel {
         f32x8::from(*a).cmp_le(f32x8::from(*b)).move_mask() as u32
     }
 
+    #[inline(always)]
+    fn le8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32 {
+        use wide::{CmpGt, i32x8};
+        !(i32x8::from(*a).cmp_gt(i32x8::from(*b)).move_mask() as u32) & 0xff
+    }
+
     window8_on!(wide::f32x8);
 
     #[inline(always)]
@@ -265,6 +281,11 @@ impl sealed::Sealed for Avx2Level {
     #[inline(always)]
     fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32 {
         crate::triangle::Avx8::le_bits8(a, b)
+    }
+
+    #[inline(always)]
+    fn le8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32 {
+        crate::triangle::Avx8::le_bits8_i32(a, b)
     }
 
     window8_on!(crate::triangle::Avx8);
@@ -288,6 +309,11 @@ impl sealed::Sealed for Avx2Level {
     #[inline(always)]
     fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32 {
         BaseLevel.le8(a, b)
+    }
+
+    #[inline(always)]
+    fn le8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32 {
+        BaseLevel.le8_i32(a, b)
     }
 
     window8_on!(wide::f32x8);

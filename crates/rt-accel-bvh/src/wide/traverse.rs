@@ -48,6 +48,20 @@ fn le_lanes<const N: usize, V: Level>(level: V, t0: &[f32; N], t1: &[f32; N]) ->
     (0..N).fold(0, |m, l| m | ((t0[l] <= t1[l]) as u32) << l)
 }
 
+/// [`le_lanes`] on integers: bit `lane` set where `a <= b`.
+#[inline(always)]
+fn le_lanes_i32<const N: usize, V: Level>(level: V, a: &[i32; N], b: &[i32; N]) -> u32 {
+    use wide::{CmpGt, i32x4};
+    let (a, b) = (&a[..], &b[..]);
+    if let (Ok(a), Ok(b)) = (<&[i32; 8]>::try_from(a), <&[i32; 8]>::try_from(b)) {
+        return level.le_bits8_i32(a, b);
+    }
+    if let (Ok(a), Ok(b)) = (<[i32; 4]>::try_from(a), <[i32; 4]>::try_from(b)) {
+        return !(i32x4::from(a).cmp_gt(i32x4::from(b)).move_mask() as u32) & 0xf;
+    }
+    (0..N).fold(0, |m, l| m | ((a[l] <= b[l]) as u32) << l)
+}
+
 /// The stack traversal of every wide layout (see [`WideTree::traverse`]).
 ///
 /// Per inner node: one SIMD slab test of all lanes, a bit mask of the lanes hit, and then
@@ -283,13 +297,13 @@ pub(crate) fn near_far<'a, const N: usize>(
     })
 }
 
-/// The lanes whose boxes (each axis's near and far planes, per lane) the ray enters within `[tmin, tmax]`
-/// (bit `lane`) and the entry distance per lane (meaningful for those; written as plain lane
-/// loops: one SIMD operation each after vectorisation), in [`SlabRay`]'s fused form at
-/// levels with fused multiply-add. The mask comes from the interval compare itself (a lane's
-/// entry no later than its exit): no NaN written for the misses and tested again.
-/// Conservative like [`SlabRay::entry`]: the entry returned is never later than the true one
-/// and never before `tmin`.
+/// The lanes whose boxes (each axis's near and far planes, per lane) the ray enters within
+/// `[tmin, tmax]` (bit `lane`) and the entry distance per lane (meaningful for those; written
+/// as plain lane loops, one output each: one SIMD operation each after vectorisation), in
+/// [`SlabRay`]'s fused form at levels with fused multiply-add. The mask comes from the
+/// interval compare itself (a lane's entry no later than its exit): no NaN written for the
+/// misses and tested again. Conservative like [`SlabRay::entry`]: the entry returned is never
+/// later than the true one and never before `tmin`.
 #[inline(always)]
 pub(crate) fn lane_entries<const N: usize, V: Level>(
     level: V,
@@ -300,45 +314,7 @@ pub(crate) fn lane_entries<const N: usize, V: Level>(
 ) -> (u32, [f32; N]) {
     let mut t0 = [tmin; N];
     let mut t1 = [tmax; N];
-    if V::FMA {
-        // The fused form gives no NaN (empty lanes enter at +inf and leave at -inf on every
-        // axis): the three axes and the interval combine as a tree of maxima and minima, two
-        // steps deep instead of a chain of three.
-        let mut tn = [[0.0; N]; 3];
-        let mut tf = [[0.0; N]; 3];
-        for (a, (near, far)) in planes.iter().enumerate() {
-            for l in 0..N {
-                (tn[a][l], tf[a][l]) = ray.fused_distances(a, near[l], far[l]);
-            }
-        }
-        if tmin >= 0.0 {
-            // Every entry's maximum includes `tmin >= +0` (`+ 0.0` turns -0.0 into +0.0):
-            // such a maximum and the compare with the exit order the floats' bits as signed
-            // integers do (a non-negative float's bits order as its value; any negative
-            // one, which its integer maximum does not pick, is below them all), and the
-            // integer operations take one cycle where the float ones take up to four. The
-            // exit's integer minimum may pick another negative value than the float one
-            // would: both are below every entry, so the lane misses either way. No operand
-            // is NaN, and no far plane's distance is -0.0 (its offset never is).
-            let bits = |x: f32| x.to_bits() as i32;
-            let (lo, hi) = (bits(tmin + 0.0), bits(tmax + 0.0));
-            let most = |x: i32, y: i32| if x > y { x } else { y };
-            let least = |x: i32, y: i32| if x < y { x } else { y };
-            for l in 0..N {
-                let (n0, n1, n2) = (bits(tn[0][l]), bits(tn[1][l]), bits(tn[2][l]));
-                let (f0, f1, f2) = (bits(tf[0][l]), bits(tf[1][l]), bits(tf[2][l]));
-                t0[l] = f32::from_bits(most(most(n0, n1), most(n2, lo)) as u32);
-                t1[l] = f32::from_bits(least(least(f0, f1), least(f2, hi)) as u32);
-            }
-        } else {
-            let most = |x: f32, y: f32| if x > y { x } else { y };
-            let least = |x: f32, y: f32| if x < y { x } else { y };
-            for l in 0..N {
-                t0[l] = most(most(tn[0][l], tn[1][l]), most(tn[2][l], tmin));
-                t1[l] = least(least(tf[0][l], tf[1][l]), least(tf[2][l], tmax));
-            }
-        }
-    } else {
+    if !V::FMA {
         for (a, (near, far)) in planes.iter().enumerate() {
             let (o, inv_near, inv_far) = (ray.origin[a], ray.inv_near[a], ray.inv_far[a]);
             for l in 0..N {
@@ -348,11 +324,67 @@ pub(crate) fn lane_entries<const N: usize, V: Level>(
                 t1[l] = if tf < t1[l] { tf } else { t1[l] };
             }
         }
+        if ray.pad_after {
+            for l in 0..N {
+                (t0[l], t1[l]) = pad_interval(t0[l], t1[l], tmin);
+            }
+        }
+        return (le_lanes(level, &t0, &t1), t0);
     }
-    if ray.pad_after {
+    // The fused form gives no NaN (empty lanes enter at +inf and leave at -inf on every axis):
+    // the three axes and the interval combine as a tree of maxima and minima, two steps deep
+    // instead of a chain of three.
+    let mut tn = [[0.0; N]; 3];
+    let mut tf = [[0.0; N]; 3];
+    for (a, (near, far)) in planes.iter().enumerate() {
         for l in 0..N {
-            (t0[l], t1[l]) = pad_interval(t0[l], t1[l], tmin);
+            (tn[a][l], tf[a][l]) = ray.fused_distances(a, near[l], far[l]);
         }
     }
-    (le_lanes(level, &t0, &t1), t0)
+    // The interval compare on integers (`enter <= leave`), one cycle per step where the float
+    // operations take up to four.
+    let mut enter = [0i32; N];
+    let mut leave = [0i32; N];
+    if tmin >= 0.0 {
+        // Every entry's maximum includes `tmin >= +0` (`+ 0.0` turns -0.0 into +0.0): such a
+        // maximum, and its compare with the exit, order the floats' bits as signed integers
+        // do (a non-negative float's bits order as its value; any negative one, which the
+        // integer maximum does not pick, lies below them all). The exit's integer minimum may
+        // pick another negative value than the float one would: both lie below every entry,
+        // so the lane misses either way. No operand is NaN, and no far plane's distance is
+        // -0.0 (its offset never is).
+        let bits = |x: f32| x.to_bits() as i32;
+        let (lo, hi) = (bits(tmin + 0.0), bits(tmax + 0.0));
+        let most = |x: i32, y: i32| if x > y { x } else { y };
+        let least = |x: i32, y: i32| if x < y { x } else { y };
+        for l in 0..N {
+            let (n0, n1, n2) = (bits(tn[0][l]), bits(tn[1][l]), bits(tn[2][l]));
+            enter[l] = most(most(n0, n1), most(n2, lo));
+        }
+        for l in 0..N {
+            let (f0, f1, f2) = (bits(tf[0][l]), bits(tf[1][l]), bits(tf[2][l]));
+            leave[l] = least(least(f0, f1), least(f2, hi));
+        }
+        for l in 0..N {
+            t0[l] = f32::from_bits(enter[l] as u32);
+        }
+    } else {
+        // An interval from behind the origin: in floats, padded afterwards, the answer of
+        // their compare handed on as integers (0 <= 0 for a hit, 1 > 0 for a miss).
+        let most = |x: f32, y: f32| if x > y { x } else { y };
+        let least = |x: f32, y: f32| if x < y { x } else { y };
+        for l in 0..N {
+            t0[l] = most(most(tn[0][l], tn[1][l]), most(tn[2][l], tmin));
+            t1[l] = least(least(tf[0][l], tf[1][l]), least(tf[2][l], tmax));
+        }
+        if ray.pad_after {
+            for l in 0..N {
+                (t0[l], t1[l]) = pad_interval(t0[l], t1[l], tmin);
+            }
+        }
+        for l in 0..N {
+            enter[l] = !(t0[l] <= t1[l]) as i32;
+        }
+    }
+    (le_lanes_i32(level, &enter, &leave), t0)
 }

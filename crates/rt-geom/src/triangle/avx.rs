@@ -59,6 +59,21 @@ impl Avx8 {
         // SAFETY: as in `add`.
         bits(unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(a.0, b.0) })
     }
+
+    /// Bit `l` set where `a[l] <= b[l]` as signed integers.
+    #[inline(always)]
+    pub(crate) fn le_bits8_i32(a: &[i32; 8], b: &[i32; 8]) -> u32 {
+        // SAFETY: as in `add` (AVX2 is checked with the level); the loads read the two
+        // arrays, 32 bytes each, unaligned.
+        let gt = unsafe {
+            let (a, b) = (
+                _mm256_loadu_si256(a.as_ptr().cast()),
+                _mm256_loadu_si256(b.as_ptr().cast()),
+            );
+            _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(a, b)))
+        };
+        !(gt as u32) & 0xff
+    }
 }
 
 /// The lanes of a compare result as bits.
