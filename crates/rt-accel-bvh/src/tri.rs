@@ -154,6 +154,8 @@ impl<const N: usize, Node: NodeLayout<N>> TriBvh<N, Node> {
 }
 
 impl<const N: usize, Node: NodeLayout<N>> Walk for TriBvh<N, Node> {
+    const CLOSEST_AVX512: bool = true;
+
     fn isa(&self) -> Isa {
         self.tree.isa()
     }

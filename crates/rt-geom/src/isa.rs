@@ -8,8 +8,9 @@
 //! does not inline into a caller without it. The kernels work on eight lanes, which one AVX2
 //! register holds; the AVX-512 level ([`Isa::Avx512`]) runs the same eight-lane code with
 //! AVX-512's 32 vector registers and mask registers, and only for the work that gains from
-//! them ([`Kernel::AVX512`]: any-hit walks, whose exact leaf test spills vectors at AVX2);
-//! all other work runs its AVX2 copy there, which ran faster than an AVX-512 one.
+//! them ([`Kernel::AVX512`]: any-hit walks, and the closest-hit walks of the triangle BVHs,
+//! whose exact leaf tests spill vectors at AVX2); all other work runs its AVX2 copy there,
+//! which ran faster than an AVX-512 one.
 //!
 //! Work to compile per level implements [`Kernel`] and runs through [`run`]; a structure
 //! implements [`Walk`] (its whole query, `#[inline(always)]`, and the level it asks for) and
@@ -387,6 +388,10 @@ fn run_base<K: Kernel>(k: K) -> K::Output {
 /// Implementations are `#[inline(always)]`, down to the leaf kernels, so that each copy is
 /// compiled for its level.
 pub trait Walk {
+    /// Whether closest-hit queries run the AVX-512 level's copy where the CPU has it, as
+    /// any-hit queries always do ([`Kernel::AVX512`]): for walks measured faster so.
+    const CLOSEST_AVX512: bool = false;
+
     /// The level [`query`] runs the walk compiled for.
     fn isa(&self) -> Isa;
 
@@ -425,7 +430,7 @@ impl<W: Walk + ?Sized, K: Keep, B: FnOnce() -> K, const ANY_HIT: bool> Kernel
     for Query<'_, W, B, ANY_HIT>
 {
     type Output = Option<Hit>;
-    const AVX512: bool = ANY_HIT;
+    const AVX512: bool = ANY_HIT || W::CLOSEST_AVX512;
     #[inline(always)]
     fn run<L: Level>(self, level: L) -> Option<Hit> {
         self.w.walk::<ANY_HIT, L, K>(self.ray, level, (self.best)())

@@ -60,8 +60,8 @@ const FLUSH_BELOW: f32 = 1.0 / (1u64 << 48) as f32;
 
 impl Ray {
     /// A copy of this ray made of eight 8-byte moves that the compiler keeps apart, for the
-    /// any-hit walks, which copy the ray they are asked about. Inside code compiled with
-    /// AVX-512 enabled (the any-hit walks of [`crate::Isa::Avx512`]) a plain copy of the
+    /// wide walks, which copy the ray they are asked about. Inside code compiled with
+    /// AVX-512 enabled (the walks of [`crate::Isa::Avx512`]) a plain copy of the
     /// 64-byte ray becomes one 512-bit move, and on Intel CPUs one 512-bit instruction per
     /// query slows the 256-bit code around it (the core's frequency and its vector ports
     /// step down for 512-bit work).

@@ -99,9 +99,9 @@ pub(crate) fn traverse_nodes<
         return None;
     }
     let mut best = best();
-    // Any-hit walks run compiled with AVX-512 where the CPU has it: the copy in words, not
-    // one 512-bit move (`Ray::copy_narrow`).
-    let mut r = if ANY_HIT { ray.copy_narrow() } else { *ray };
+    // Walks compiled with AVX-512 (any-hit ones, and the triangle BVHs') copy the ray in
+    // words, not as one 512-bit move (`Ray::copy_narrow`).
+    let mut r = ray.copy_narrow();
     if let Some((first, count)) = root_leaf {
         root_bounds.clip_ray(&r)?;
         leaf(first, count, &mut r, &mut best);
