@@ -93,6 +93,11 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
             }
             for lane in (0..N).filter(|&l| n.is_used(l)) {
                 let b = n.bounds(lane);
+                // The walk's node test assumes planes that are numbers (its integer maxima
+                // would take a NaN plane for a value).
+                if b.min.is_nan() || b.max.is_nan() {
+                    return Err(format!("node {i} lane {lane} has a NaN plane"));
+                }
                 if Node::EXACT && !parent.contains(&b) {
                     return Err(format!("node {i} lane {lane} pokes out of its parent"));
                 }
