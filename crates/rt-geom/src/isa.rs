@@ -162,19 +162,24 @@ pub trait Level: Copy + Send + Sync + std::fmt::Debug + sealed::Sealed {
     /// instruction here, where the baseline would call a library routine).
     const FMA: bool;
 
-    /// Bit `l` set where `a[l] <= b[l]` (false for NaN): one compare of the level's eight-lane
-    /// vectors (the wide walk's hit mask).
-    #[inline(always)]
-    fn le_bits8(self, a: &[f32; 8], b: &[f32; 8]) -> u32 {
-        sealed::Sealed::le8(self, a, b)
-    }
-
     /// Bit `l` set where `a[l] <= b[l]` as signed integers: one integer compare of the
-    /// level's eight-lane vectors (the wide walk's hit mask on the bits of non-negative
-    /// floats, which order as their integers do).
+    /// level's eight-lane vectors (the wide walk's hit mask, on the bits of non-negative
+    /// floats, which order as their integers do, or on a float compare's answers).
     #[inline(always)]
     fn le_bits8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32 {
         sealed::Sealed::le8_i32(self, a, b)
+    }
+
+    /// A copy of `ray` for a walk to work on: a plain one, or [`Ray::copy_narrow`] (eight
+    /// 8-byte moves) in the AVX-512 level's copy on a CPU whose 512-bit moves slow the code
+    /// around them ([`Isa::Avx512`]).
+    #[inline(always)]
+    fn copy_ray(self, ray: &Ray) -> Ray {
+        if sealed::Sealed::narrow_copies(self) {
+            ray.copy_narrow()
+        } else {
+            *ray
+        }
     }
 }
 
@@ -183,9 +188,10 @@ pub trait Level: Copy + Send + Sync + std::fmt::Debug + sealed::Sealed {
 pub struct BaseLevel;
 
 /// The AVX2 level: eight lanes in one AVX register. Its field is
-/// private: only [`run`] makes one, after finding AVX2 and FMA on the CPU.
+/// private: only [`run`] makes one, after finding AVX2 and FMA on the CPU (the field: whether
+/// the walks copy rays in words, [`Level::copy_ray`]).
 #[derive(Clone, Copy, Debug)]
-pub struct Avx2Level(());
+pub struct Avx2Level(bool);
 
 impl Level for BaseLevel {
     const ISA: Isa = Isa::Baseline;
@@ -217,10 +223,10 @@ pub(crate) mod sealed {
             skip: &mut impl FnMut(u32) -> bool,
             best: &mut impl Keep,
         ) -> bool;
-        /// [`Level::le_bits8`](super::Level::le_bits8).
-        fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32;
         /// [`Level::le_bits8_i32`](super::Level::le_bits8_i32).
         fn le8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32;
+        /// Whether [`Level::copy_ray`](super::Level::copy_ray) copies in words.
+        fn narrow_copies(self) -> bool;
         /// [`hits_outside`](crate::triangle::hits_outside), and the lanes
         /// [`proven_hit`](crate::triangle::proven_hit) proves, compiled for the level (out of
         /// line at the baseline, inlined into the AVX2 level's copy).
@@ -253,15 +259,14 @@ macro_rules! window8_on {
 
 impl sealed::Sealed for BaseLevel {
     #[inline(always)]
-    fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32 {
-        use wide::{CmpLe, f32x8};
-        f32x8::from(*a).cmp_le(f32x8::from(*b)).move_mask() as u32
-    }
-
-    #[inline(always)]
     fn le8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32 {
         use wide::{CmpGt, i32x8};
         !(i32x8::from(*a).cmp_gt(i32x8::from(*b)).move_mask() as u32) & 0xff
+    }
+
+    #[inline(always)]
+    fn narrow_copies(self) -> bool {
+        false
     }
 
     window8_on!(wide::f32x8);
@@ -280,13 +285,13 @@ impl sealed::Sealed for BaseLevel {
 #[cfg(target_arch = "x86_64")]
 impl sealed::Sealed for Avx2Level {
     #[inline(always)]
-    fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32 {
-        crate::triangle::Avx8::le_bits8(a, b)
+    fn le8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32 {
+        crate::triangle::Avx8::le_bits8_i32(a, b)
     }
 
     #[inline(always)]
-    fn le8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32 {
-        crate::triangle::Avx8::le_bits8_i32(a, b)
+    fn narrow_copies(self) -> bool {
+        self.0
     }
 
     window8_on!(crate::triangle::Avx8);
@@ -308,13 +313,13 @@ impl sealed::Sealed for Avx2Level {
 #[cfg(not(target_arch = "x86_64"))]
 impl sealed::Sealed for Avx2Level {
     #[inline(always)]
-    fn le8(self, a: &[f32; 8], b: &[f32; 8]) -> u32 {
-        BaseLevel.le8(a, b)
+    fn le8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32 {
+        BaseLevel.le8_i32(a, b)
     }
 
     #[inline(always)]
-    fn le8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32 {
-        BaseLevel.le8_i32(a, b)
+    fn narrow_copies(self) -> bool {
+        self.0
     }
 
     window8_on!(wide::f32x8);
@@ -367,7 +372,7 @@ pub fn run<K: Kernel>(isa: Isa, k: K) -> K::Output {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `or_best` returned AVX-512, so this CPU has every feature the function
         // enables. Measured reason: any-hit walks ran 2-3% faster with AVX-512's registers.
-        Isa::Avx512 if K::AVX512 => unsafe { x86::run_v4(k) },
+        Isa::Avx512 if K::AVX512 => unsafe { x86::run_v4(k, x86::slow_wide_moves()) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `or_best` returned AVX2 or above, so this CPU has every feature the function
         // enables.
@@ -443,16 +448,30 @@ mod x86 {
 
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     pub(super) fn run_v3<K: Kernel>(k: K) -> K::Output {
-        k.run(Avx2Level(()))
+        k.run(Avx2Level(false))
     }
 
     /// The AVX2 level's code with AVX-512's registers (the level's value stays the AVX2 one:
-    /// the same eight-lane vectors).
+    /// the same eight-lane vectors), copying rays in words where `narrow`.
     #[target_feature(
         enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq,avx512cd"
     )]
-    pub(super) fn run_v4<K: Kernel>(k: K) -> K::Output {
-        k.run(Avx2Level(()))
+    pub(super) fn run_v4<K: Kernel>(k: K, narrow: bool) -> K::Output {
+        k.run(Avx2Level(narrow))
+    }
+
+    /// Whether one 512-bit move slows the 256-bit code around it on this CPU: Intel's cores
+    /// lower their clock and close vector ports for 512-bit work (the AVX-512 walks ran
+    /// faster on a Xeon with rays copied in words), AMD's do not (a Zen 4 ran them faster with
+    /// the plain copy).
+    #[inline]
+    pub(super) fn slow_wide_moves() -> bool {
+        static INTEL: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+        *INTEL.get_or_init(|| {
+            let id = std::arch::x86_64::__cpuid(0);
+            // "GenuineIntel" in EBX, EDX, ECX.
+            (id.ebx, id.edx, id.ecx) == (0x756e_6547, 0x4965_6e69, 0x6c65_746e)
+        })
     }
 }
 

@@ -60,11 +60,11 @@ const FLUSH_BELOW: f32 = 1.0 / (1u64 << 48) as f32;
 
 impl Ray {
     /// A copy of this ray made of eight 8-byte moves that the compiler keeps apart, for the
-    /// wide walks, which copy the ray they are asked about. Inside code compiled with
-    /// AVX-512 enabled (the walks of [`crate::Isa::Avx512`]) a plain copy of the
-    /// 64-byte ray becomes one 512-bit move, and on Intel CPUs one 512-bit instruction per
-    /// query slows the 256-bit code around it (the core's frequency and its vector ports
-    /// step down for 512-bit work).
+    /// wide walks, which copy the ray they are asked about ([`crate::Level::copy_ray`]).
+    /// Inside code compiled with AVX-512 enabled (the walks of [`crate::Isa::Avx512`]) a
+    /// plain copy of the 64-byte ray becomes one 512-bit move, and on Intel CPUs one 512-bit
+    /// instruction per query slows the 256-bit code around it (the core's frequency and its
+    /// vector ports step down for 512-bit work).
     #[inline(always)]
     pub fn copy_narrow(&self) -> Ray {
         let mut out = std::mem::MaybeUninit::<Ray>::uninit();

@@ -33,22 +33,8 @@ pub(crate) fn test_leaf<P: Primitive, K: Keep, const ANY_HIT: bool>(
     false
 }
 
-/// Bit `lane` set where `t0 <= t1` (false for NaN): one SIMD compare and mask extraction for
+/// Bit `lane` set where `a <= b` (signed integers): one SIMD compare and mask extraction for
 /// 4 and 8 lanes (eight in one compare of `level`'s vectors).
-#[inline(always)]
-fn le_lanes<const N: usize, V: Level>(level: V, t0: &[f32; N], t1: &[f32; N]) -> u32 {
-    use wide::{CmpLe, f32x4};
-    let (a, b) = (&t0[..], &t1[..]);
-    if let (Ok(a), Ok(b)) = (<&[f32; 8]>::try_from(a), <&[f32; 8]>::try_from(b)) {
-        return level.le_bits8(a, b);
-    }
-    if let (Ok(a), Ok(b)) = (<[f32; 4]>::try_from(a), <[f32; 4]>::try_from(b)) {
-        return f32x4::from(a).cmp_le(f32x4::from(b)).move_mask() as u32;
-    }
-    (0..N).fold(0, |m, l| m | ((t0[l] <= t1[l]) as u32) << l)
-}
-
-/// [`le_lanes`] on integers: bit `lane` set where `a <= b`.
 #[inline(always)]
 fn le_lanes_i32<const N: usize, V: Level>(level: V, a: &[i32; N], b: &[i32; N]) -> u32 {
     use wide::{CmpGt, i32x4};
@@ -99,9 +85,9 @@ pub(crate) fn traverse_nodes<
         return None;
     }
     let mut best = best();
-    // Walks compiled with AVX-512 (any-hit ones, and the triangle BVHs') copy the ray in
-    // words, not as one 512-bit move (`Ray::copy_narrow`).
-    let mut r = ray.copy_narrow();
+    // The walk's own ray, whose `tmax` it lowers (in words where one 512-bit move would
+    // slow the walk: `Level::copy_ray`).
+    let mut r = level.copy_ray(ray);
     if let Some((first, count)) = root_leaf {
         root_bounds.clip_ray(&r)?;
         leaf(first, count, &mut r, &mut best);
@@ -324,12 +310,8 @@ pub(crate) fn lane_entries<const N: usize, V: Level>(
                 t1[l] = if tf < t1[l] { tf } else { t1[l] };
             }
         }
-        if ray.pad_after {
-            for l in 0..N {
-                (t0[l], t1[l]) = pad_interval(t0[l], t1[l], tmin);
-            }
-        }
-        return (le_lanes(level, &t0, &t1), t0);
+        let enter = padded_misses(&mut t0, &mut t1, ray, tmin);
+        return (le_lanes_i32(level, &enter, &[0; N]), t0);
     }
     // The fused form gives no NaN (empty lanes enter at +inf and leave at -inf on every axis):
     // the three axes and the interval combine as a tree of maxima and minima, two steps deep
@@ -369,22 +351,35 @@ pub(crate) fn lane_entries<const N: usize, V: Level>(
             t0[l] = f32::from_bits(enter[l] as u32);
         }
     } else {
-        // An interval from behind the origin: in floats, padded afterwards, the answer of
-        // their compare handed on as integers (0 <= 0 for a hit, 1 > 0 for a miss).
+        // An interval from behind the origin: in floats.
         let most = |x: f32, y: f32| if x > y { x } else { y };
         let least = |x: f32, y: f32| if x < y { x } else { y };
         for l in 0..N {
             t0[l] = most(most(tn[0][l], tn[1][l]), most(tn[2][l], tmin));
             t1[l] = least(least(tf[0][l], tf[1][l]), least(tf[2][l], tmax));
         }
-        if ray.pad_after {
-            for l in 0..N {
-                (t0[l], t1[l]) = pad_interval(t0[l], t1[l], tmin);
-            }
-        }
-        for l in 0..N {
-            enter[l] = !(t0[l] <= t1[l]) as i32;
-        }
+        enter = padded_misses(&mut t0, &mut t1, ray, tmin);
     }
     (le_lanes_i32(level, &enter, &leave), t0)
+}
+
+/// An interval in floats (`t0..t1` per lane) padded as the ray asks, and the answer of its
+/// compare as integers to compare with 0 (0 for a lane entered, 1 for a miss or a NaN).
+#[inline(always)]
+fn padded_misses<const N: usize>(
+    t0: &mut [f32; N],
+    t1: &mut [f32; N],
+    ray: &SlabRay,
+    tmin: f32,
+) -> [i32; N] {
+    if ray.pad_after {
+        for l in 0..N {
+            (t0[l], t1[l]) = pad_interval(t0[l], t1[l], tmin);
+        }
+    }
+    let mut miss = [0i32; N];
+    for l in 0..N {
+        miss[l] = !(t0[l] <= t1[l]) as i32;
+    }
+    miss
 }

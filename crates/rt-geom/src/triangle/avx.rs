@@ -52,14 +52,6 @@ impl std::ops::Div for Avx8 {
 }
 
 impl Avx8 {
-    /// Bit `l` set where `a[l] <= b[l]` (false for NaN).
-    #[inline(always)]
-    pub(crate) fn le_bits8(a: &[f32; 8], b: &[f32; 8]) -> u32 {
-        let (a, b) = (Self::load(a), Self::load(b));
-        // SAFETY: as in `add`.
-        bits(unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(a.0, b.0) })
-    }
-
     /// Bit `l` set where `a[l] <= b[l]` as signed integers.
     #[inline(always)]
     pub(crate) fn le_bits8_i32(a: &[i32; 8], b: &[i32; 8]) -> u32 {
