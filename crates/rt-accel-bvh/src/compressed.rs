@@ -146,13 +146,13 @@ impl NodeLayout<8> for CompressedNode {
     }
 
     #[inline(always)]
-    fn child(&self, lane: usize) -> u32 {
-        self.child[lane]
+    fn children(&self) -> &[u32; 8] {
+        &self.child
     }
 
     #[inline(always)]
-    fn count(&self, lane: usize) -> u32 {
-        self.count[lane]
+    fn counts(&self) -> &[u32; 8] {
+        &self.count
     }
 
     fn bounds(&self, lane: usize) -> Aabb {

@@ -170,6 +170,23 @@ pub trait Level: Copy + Send + Sync + std::fmt::Debug + sealed::Sealed {
         sealed::Sealed::le8_i32(self, a, b)
     }
 
+    /// The lanes of `hit` ordered far to near by their entry `t` (ties: the higher lane
+    /// nearer), then the other lanes: per position, its lane's `child`, `count` and `t`
+    /// (the wide walk's push of three or more children, with no branch on the distances).
+    /// The order is by distance where the entries of `hit` are non-negative (their bits
+    /// compared as integers; the three lowest bits left out), some order otherwise; `None`
+    /// at the baseline level, which has no permute across eight lanes.
+    #[inline(always)]
+    fn far_to_near8(
+        self,
+        hit: u32,
+        t: &[f32; 8],
+        child: &[u32; 8],
+        count: &[u32; 8],
+    ) -> Option<SortedLanes> {
+        sealed::Sealed::sort8(self, hit, t, child, count)
+    }
+
     /// A copy of `ray` for a walk to work on: a plain one, or [`Ray::copy_narrow`] (eight
     /// 8-byte moves) in the AVX-512 level's copy on a CPU whose 512-bit moves slow the code
     /// around them ([`Isa::Avx512`]).
@@ -181,6 +198,18 @@ pub trait Level: Copy + Send + Sync + std::fmt::Debug + sealed::Sealed {
             *ray
         }
     }
+}
+
+/// Eight lanes in an order ([`Level::far_to_near8`]): per position, a lane's child, count and
+/// entry distance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SortedLanes {
+    /// The lane's child (node index or first primitive).
+    pub child: [u32; 8],
+    /// The lane's primitive count (0 for an inner child).
+    pub count: [u32; 8],
+    /// The lane's entry distance.
+    pub t: [f32; 8],
 }
 
 /// The baseline level: `wide`'s eight-lane vectors.
@@ -225,6 +254,14 @@ pub(crate) mod sealed {
         ) -> bool;
         /// [`Level::le_bits8_i32`](super::Level::le_bits8_i32).
         fn le8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32;
+        /// [`Level::far_to_near8`](super::Level::far_to_near8).
+        fn sort8(
+            self,
+            hit: u32,
+            t: &[f32; 8],
+            child: &[u32; 8],
+            count: &[u32; 8],
+        ) -> Option<super::SortedLanes>;
         /// Whether [`Level::copy_ray`](super::Level::copy_ray) copies in words.
         fn narrow_copies(self) -> bool;
         /// [`hits_outside`](crate::triangle::hits_outside), and the lanes
@@ -259,6 +296,11 @@ macro_rules! window8_on {
 
 impl sealed::Sealed for BaseLevel {
     #[inline(always)]
+    fn sort8(self, _: u32, _: &[f32; 8], _: &[u32; 8], _: &[u32; 8]) -> Option<SortedLanes> {
+        None
+    }
+
+    #[inline(always)]
     fn le8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32 {
         use wide::{CmpGt, i32x8};
         !(i32x8::from(*a).cmp_gt(i32x8::from(*b)).move_mask() as u32) & 0xff
@@ -284,6 +326,17 @@ impl sealed::Sealed for BaseLevel {
 
 #[cfg(target_arch = "x86_64")]
 impl sealed::Sealed for Avx2Level {
+    #[inline(always)]
+    fn sort8(
+        self,
+        hit: u32,
+        t: &[f32; 8],
+        child: &[u32; 8],
+        count: &[u32; 8],
+    ) -> Option<SortedLanes> {
+        Some(crate::triangle::Avx8::far_to_near8(hit, t, child, count))
+    }
+
     #[inline(always)]
     fn le8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32 {
         crate::triangle::Avx8::le_bits8_i32(a, b)
@@ -312,6 +365,11 @@ impl sealed::Sealed for Avx2Level {
 
 #[cfg(not(target_arch = "x86_64"))]
 impl sealed::Sealed for Avx2Level {
+    #[inline(always)]
+    fn sort8(self, _: u32, _: &[f32; 8], _: &[u32; 8], _: &[u32; 8]) -> Option<SortedLanes> {
+        None
+    }
+
     #[inline(always)]
     fn le8_i32(self, a: &[i32; 8], b: &[i32; 8]) -> u32 {
         BaseLevel.le8_i32(a, b)
@@ -488,5 +546,70 @@ mod tests {
         assert!(Isa::Baseline.supported());
         assert!(Isa::available().contains(&Isa::best()));
         assert!(Isa::Avx2.or_best() <= Isa::best());
+    }
+
+    /// `Level::far_to_near8` at every level this CPU runs, as `isa`'s work.
+    struct Sort<'a>(u32, &'a [f32; 8]);
+
+    impl Kernel for Sort<'_> {
+        type Output = Option<(Isa, SortedLanes)>;
+        fn run<L: Level>(self, level: L) -> Self::Output {
+            let child = std::array::from_fn(|l| 100 + l as u32);
+            let count = std::array::from_fn(|l| l as u32 % 3);
+            level
+                .far_to_near8(self.0, self.1, &child, &count)
+                .map(|s| (L::ISA, s))
+        }
+    }
+
+    #[test]
+    fn far_to_near_puts_the_hit_lanes_first_by_distance() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let mut sorted = 0;
+        for case in 0..4000 {
+            let hit = next() as u32 & 0xff;
+            // Distinct distances, ties, zeros, infinity; negative ones in the last quarter.
+            let t: [f32; 8] = std::array::from_fn(|_| match next() % 6 {
+                0 => 0.0,
+                1 => 1.5,
+                2 => f32::INFINITY,
+                _ if case >= 3000 => (next() % 2000) as f32 / 100.0 - 10.0,
+                _ => (next() % 100_000) as f32 / 7.0,
+            });
+            for isa in Isa::available() {
+                let Some((level, s)) = run(isa, Sort(hit, &t)) else {
+                    assert_eq!(isa, Isa::Baseline, "only the baseline has no sort");
+                    continue;
+                };
+                assert_ne!(level, Isa::Baseline);
+                sorted += 1;
+                let n = hit.count_ones() as usize;
+                let lanes: Vec<usize> = s.child.iter().map(|&c| c as usize - 100).collect();
+                for (i, &l) in lanes.iter().enumerate() {
+                    assert_eq!(
+                        (s.count[i], s.t[i].to_bits()),
+                        (l as u32 % 3, t[l].to_bits())
+                    );
+                }
+                let mut first: Vec<usize> = lanes[..n].to_vec();
+                first.sort_unstable();
+                let want: Vec<usize> = (0..8).filter(|&l| hit & 1 << l != 0).collect();
+                assert_eq!(first, want, "hit {hit:08b} t {t:?}: {lanes:?}");
+                if case < 3000 {
+                    // Far to near, ties (to the three lowest bits) with the higher lane nearer.
+                    let key = |l: usize| ((t[l].to_bits() & !7) as i64, -(l as i64));
+                    assert!(lanes[..n].windows(2).all(|w| key(w[0]) > key(w[1])));
+                }
+            }
+        }
+        if Isa::best() > Isa::Baseline {
+            assert!(sorted > 0);
+        }
     }
 }

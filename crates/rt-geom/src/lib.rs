@@ -70,7 +70,7 @@ pub use filter::{
 pub use frame::Frame;
 pub use geometries::{Geometries, GeometryHit};
 pub use glam::{self, DVec3, Vec3};
-pub use isa::{Avx2Level, BaseLevel, Isa, Kernel, Level, Walk};
+pub use isa::{Avx2Level, BaseLevel, Isa, Kernel, Level, SortedLanes, Walk};
 pub use leaf_prims::{LeafPrims, TriangleSoa};
 pub use mesh::{Mesh, MeshError, MeshGroup, load_obj, parse_obj};
 pub use primitive::Primitive;

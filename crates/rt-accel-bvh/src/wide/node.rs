@@ -32,10 +32,20 @@ pub trait NodeLayout<const N: usize>: Copy + Send + Sync + std::fmt::Debug {
     /// per lane (meaningful for those).
     /// on `level`'s vectors.
     fn entries<V: Level>(&self, level: V, ray: &SlabRay, tmin: f32, tmax: f32) -> (u32, [f32; N]);
+    /// Per lane, [`Self::child`].
+    fn children(&self) -> &[u32; N];
+    /// Per lane, [`Self::count`].
+    fn counts(&self) -> &[u32; N];
     /// Inner child: node index; leaf: first primitive; `u32::MAX` for an empty lane.
-    fn child(&self, lane: usize) -> u32;
+    #[inline(always)]
+    fn child(&self, lane: usize) -> u32 {
+        self.children()[lane]
+    }
     /// 0 for an inner child, else the leaf's primitive count.
-    fn count(&self, lane: usize) -> u32;
+    #[inline(always)]
+    fn count(&self, lane: usize) -> u32 {
+        self.counts()[lane]
+    }
     /// The box of `lane` as the walk sees it.
     fn bounds(&self, lane: usize) -> Aabb;
     /// Bit `lane` set for the lanes the walk must mask (those that hold a child).
@@ -128,13 +138,13 @@ impl<const N: usize> NodeLayout<N> for WideNode<N> {
     }
 
     #[inline(always)]
-    fn child(&self, lane: usize) -> u32 {
-        self.child[lane]
+    fn children(&self) -> &[u32; N] {
+        &self.child
     }
 
     #[inline(always)]
-    fn count(&self, lane: usize) -> u32 {
-        self.count[lane]
+    fn counts(&self) -> &[u32; N] {
+        &self.count
     }
 
     fn bounds(&self, lane: usize) -> Aabb {

@@ -55,7 +55,9 @@ fn le_lanes_i32<const N: usize, V: Level>(level: V, a: &[i32; N], b: &[i32; N]) 
 /// - one lane (the common case deep in the tree): that child is visited next, no stack traffic;
 /// - two: the nearer (any-hit queries: a leaf) is visited next and the other pushed, as
 ///   Embree's walk does;
-/// - more: all are pushed far to near and the nearest is popped (closest-hit queries);
+/// - more: all but the nearest are pushed far to near and the nearest is visited next
+///   (closest-hit queries: ordered by a sorting network in vectors, as in Embree's and
+///   Fuetterling et al.'s wide walks, where the level has one; by insertion at the baseline);
 ///   any-hit queries push the inner children, then the leaves, and pop a leaf first.
 ///
 /// Popped entries whose entry distance lies beyond the closest hit found since are skipped
@@ -98,8 +100,8 @@ pub(crate) fn traverse_nodes<
     }
     let slab = SlabRay::new(ray);
     // At most N - 1 pending siblings per level, and every tree is at most `MAX_DEPTH + 1`
-    // levels deep (the build, the reinsertion and loading all hold it there): `STACK`
-    // entries always suffice. The stack lies in the walk's own frame, uninitialised: zeroing
+    // levels deep (the build, the reinsertion and loading all hold it there), and the sorted
+    // push writes N entries from the top: `STACK` entries always suffice. The stack lies in the walk's own frame, uninitialised: zeroing
     // it, or taking a reused one from a thread-local, cost more per query than a walk through
     // a small tree's few nodes.
     let need = (N - 1) * (depth + 1) + N;
@@ -202,6 +204,19 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
                             sp += 1;
                         }
                     }
+                } else if let Some(sorted) = far_to_near(level, node, &t, mask | 1 << lane) {
+                    // Three children or more, ordered by a sorting network: all eight lanes
+                    // written (the hit ones first, far to near), the nearest taken next.
+                    // The writes past the hit lanes stay above the stack's top.
+                    let hits = (mask | 1 << lane).count_ones() as usize;
+                    for i in 0..N.min(8) {
+                        let e = (sorted.child[i], sorted.count[i], sorted.t[i]);
+                        stack[slot(sp + i)].write(e);
+                    }
+                    let near = (hits - 1) & 7;
+                    next = (sorted.child[near], sorted.count[near], sorted.t[near]);
+                    sp += hits - 1;
+                    continue;
                 } else {
                     stack[slot(sp)].write(item);
                     sp += 1;
@@ -231,7 +246,8 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
             }
             sp -= 1;
             // SAFETY: every entry below `sp` is written: `sp` starts at 0, each push writes
-            // `stack[sp]` before `sp` grows past it, and the ordered insertion moves written
+            // `stack[sp]` before `sp` grows past it, the sorted push writes eight entries from
+            // `stack[sp]` on before `sp` grows by fewer, and the ordered insertion moves written
             // entries up by one (the top one into `stack[sp]`) and writes the new entry into
             // the slot left, before `sp` grows.
             next = unsafe { stack[slot(sp)].assume_init() };
@@ -240,6 +256,21 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
             }
         }
     }
+}
+
+/// The lanes of `hit` (three or more) far to near, then the others
+/// ([`Level::far_to_near8`]), for eight-wide nodes at levels that sort in vectors.
+#[inline(always)]
+fn far_to_near<Node: NodeLayout<N>, const N: usize, V: Level>(
+    level: V,
+    node: &Node,
+    t: &[f32; N],
+    hit: u32,
+) -> Option<rt_geom::SortedLanes> {
+    let t: &[f32; 8] = t[..].try_into().ok()?;
+    let child: &[u32; 8] = node.children()[..].try_into().ok()?;
+    let count: &[u32; 8] = node.counts()[..].try_into().ok()?;
+    level.far_to_near8(hit, t, child, count)
 }
 
 /// A pending subtree: child, count, entry distance.

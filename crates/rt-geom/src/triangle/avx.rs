@@ -68,6 +68,65 @@ impl Avx8 {
     }
 }
 
+impl Avx8 {
+    /// [`crate::Level::far_to_near8`] on AVX2: a bitonic sorting network of six compare and
+    /// exchange layers over one register of integer keys, then each row permuted by it.
+    #[inline(always)]
+    pub(crate) fn far_to_near8(
+        hit: u32,
+        t: &[f32; 8],
+        child: &[u32; 8],
+        count: &[u32; 8],
+    ) -> crate::SortedLanes {
+        let mut out = crate::SortedLanes {
+            child: [0; 8],
+            count: [0; 8],
+            t: [0.0; 8],
+        };
+        // SAFETY: as in `add` (AVX2 is checked with the level); every load and store covers
+        // one eight-lane array, unaligned.
+        unsafe {
+            // Key: the entry's bits (as a signed integer: the order of non-negative floats)
+            // with its low three bits replaced by `7 - lane`, so that keys are distinct and
+            // the key names its lane; the lanes not hit take the least key.
+            let sel = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+            let set = _mm256_and_si256(_mm256_set1_epi32(hit as i32), sel);
+            let is_hit = _mm256_cmpeq_epi32(set, sel);
+            let tv = _mm256_loadu_ps(t.as_ptr());
+            let key = _mm256_or_si256(
+                _mm256_and_si256(_mm256_castps_si256(tv), _mm256_set1_epi32(!7)),
+                _mm256_setr_epi32(7, 6, 5, 4, 3, 2, 1, 0),
+            );
+            let mut k = _mm256_blendv_epi8(_mm256_set1_epi32(i32::MIN), key, is_hit);
+            // Each layer: every lane against its partner (`lane ^ j`), the larger key kept
+            // where the mask's bit is set. Layers of 2 and 4 form sorted runs of four in
+            // alternating directions; the last three merge them into one decreasing run.
+            macro_rules! layer {
+                ($partner:expr, $larger:literal) => {{
+                    let p = $partner;
+                    let (lo, hi) = (_mm256_min_epi32(k, p), _mm256_max_epi32(k, p));
+                    k = _mm256_blend_epi32::<$larger>(lo, hi);
+                }};
+            }
+            layer!(_mm256_shuffle_epi32::<0b10_11_00_01>(k), 0x99);
+            layer!(_mm256_shuffle_epi32::<0b01_00_11_10>(k), 0xC3);
+            layer!(_mm256_shuffle_epi32::<0b10_11_00_01>(k), 0xA5);
+            layer!(_mm256_permute4x64_epi64::<0b01_00_11_10>(k), 0x0F);
+            layer!(_mm256_shuffle_epi32::<0b01_00_11_10>(k), 0x33);
+            layer!(_mm256_shuffle_epi32::<0b10_11_00_01>(k), 0x55);
+            // The permutes read the low three bits: the lane.
+            let lane = _mm256_xor_si256(k, _mm256_set1_epi32(7));
+            let row = |r: &[u32; 8]| {
+                _mm256_permutevar8x32_epi32(_mm256_loadu_si256(r.as_ptr().cast()), lane)
+            };
+            _mm256_storeu_si256(out.child.as_mut_ptr().cast(), row(child));
+            _mm256_storeu_si256(out.count.as_mut_ptr().cast(), row(count));
+            _mm256_storeu_ps(out.t.as_mut_ptr(), _mm256_permutevar8x32_ps(tv, lane));
+        }
+        out
+    }
+}
+
 /// The lanes of a compare result as bits.
 #[inline(always)]
 fn bits(m: __m256) -> u32 {
