@@ -101,9 +101,9 @@ pub(crate) fn traverse_nodes<
     let slab = SlabRay::new(ray);
     // At most N - 1 pending siblings per level, and every tree is at most `MAX_DEPTH + 1`
     // levels deep (the build, the reinsertion and loading all hold it there), and the sorted
-    // push writes N entries from the top: `STACK` entries always suffice. The stack lies in the walk's own frame, uninitialised: zeroing
-    // it, or taking a reused one from a thread-local, cost more per query than a walk through
-    // a small tree's few nodes.
+    // push writes N entries from the top: `STACK` entries always suffice. The stack lies in
+    // the walk's own frame, uninitialised: zeroing it, or taking a reused one from a
+    // thread-local, cost more per query than a walk through a small tree's few nodes.
     let need = (N - 1) * (depth + 1) + N;
     assert!(need <= STACK, "a tree deeper than MAX_DEPTH + 1 levels");
     let mut stack = [MaybeUninit::<Entry>::uninit(); STACK];
