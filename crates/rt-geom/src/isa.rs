@@ -548,11 +548,13 @@ mod tests {
         assert!(Isa::Avx2.or_best() <= Isa::best());
     }
 
-    /// `Level::far_to_near8` at every level this CPU runs, as `isa`'s work.
+    /// `Level::far_to_near8` at every level this CPU runs, as `isa`'s work (the AVX-512
+    /// level's copy included).
     struct Sort<'a>(u32, &'a [f32; 8]);
 
     impl Kernel for Sort<'_> {
         type Output = Option<(Isa, SortedLanes)>;
+        const AVX512: bool = true;
         fn run<L: Level>(self, level: L) -> Self::Output {
             let child = std::array::from_fn(|l| 100 + l as u32);
             let count = std::array::from_fn(|l| l as u32 % 3);
