@@ -1,5 +1,6 @@
 //! [`Avx8`]: eight `f32` lanes in one AVX register, the leaf test's vectors at the AVX2 level
-//! ([`crate::isa::Avx2Level`]). `wide::f32x8` is chosen when rt-geom is compiled: two SSE
+//! ([`crate::isa::Avx2Level`]), and the wide walk's sorting network of eight lanes
+//! ([`crate::Level::far_to_near8`]). `wide::f32x8` is chosen when rt-geom is compiled: two SSE
 //! registers in a plain build even where the walk runs in a function compiled for AVX2.
 //!
 //! The operations are `std::arch` intrinsics in `unsafe` blocks: the type is private to
@@ -84,7 +85,8 @@ impl Avx8 {
             t: [0.0; 8],
         };
         // SAFETY: as in `add` (AVX2 is checked with the level); every load and store covers
-        // one eight-lane array, unaligned.
+        // one eight-lane array, unaligned. Measured reason: the closest-hit walks of diffuse
+        // rays ran 1-4% faster than with the insertion's branches on the distances.
         unsafe {
             // Key: the entry's bits (as a signed integer: the order of non-negative floats)
             // with its low three bits replaced by `7 - lane`, so that keys are distinct and

@@ -5,7 +5,7 @@
 //! |---|---|
 //! | `clip.rs` | [`Triangle::clipped_bounds`]: the part of a triangle inside a box (perfect kd-tree splits) |
 //! | `simd.rs` | [`SimdLanes`]: the vectors of four or eight lanes the kernel runs on; the lanes' triangles and sheared frame |
-//! | `avx.rs` | `Avx8`: eight lanes in one AVX register, the leaf test's vectors at the AVX2 level |
+//! | `avx.rs` | `Avx8`: eight lanes in one AVX register, the leaf test's vectors at the AVX2 level; the walk's sorting network of eight lanes |
 //! | `lanes.rs` | the lane kernel: four or eight triangles' edge functions and sign test at once ([`watertight_lanes`]), the batched leaf test |
 //! | `bounds.rs` | the error bounds that decide a lane without the `f64` refinement: [`hits_before_tmin`], [`hits_outside`], [`proven_hit`] |
 
