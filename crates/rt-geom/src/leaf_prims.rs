@@ -257,7 +257,6 @@ impl TriangleSoa {
                 #[inline(always)]
                 |j| L::load(&win[j * m + off..]),
                 (win, m, off),
-                first + k,
                 &ids[k..],
                 lanes,
                 r,
@@ -341,8 +340,8 @@ impl TriangleSoa {
     }
 
     /// [`Self::test_window`] with Möller–Trumbore's kernel: the window's `lanes` (rows from
-    /// `row`; `win`, `m`, `off` as there; `at` the window's first triangle in leaf order,
-    /// `ids` its ids onwards) tested at once, then each lane whose barycentrics pass finished
+    /// `row`; `win`, `m`, `off` as there; `ids` the ids of the window's first triangle
+    /// onwards) tested at once, then each lane whose barycentrics pass finished
     /// one by one, as [`Triangle::intersect_moller_trumbore`] finishes it (its depth held in
     /// its box, then checked against the ray's interval as it stands), but for the lanes the
     /// window's vector tests decide ([`moller_trumbore_held`], [`moller_trumbore_span`]).
@@ -352,17 +351,16 @@ impl TriangleSoa {
         &self,
         row: impl Fn(usize) -> L + Copy,
         (win, m, off): (&[f32; WINDOW], usize, usize),
-        at: usize,
         ids: &[u32],
         lanes: u32,
         r: &mut Ray,
         best: &mut K,
     ) -> bool {
+        // Zero-area triangles need no mask here (as the watertight test does): their `f32`
+        // cross product, the normal the kernel computes with the same operations, is zero
+        // ([`Triangle::is_degenerate`]), so their determinant is zero and no lane accepts.
         let (inside, numbers) = moller_trumbore_rows(row, r);
         let mut hit = inside & lanes;
-        if !self.degenerate.is_empty() {
-            hit &= !self.degenerate_bits(at);
-        }
         if hit == 0 {
             return false;
         }
@@ -881,7 +879,12 @@ mod tests {
                 a + point(&mut seed) * flat - tilt * 0.5,
             ));
         }
+        // Zero area: a repeated vertex, and three points on a line whose `f32` cross product
+        // is exactly zero (the window has no mask for them: their determinant rejects them).
         tris[7] = Triangle::new(tris[7].v[0], tris[7].v[1], tris[7].v[1]);
+        let a = Vec3::new(0.25, 0.5, 0.75);
+        tris[8] = Triangle::new(a, a * 2.0, a * 3.0);
+        assert!(tris[7].is_degenerate() && tris[8].is_degenerate());
         let n = tris.len() as u32;
         let leaves = [
             (0, 5),
@@ -982,6 +985,37 @@ mod tests {
             hits > 4500 && moved > 20 && rescued > 3,
             "{hits} hits, {moved} depths moved, {rescued} into the interval"
         );
+    }
+
+    /// Zero-area triangles never pass the Möller–Trumbore lanes' test (the window masks none
+    /// of them): their `f32` cross product, the kernel's normal, is zero, and with it the
+    /// determinant. Repeated vertices, and three points on a line with exact edges.
+    #[test]
+    fn moller_trumbore_lanes_reject_zero_area_triangles() {
+        let mut seed = 5;
+        let mut tested = 0;
+        for k in 0..3000 {
+            let (a, b) = (point(&mut seed) * 8.0 - 4.0, point(&mut seed) * 8.0 - 4.0);
+            let t = match k % 3 {
+                0 => Triangle::new(a, b, b),
+                1 => Triangle::new(a, a, b),
+                _ => {
+                    let (a, e) = ((a * 4.0).round() * 0.25, (b * 4.0).round() * 0.25);
+                    Triangle::new(a, a + e, a + e * 2.0)
+                }
+            };
+            if !t.is_degenerate() {
+                continue;
+            }
+            tested += 1;
+            let on = t.v[0] + (t.v[2] - t.v[0]) * lcg(&mut seed);
+            let o = point(&mut seed) * 8.0 - 4.0;
+            let ray = Ray::segment(o, on - o, 0.0, f32::INFINITY);
+            let c = |j: usize| t.v[j / 3][j % 3];
+            let (inside, _) = crate::triangle::moller_trumbore_rows::<f32>(c, &ray);
+            assert_eq!(inside, 0, "{t:?} {ray:?}");
+        }
+        assert!(tested > 2900, "{tested} zero-area triangles");
     }
 
     /// The span filter never rules out a hit: each depth the Möller–Trumbore kernel
