@@ -185,6 +185,12 @@ impl SimdLanes for Avx8 {
     }
 
     #[inline(always)]
+    fn sign_of(self, s: Self) -> Self {
+        // SAFETY: as in `add`.
+        Self(unsafe { _mm256_xor_ps(self.0, _mm256_and_ps(s.0, _mm256_set1_ps(-0.0))) })
+    }
+
+    #[inline(always)]
     fn max(self, other: Self) -> Self {
         // SAFETY: as in `add`.
         Self(unsafe { _mm256_max_ps(self.0, other.0) })

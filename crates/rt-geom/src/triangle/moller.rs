@@ -53,14 +53,18 @@ pub(crate) fn moller_trumbore_rows<L: SimdLanes>(
     let r = cross(&c, &d);
     let det = dot(&d, &n);
     let (u, v_neg, t) = (dot(&r, &e2), dot(&r, &e1), dot(&c, &n));
-    // The barycentrics' signs and sum against the determinant's, before any division.
+    // The barycentrics' signs and sum against the determinant's, before any division, with
+    // the determinant's sign folded in (exact negations): a determinant `d >= m` accepts
+    // `0 <= u`, `0 <= v`, `u + v <= d`, one `d <= -m` accepts `u <= 0`, `v <= 0`, `d <= u + v`,
+    // where `m` is the least normal float (below it the reciprocal is not finite), and
+    // anything NaN accepts nothing.
     let (zero, uv) = (L::splat(0.0), u - v_neg);
     let v = zero - v_neg;
-    // A determinant below the normal range has no finite reciprocal: no hit.
-    let normal = L::splat(f32::MIN_POSITIVE);
-    let front = L::le_bits(normal, det) & L::le_bits(zero, u) & L::le_bits(zero, v);
-    let back = L::le_bits(det, zero - normal) & L::le_bits(u, zero) & L::le_bits(v, zero);
-    let inside = (front & L::le_bits(uv, det)) | (back & L::le_bits(det, uv));
+    let abs_det = det.abs();
+    let inside = L::le_bits(zero, u.sign_of(det))
+        & L::le_bits(zero, v.sign_of(det))
+        & L::le_bits(uv.sign_of(det), abs_det)
+        & L::le_bits(L::splat(f32::MIN_POSITIVE), abs_det);
     (inside & ((1 << L::WIDTH) - 1), MollerLanes { det, u, v, t })
 }
 

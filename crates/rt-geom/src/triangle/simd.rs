@@ -28,6 +28,9 @@ pub trait SimdLanes:
     fn sign_bits(a: Self, b: Self, c: Self) -> (u32, u32, u32);
     /// Lane-wise absolute value.
     fn abs(self) -> Self;
+    /// Each lane with its sign flipped where `s`'s lane has its sign bit set (an exact
+    /// negation: `self` times the sign of `s`).
+    fn sign_of(self, s: Self) -> Self;
     /// Lane-wise maximum (either lane when one is NaN).
     fn max(self, other: Self) -> Self;
     /// Lane-wise minimum (either lane when one is NaN).
@@ -69,6 +72,10 @@ macro_rules! simd_lanes {
             #[inline(always)]
             fn abs(self) -> Self {
                 <$t>::abs(self)
+            }
+            #[inline(always)]
+            fn sign_of(self, s: Self) -> Self {
+                self ^ (s & <$t>::splat(-0.0))
             }
             #[inline(always)]
             fn max(self, other: Self) -> Self {
@@ -120,6 +127,10 @@ impl SimdLanes for f32 {
     #[inline(always)]
     fn abs(self) -> Self {
         f32::abs(self)
+    }
+    #[inline(always)]
+    fn sign_of(self, s: Self) -> Self {
+        f32::from_bits(self.to_bits() ^ (s.to_bits() & 0x8000_0000))
     }
     #[inline(always)]
     fn max(self, other: Self) -> Self {
