@@ -170,7 +170,7 @@ impl<const N: usize, Node: NodeLayout<N>> Walk for TriBvh<N, Node> {
         // Large scenes: the nodes and leaf rows a node's test enters asked for early.
         let prefetch = self.tris.prefetches().then_some(
             #[inline(always)]
-            |first: u32| self.tris.prefetch(first as usize),
+            |first: u32| self.tris.leaf_address(first as usize),
         );
         self.tree.traverse_prefetching::<ANY_HIT, L, K>(
             level,

@@ -45,10 +45,6 @@ pub const PADDING: usize = WINDOW;
 /// walk's nodes with them ([`TriangleSoa::prefetches`]).
 pub const PREFETCH_BYTES: usize = 8 << 20;
 
-/// Cache lines asked for per leaf by [`TriangleSoa::prefetch`]: the 180 bytes of a leaf of
-/// five triangles, the usual size, from any offset in a line.
-const PREFETCH_LINES: usize = 3;
-
 /// Leaf-ordered triangles, each leaf as structure of arrays (see the module documentation).
 #[derive(Clone, Debug, Default)]
 pub struct TriangleSoa {
@@ -144,7 +140,7 @@ impl TriangleSoa {
     }
 
     /// Whether walks ask for the children a node's test enters (the nodes, and the rows of
-    /// the leaves through [`Self::prefetch`]) at once, before they reach them: by default for
+    /// the leaves at [`Self::leaf_address`]) at once, before they reach them: by default for
     /// large scenes ([`PREFETCH_BYTES`] of rows or more), whose walks reach past the caches
     /// often enough for early requests to pay. In smaller scenes the requests only add
     /// instructions.
@@ -169,12 +165,11 @@ impl TriangleSoa {
         self.kernel = kernel;
     }
 
-    /// Asks the cache for the first lines of the rows of the leaf starting at triangle
-    /// `first` (leaf order): a hint, which reads nothing and changes no answer.
+    /// Where the rows of the leaf starting at triangle `first` (leaf order) begin: an address
+    /// for a walk to ask the cache for ([`crate::isa::prefetch`]), never read through.
     #[inline(always)]
-    pub fn prefetch(&self, first: usize) {
-        let p = self.data.as_slice().as_ptr().wrapping_add(9 * first);
-        crate::isa::prefetch(p.cast(), PREFETCH_LINES);
+    pub fn leaf_address(&self, first: usize) -> *const u8 {
+        self.data.as_slice().as_ptr().wrapping_add(9 * first).cast()
     }
 
     /// Tests triangles `first .. first + count` against the ray, in order: the edge functions

@@ -99,12 +99,18 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
         best: impl FnOnce() -> K,
         leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
     ) -> Option<Hit> {
-        self.traverse_prefetching::<ANY_HIT, V, K>(level, ray, best, leaf, None::<fn(u32)>)
+        self.traverse_prefetching::<ANY_HIT, V, K>(
+            level,
+            ray,
+            best,
+            leaf,
+            None::<fn(u32) -> *const u8>,
+        )
     }
 
-    /// [`Self::traverse`], with `prefetch`: every inner node a node's test enters asked for
-    /// early, and every leaf handed to `prefetch` (its first primitive), so that the owner can
-    /// ask for the leaf's data.
+    /// [`Self::traverse`], with `prefetch`: every child a node's test enters asked for early,
+    /// an inner node by its index and a leaf at the address `prefetch` gives for its first
+    /// primitive (where the owner keeps the leaf's data).
     #[inline(always)]
     pub(crate) fn traverse_prefetching<const ANY_HIT: bool, V: Level, K: Keep>(
         &self,
@@ -112,7 +118,7 @@ impl<const N: usize, Node: NodeLayout<N>> WideTree<N, Node> {
         ray: &Ray,
         best: impl FnOnce() -> K,
         leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
-        prefetch: Option<impl Fn(u32)>,
+        prefetch: Option<impl Fn(u32) -> *const u8>,
     ) -> Option<Hit> {
         traverse::traverse_nodes::<_, N, ANY_HIT, V, K>(
             level,

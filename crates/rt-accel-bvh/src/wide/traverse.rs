@@ -63,7 +63,7 @@ fn le_lanes_i32<const N: usize, V: Level>(level: V, a: &[i32; N], b: &[i32; N]) 
 /// Popped entries whose entry distance lies beyond the closest hit found since are skipped
 /// (closest-hit queries; any-hit ones keep no distances). With `prefetch`, every child a
 /// node's test enters is asked for as soon as the test is done: inner nodes by the walk,
-/// leaves handed to `prefetch` (their first primitive).
+/// leaves at the address `prefetch` gives for their first primitive.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn traverse_nodes<
@@ -81,7 +81,7 @@ pub(crate) fn traverse_nodes<
     ray: &Ray,
     best: impl FnOnce() -> K,
     mut leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
-    prefetch: Option<impl Fn(u32)>,
+    prefetch: Option<impl Fn(u32) -> *const u8>,
 ) -> Option<Hit> {
     if !ray.is_valid() {
         return None;
@@ -127,7 +127,7 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
     r: &mut Ray,
     best: &mut K,
     mut leaf: impl FnMut(u32, u32, &mut Ray, &mut K) -> bool,
-    prefetch: Option<impl Fn(u32)>,
+    prefetch: Option<impl Fn(u32) -> *const u8>,
 ) {
     let slot = |i: usize| i & (STACK - 1);
     let mut sp = 0usize;
@@ -149,18 +149,23 @@ fn walk_stack<Node: NodeLayout<N>, const N: usize, const ANY_HIT: bool, V: Level
             let (entered, t) = node.entries(level, slab, r.tmin, r.tmax);
             let entry = |l: usize| stack_entry::<Node, N, ANY_HIT>(node, &t, l);
             let mut mask = entered & node.used_mask();
-            if let Some(prefetch) = &prefetch {
-                // Every child entered asked for at once, before the walk reaches it.
+            if let Some(leaf_at) = &prefetch {
+                // Every child entered asked for at once, before the walk reaches it: a
+                // node's lines or as many of a leaf's data, the address picked without a
+                // branch (a prefetch reads nothing, so any address serves).
+                let lines = std::mem::size_of::<Node>().div_ceil(64);
                 let mut hit = mask;
                 while hit != 0 {
                     let l = hit.trailing_zeros() as usize;
                     hit &= hit - 1;
-                    if node.count(l) > 0 {
-                        prefetch(node.child(l));
-                    } else if let Some(child) = nodes.get(node.child(l) as usize) {
-                        let lines = std::mem::size_of::<Node>().div_ceil(64);
-                        rt_geom::isa::prefetch((child as *const Node).cast(), lines);
-                    }
+                    let child = node.child(l);
+                    let node_at = nodes.as_ptr().wrapping_add(child as usize).cast::<u8>();
+                    let at = if node.count(l) > 0 {
+                        leaf_at(child)
+                    } else {
+                        node_at
+                    };
+                    rt_geom::isa::prefetch(at, lines);
                 }
             }
             if mask != 0 {
