@@ -351,8 +351,8 @@ impl TriangleSoa {
         r: &mut Ray,
         best: &mut K,
     ) -> bool {
-        // Zero-area triangles need no mask here (as the watertight test does): their `f32`
-        // cross product, the normal the kernel computes with the same operations, is zero
+        // Zero-area triangles need no mask here (the watertight test keeps one): their `f32`
+        // cross product, the normal this kernel computes with the same operations, is zero
         // ([`Triangle::is_degenerate`]), so their determinant is zero and no lane accepts.
         let (inside, numbers) = moller_trumbore_rows(row, r);
         let mut hit = inside & lanes;
