@@ -389,9 +389,20 @@ const BASE: &[AccelEntry] = &[
     .moller_trumbore(),
     own(
         "bvh8-tri-spatial",
-        "rt BVH8 over SoA triangles from the spatial-split BVH2",
-        |p| boxed(TriBvh8::build(p, BvhParams::spatial().for_soa_leaves())),
+        "rt BVH8 over SoA triangles from the spatial-split BVH2 (BvhParams::fastest_trace_spatial: SBVH, per-triangle leaf costs, reinsertion 0.25, SAH collapse)",
+        |p| boxed(TriBvh8::build(p, BvhParams::fastest_trace_spatial())),
     ),
+    own(
+        "bvh8-tri-spatial-mt",
+        "bvh8-tri-spatial with Möller–Trumbore leaf tests (as bvh8-tri-mt)",
+        |p| {
+            boxed(
+                TriBvh8::build(p, BvhParams::fastest_trace_spatial())
+                    .map(|b| b.with_kernel(TriangleKernel::MollerTrumbore)),
+            )
+        },
+    )
+    .moller_trumbore(),
     own(
         "bvh8c-tri",
         "rt BVH8 with quantized child boxes over SoA triangles (bvh8c's nodes, bvh8-tri's leaves and build)",

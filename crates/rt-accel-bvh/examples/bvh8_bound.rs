@@ -23,13 +23,15 @@
 //! `cargo xtask trace --threads 1` (with `--warm` for its warm figure) for a peer's time on
 //! the same rays.
 //!
-//! With `--against KEY=VALUE`, instead: the whole query against the same structure with one
-//! change (another instruction set, `isa=baseline`, another leaf kernel,
-//! `kernel=moller-trumbore`, or a build parameter such as
-//! `leaf_block=8`), the two timed in turn on alternate chunks of rays, so that the machine's
-//! swings in speed over seconds fall on both alike.
+//! With `--against KEY=VALUE[,KEY=VALUE..]`, instead: the whole query against the same
+//! structure with changes (another instruction set, `isa=baseline`, another leaf kernel,
+//! `kernel=moller-trumbore`, or build parameters such as `leaf_block=8`), the two timed in
+//! turn on alternate chunks of rays, so that the machine's swings in speed over seconds fall
+//! on both alike. `--kernel moller-trumbore` gives both trees that leaf kernel (the
+//! `bvh8-tri-mt` entry); `--base KEY=VALUE[,..]` makes the changes to the tree that every part
+//! measures (and `--against` changes further).
 //!
-//! `cargo run --release -p rt-accel-bvh --features measure --example bvh8_bound -- MESH.obj RAYS.rays [--occluded] [--against KEY=VALUE]`
+//! `cargo run --release -p rt-accel-bvh --features measure --example bvh8_bound -- MESH.obj RAYS.rays [--occluded] [--kernel K] [--base KEY=VALUE[,..]] [--against KEY=VALUE[,..]]`
 //! (`cargo xtask rays` writes the ray files).
 
 use rt_accel_bvh::TriBvh8;
@@ -392,32 +394,64 @@ fn against<const ANY_HIT: bool>(a: &TriBvh8, b: &TriBvh8, rays: &[Ray]) -> Vec<f
         .collect()
 }
 
-/// `bvh` with one change for `--against`: `isa=baseline|avx2|avx512`,
+/// `bvh` with the changes of `--against` (comma-separated): `isa=baseline|avx2|avx512`,
 /// `kernel=watertight|moller-trumbore`, `prefetch=true|false`, or one of the build's
 /// parameters (`leaf_block=N`, `max_leaf=N`, `traversal_cost=X`, `reinsertion=X`, `bins=N`,
 /// `spatial=ALPHA`, `budget=X`, `collapse=greedy|sah|ABOVE`), each as a change to
-/// [`rt_accel_bvh::BvhParams::fastest_trace`].
-fn variant(bvh: &TriBvh8, tris: &[rt_geom::Triangle], change: &str) -> Result<TriBvh8, String> {
-    let (key, value) = change
-        .split_once('=')
-        .ok_or_else(|| format!("--against takes KEY=VALUE, got {change:?}"))?;
+/// [`rt_accel_bvh::BvhParams::fastest_trace`]; `built` is what `bvh` was built with, and the
+/// tree is rebuilt (with `bvh`'s leaf kernel) where the parameters differ from it. Returns the
+/// tree and its parameters.
+fn variant(
+    (bvh, built): (&TriBvh8, rt_accel_bvh::BvhParams),
+    tris: &[rt_geom::Triangle],
+    changes: &str,
+) -> Result<(TriBvh8, rt_accel_bvh::BvhParams), String> {
     let mut params = rt_accel_bvh::BvhParams::fastest_trace();
-    let bad = |e: &dyn std::fmt::Display| format!("--against {change}: {e}");
+    let (mut isa, mut kernel, mut prefetch) = (None, bvh.kernel(), None);
+    for change in changes.split(',') {
+        let (key, value) = change
+            .split_once('=')
+            .ok_or_else(|| format!("--against takes KEY=VALUE, got {change:?}"))?;
+        param(
+            &mut params,
+            &mut isa,
+            &mut kernel,
+            &mut prefetch,
+            key,
+            value,
+        )
+        .map_err(|e| format!("--against {change}: {e}"))?;
+    }
+    let mut tree = if params == built {
+        bvh.clone()
+    } else {
+        params.validate().map_err(|e| e.to_string())?;
+        TriBvh8::build(tris, params).map_err(|e| e.to_string())?
+    };
+    tree = tree.with_kernel(kernel);
+    if let Some(isa) = isa {
+        tree = tree.with_isa(isa);
+    }
+    if let Some(on) = prefetch {
+        tree = tree.with_prefetch(on);
+    }
+    Ok((tree, params))
+}
+
+/// One `KEY=VALUE` of [`variant`].
+fn param(
+    params: &mut rt_accel_bvh::BvhParams,
+    isa: &mut Option<rt_geom::Isa>,
+    kernel: &mut rt_geom::TriangleKernel,
+    prefetch: &mut Option<bool>,
+    key: &str,
+    value: &str,
+) -> Result<(), String> {
+    let bad = |e: &dyn std::fmt::Display| e.to_string();
     match key {
-        "isa" => return Ok(bvh.clone().with_isa(rt_geom::Isa::parse(value)?)),
-        "kernel" => {
-            let kernel = match value {
-                "watertight" => rt_geom::TriangleKernel::Watertight,
-                "moller-trumbore" => rt_geom::TriangleKernel::MollerTrumbore,
-                _ => return Err(bad(&"kernel=watertight|moller-trumbore")),
-            };
-            return Ok(bvh.clone().with_kernel(kernel));
-        }
-        "prefetch" => {
-            return Ok(bvh
-                .clone()
-                .with_prefetch(value.parse().map_err(|e| bad(&e))?));
-        }
+        "isa" => *isa = Some(rt_geom::Isa::parse(value)?),
+        "kernel" => *kernel = parse_kernel(value)?,
+        "prefetch" => *prefetch = Some(value.parse().map_err(|e| bad(&e))?),
         "leaf_block" => params.leaf_block = value.parse().map_err(|e| bad(&e))?,
         "max_leaf" => params.max_leaf_size = value.parse().map_err(|e| bad(&e))?,
         "traversal_cost" => params.traversal_cost = value.parse().map_err(|e| bad(&e))?,
@@ -445,29 +479,46 @@ fn variant(bvh: &TriBvh8, tris: &[rt_geom::Triangle], change: &str) -> Result<Tr
             ));
         }
     }
-    params.validate().map_err(|e| bad(&e))?;
-    TriBvh8::build(tris, params).map_err(|e| e.to_string())
+    Ok(())
+}
+
+/// A leaf kernel by name.
+fn parse_kernel(name: &str) -> Result<rt_geom::TriangleKernel, String> {
+    match name {
+        "watertight" => Ok(rt_geom::TriangleKernel::Watertight),
+        "moller-trumbore" => Ok(rt_geom::TriangleKernel::MollerTrumbore),
+        _ => Err("kernel: watertight or moller-trumbore".into()),
+    }
 }
 
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: bvh8_bound MESH.obj RAYS.rays [--occluded] [--against KEY=VALUE]";
+    let usage = "usage: bvh8_bound MESH.obj RAYS.rays [--occluded] [--kernel K] [--base KEY=VALUE[,..]] [--against KEY=VALUE[,..]]";
     let [mesh, rays, rest @ ..] = &args[..] else {
         return Err(usage.into());
     };
-    let (mut occluded, mut change) = (false, None);
+    let (mut occluded, mut change, mut kernel, mut base) = (false, None, None, None);
     let mut rest = rest.iter();
     while let Some(arg) = rest.next() {
         match arg.as_str() {
             "--occluded" => occluded = true,
             "--against" => change = Some(rest.next().ok_or(usage)?.clone()),
+            "--base" => base = Some(rest.next().ok_or(usage)?.clone()),
+            "--kernel" => kernel = Some(parse_kernel(rest.next().ok_or(usage)?)?),
             _ => return Err(format!("unexpected argument {arg:?}; {usage}")),
         }
     }
     let tris = rt_geom::load_obj(mesh)
         .map_err(|e| e.to_string())?
         .triangles();
-    let bvh = TriBvh8::build_for_tracing(&tris).map_err(|e| e.to_string())?;
+    let mut bvh = TriBvh8::build_for_tracing(&tris).map_err(|e| e.to_string())?;
+    let mut built = rt_accel_bvh::BvhParams::fastest_trace();
+    if let Some(kernel) = kernel {
+        bvh = bvh.with_kernel(kernel);
+    }
+    if let Some(changes) = &base {
+        (bvh, built) = variant((&bvh, built), &tris, changes)?;
+    }
     let rays = read_rays(rays)?;
     println!(
         "{mesh}: {} triangles, {} rays{}, 1 thread, median of {ROUNDS}",
@@ -476,7 +527,7 @@ fn main() -> Result<(), String> {
         if occluded { ", any hit" } else { "" }
     );
     if let Some(change) = change {
-        let other = variant(&bvh, &tris, &change)?;
+        let (other, _) = variant((&bvh, built), &tris, &change)?;
         let mut speed = if occluded {
             against::<true>(&bvh, &other, &rays)
         } else {

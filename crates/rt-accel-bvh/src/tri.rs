@@ -279,6 +279,17 @@ mod tests {
         );
     }
 
+    mod tri8_spatial {
+        use super::*;
+        rt_testkit::conformance_tests!(
+            triangles: |p: &[Triangle]| TriBvh8::build(p, BvhParams::fastest_trace_spatial()),
+        );
+        rt_testkit::conformance_tests!(
+            moller_trumbore: |p: &[Triangle]| TriBvh8::build(p, BvhParams::fastest_trace_spatial())
+                .map(|b| b.with_kernel(TriangleKernel::MollerTrumbore)),
+        );
+    }
+
     mod tri8_prefetch {
         use super::*;
         rt_testkit::conformance_tests!(
